@@ -11,6 +11,7 @@
 //!    joints, frames, limits, validated once) and its preallocated workspace [`model::Data`].
 //! 3. [`dynamics`]: rigid-body algorithms (kinematics, Jacobians, RNEA, CRBA, Coriolis matrix,
 //!    energies), one per file, writing into `Data`.
+//! 4. [`tasks`]: the control tasks of Ch. 3 as one-dimensional task rows.
 //!
 //! ## Conventions
 //! - Sizes are const generics: `N` coordinates, `B` bodies, `F` frames; all matrices are
@@ -31,6 +32,7 @@
 pub mod dynamics;
 pub mod math;
 pub mod model;
+pub mod tasks;
 
 #[cfg(test)]
 mod test_models;

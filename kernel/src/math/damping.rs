@@ -1,0 +1,175 @@
+//! Damping design by double diagonalisation ([ASOFH03], used in Sec. 3.1.3 and 5.1.4).
+//!
+//! Given a reflected inertia `Λ ≻ 0` and a stiffness `K ⪰ 0` of a task (or of a collision pair),
+//! find `Q` with `Λ = Q Qᵀ` and `K = Q K₀ Qᵀ`, `K₀ = diag(k₀ᵢ)`. In the coordinates `z = Qᵀ x`
+//! the task dynamics `Λ ẍ + D ẋ + K x = 0` decouple into unit-mass oscillators
+//! `z̈ᵢ + d₀ᵢ żᵢ + k₀ᵢ zᵢ = 0`; choosing `d₀ᵢ = 2 ξᵢ √k₀ᵢ` gives every mode the damping ratio
+//! `ξᵢ`, and `D = Q diag(d₀ᵢ) Qᵀ`. Directions without stiffness (`k₀ᵢ = 0`, e.g. the common
+//! mode of a collision pair, (3.21)–(3.23)) get no damping.
+
+use core::fmt;
+
+use nalgebra::{Cholesky, RealField, SMatrix, SVector};
+
+use super::eigen::symmetric_eigen;
+
+/// The inertia given to [`double_diagonalization`]: either `Λ` itself or its inverse
+/// `Λ⁻¹ = J M⁻¹ Jᵀ`, which is what a task computes directly (no matrix inverse is formed).
+#[derive(Clone, Copy, Debug)]
+pub enum ReflectedInertia<'a, T, const D: usize> {
+    /// The reflected inertia `Λ` (kg, kg m²).
+    Inertia(&'a SMatrix<T, D, D>),
+    /// Its inverse `Λ⁻¹ = J M⁻¹ Jᵀ`.
+    Inverse(&'a SMatrix<T, D, D>),
+}
+
+/// Why no damping matrix could be designed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum DampingError {
+    /// `Λ` (or `Λ⁻¹`) is not symmetric positive definite: e.g. a task at a singularity.
+    InertiaNotPositiveDefinite,
+    /// `K` has a clearly negative eigenvalue.
+    StiffnessNotPositiveSemidefinite,
+    /// A damping ratio is negative, NaN or infinite.
+    InvalidDampingRatio,
+    /// An input contains NaN or infinity.
+    NonFinite,
+}
+
+impl fmt::Display for DampingError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Self::InertiaNotPositiveDefinite => "reflected inertia is not positive definite",
+            Self::StiffnessNotPositiveSemidefinite => "stiffness is not positive semidefinite",
+            Self::InvalidDampingRatio => "damping ratio is negative or NaN",
+            Self::NonFinite => "non-finite damping-design input",
+        })
+    }
+}
+
+impl core::error::Error for DampingError {}
+
+/// Damping matrix `D = Q diag(2 ξᵢ √k₀ᵢ) Qᵀ` with `Λ = Q Qᵀ`, `K = Q K₀ Qᵀ` (double
+/// diagonalisation, [ASOFH03]; (3.23) for collision pairs, Sec. 5.1.4 for Cartesian tasks).
+///
+/// With `Λ = L Lᵀ` (Cholesky): `L⁻¹ K L⁻ᵀ = V K₀ Vᵀ`, `Q = L V`. With `Λ⁻¹ = Lₐ Lₐᵀ`:
+/// `Λ = Lₐ⁻ᵀ Lₐ⁻¹`, `Lₐᵀ K Lₐ = V K₀ Vᵀ`, `Q = Lₐ⁻ᵀ V` (a triangular solve). Only triangular
+/// solves and a symmetric eigendecomposition ([`super::eigen::symmetric_eigen`]) are used.
+///
+/// Inputs: `Λ` or `Λ⁻¹` symmetric positive definite, `K` symmetric positive semidefinite
+/// (N/m, Nm/rad), `ξ ≥ 0` per mode (the mode order follows the eigen-solver; pass equal
+/// ratios unless the modes are known). Cost O(D³).
+///
+/// ```
+/// use kernel::math::damping::{double_diagonalization, ReflectedInertia};
+/// use nalgebra::{Matrix1, Vector1};
+/// // One mass of 2 kg on a 800 N/m spring, ξ = 0.7: d = 2·0.7·√(800·2) = 56 Ns/m.
+/// let d = double_diagonalization(ReflectedInertia::Inertia(&Matrix1::new(2.0_f64)), &Matrix1::new(800.0),
+///     &Vector1::new(0.7)).unwrap();
+/// assert!((d[0] - 56.0).abs() < 1e-12);
+/// ```
+pub fn double_diagonalization<T: RealField + Copy, const D: usize>(
+    inertia: ReflectedInertia<'_, T, D>,
+    stiffness: &SMatrix<T, D, D>,
+    damping_ratio: &SVector<T, D>,
+) -> Result<SMatrix<T, D, D>, DampingError> {
+    let given = match inertia {
+        ReflectedInertia::Inertia(m) | ReflectedInertia::Inverse(m) => m,
+    };
+    if !(super::all_finite(given) && super::all_finite(stiffness)) {
+        return Err(DampingError::NonFinite);
+    }
+    if damping_ratio.iter().any(|x| !x.is_finite() || *x < T::zero()) {
+        return Err(DampingError::InvalidDampingRatio);
+    }
+    let factor = Cholesky::new(*given).ok_or(DampingError::InertiaNotPositiveDefinite)?;
+    let l = factor.l();
+    let reduced = match inertia {
+        ReflectedInertia::Inertia(_) => {
+            let x = l.solve_lower_triangular(stiffness).ok_or(DampingError::InertiaNotPositiveDefinite)?;
+            l.solve_lower_triangular(&x.transpose()).ok_or(DampingError::InertiaNotPositiveDefinite)?
+        }
+        ReflectedInertia::Inverse(_) => l.transpose() * stiffness * l,
+    };
+    let reduced = (reduced + reduced.transpose()) * nalgebra::convert::<f64, T>(0.5);
+    let (k0, v) = symmetric_eigen(&reduced);
+    let q = match inertia {
+        ReflectedInertia::Inertia(_) => l * v,
+        ReflectedInertia::Inverse(_) => {
+            l.transpose().solve_upper_triangular(&v).ok_or(DampingError::InertiaNotPositiveDefinite)?
+        }
+    };
+    let tolerance = nalgebra::convert::<f64, T>(1e3) * T::default_epsilon() * (k0.amax() + T::one());
+    let mut modal = SVector::<T, D>::zeros();
+    for ((d0, k), xi) in modal.iter_mut().zip(k0.iter()).zip(damping_ratio.iter()) {
+        if *k < -tolerance {
+            return Err(DampingError::StiffnessNotPositiveSemidefinite);
+        }
+        *d0 = nalgebra::convert::<f64, T>(2.0) * *xi * k.max(T::zero()).sqrt();
+    }
+    Ok(q * SMatrix::from_diagonal(&modal) * q.transpose())
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
+    use super::*;
+    use nalgebra::{Matrix2, Matrix3, Matrix4, Vector2, Vector3};
+
+    /// Damping ratios of the closed loop Λẍ + Dẋ + Kx = 0 from the eigenvalues of its state
+    /// matrix (independent of the construction): ζ = −Re λ / |λ| for each complex pair.
+    fn closed_loop_damping_ratios(lambda: &Matrix2<f64>, d: &Matrix2<f64>, k: &Matrix2<f64>) -> [f64; 2] {
+        let inv = lambda.try_inverse().unwrap();
+        let mut a = Matrix4::zeros();
+        a.fixed_view_mut::<2, 2>(0, 2).copy_from(&Matrix2::identity());
+        a.fixed_view_mut::<2, 2>(2, 0).copy_from(&(-inv * k));
+        a.fixed_view_mut::<2, 2>(2, 2).copy_from(&(-inv * d));
+        let eig = a.complex_eigenvalues();
+        let mut ratios: Vec<f64> = eig.iter().filter(|l| l.im > 0.0).map(|l| -l.re / l.re.hypot(l.im)).collect();
+        ratios.sort_by(f64::total_cmp);
+        [ratios[0], ratios[1]]
+    }
+
+    #[test]
+    fn every_mode_gets_its_damping_ratio_for_both_inertia_inputs() {
+        let lambda = Matrix2::new(3.0, 0.8, 0.8, 1.5);
+        let k = Matrix2::new(900.0, -200.0, -200.0, 400.0);
+        let xi = Vector2::new(0.3, 0.3);
+        let d = double_diagonalization(ReflectedInertia::Inertia(&lambda), &k, &xi).unwrap();
+        let r = closed_loop_damping_ratios(&lambda, &d, &k);
+        assert!((r[0] - 0.3).abs() < 1e-9 && (r[1] - 0.3).abs() < 1e-9, "{r:?}");
+        let inverse = lambda.try_inverse().unwrap();
+        let d_inv = double_diagonalization(ReflectedInertia::Inverse(&inverse), &k, &xi).unwrap();
+        assert!((d - d_inv).amax() < 1e-9 * d.amax());
+        // Distinct ratios land on the two modes (which mode gets which follows the solver).
+        let d2 = double_diagonalization(ReflectedInertia::Inertia(&lambda), &k, &Vector2::new(0.2, 0.6)).unwrap();
+        let r2 = closed_loop_damping_ratios(&lambda, &d2, &k);
+        assert!((r2[0] - 0.2).abs() < 1e-9 && (r2[1] - 0.6).abs() < 1e-9, "{r2:?}");
+    }
+
+    #[test]
+    fn collision_pair_closed_form() {
+        // (3.21)–(3.23): pair stiffness k [[1,−1],[−1,1]], masses diag(m_i, m_j): the common
+        // mode is undamped and D = 2ξ√(k m_eff) [[1,−1],[−1,1]], m_eff = m_i m_j / (m_i + m_j).
+        let (mi, mj, k, xi): (f64, f64, f64, f64) = (4.0, 1.0, 300.0, 0.7);
+        let lambda = Matrix2::new(mi, 0.0, 0.0, mj);
+        let stiffness = Matrix2::new(k, -k, -k, k);
+        let d = double_diagonalization(ReflectedInertia::Inertia(&lambda), &stiffness, &Vector2::repeat(xi)).unwrap();
+        let expected = Matrix2::new(1.0, -1.0, -1.0, 1.0) * 2.0 * xi * (k * mi * mj / (mi + mj)).sqrt();
+        assert!((d - expected).amax() < 1e-10, "{d}");
+    }
+
+    #[test]
+    fn invalid_inputs_are_errors() {
+        let m = Matrix3::<f32>::identity();
+        let k = Matrix3::from_diagonal(&Vector3::new(1.0, -5.0, 1.0));
+        let xi = Vector3::repeat(0.7);
+        assert_eq!(double_diagonalization(ReflectedInertia::Inertia(&m), &k, &xi), Err(DampingError::StiffnessNotPositiveSemidefinite));
+        assert_eq!(double_diagonalization(ReflectedInertia::Inertia(&(-m)), &m, &xi), Err(DampingError::InertiaNotPositiveDefinite));
+        assert_eq!(double_diagonalization(ReflectedInertia::Inverse(&m), &m, &Vector3::new(0.7, f32::NAN, 0.7)), Err(DampingError::InvalidDampingRatio));
+        assert_eq!(double_diagonalization(ReflectedInertia::Inertia(&m), &(m * f32::INFINITY), &xi), Err(DampingError::NonFinite));
+        let d = double_diagonalization(ReflectedInertia::Inertia(&m), &(m * 4.0), &xi).unwrap();
+        assert!((d - m * 2.8).amax() < 1e-5, "f32 isotropic case: 2·0.7·√4 = 2.8");
+    }
+}

@@ -1,0 +1,156 @@
+//! Control tasks of Chapter 3 as one-dimensional task rows.
+//!
+//! Every task — a Cartesian impedance, a joint impedance, an end stop, a self-collision pair —
+//! produces **rows** (DESIGN.md, "Tasks emit one-dimensional rows"): a Jacobian row `j` (1×N),
+//! a scalar task force `f` (from the gradient of the task's potential plus damping), the
+//! row's share of the potential energy, and an activation `a ∈ [0, 1]`. An m-dimensional task
+//! is m rows; the hierarchy (Ch. 4) puts rows on priority levels and projects them. Used alone,
+//! a task's rows give the torque `τ = Σ jᵀ f = −(∂V/∂q)ᵀ − D q̇` ([`TaskRows::torque`]).
+//!
+//! Sign convention: `f` is the generalized force the task applies along its row direction,
+//! `f = −∂V/∂x − d ẋ` with `ẋ = j q̇`.
+
+use core::fmt;
+
+use heapless::Vec;
+use nalgebra::{RealField, RowSVector, SVector};
+
+use crate::dynamics::DynamicsError;
+
+/// One row of a task (one task-space direction).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TaskRow<T, const N: usize> {
+    /// Jacobian row `j` (1×N): the task velocity along this row is `ẋ = j q̇`.
+    pub jacobian: RowSVector<T, N>,
+    /// Task force `f` along the row (N or Nm); its joint torque is `jᵀ f`.
+    pub force: T,
+    /// This row's share of the task's potential energy (J); a task's rows sum to its `V`.
+    pub potential: T,
+    /// Activation `a ∈ [0, 1]`: 1 for bilateral tasks; unilateral constraints and algorithmic
+    /// singularities fade in and out (Sec. 4.4).
+    pub activation: T,
+}
+
+/// A fixed-capacity list of task rows (capacity `R`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TaskRows<T, const N: usize, const R: usize> {
+    rows: Vec<TaskRow<T, N>, R>,
+}
+
+impl<T: RealField + Copy, const N: usize, const R: usize> Default for TaskRows<T, N, R> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<T: RealField + Copy, const N: usize, const R: usize> TaskRows<T, N, R> {
+    /// An empty list.
+    pub const fn new() -> Self {
+        Self { rows: Vec::new() }
+    }
+
+    /// Removes every row.
+    pub fn clear(&mut self) {
+        self.rows.clear();
+    }
+
+    /// Appends a row; rejects non-finite rows and a full list (the list is unchanged then).
+    pub fn push(&mut self, row: TaskRow<T, N>) -> Result<(), TaskError> {
+        let finite = row.force.is_finite()
+            && row.potential.is_finite()
+            && row.activation.is_finite()
+            && row.jacobian.iter().all(|x| x.is_finite());
+        if !finite {
+            return Err(TaskError::NonFinite);
+        }
+        self.rows.push(row).map_err(|_| TaskError::Capacity { capacity: R })
+    }
+
+    /// The rows.
+    pub fn rows(&self) -> &[TaskRow<T, N>] {
+        &self.rows
+    }
+
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.rows.len()
+    }
+
+    /// `true` if there is no row.
+    pub fn is_empty(&self) -> bool {
+        self.rows.is_empty()
+    }
+
+    /// Torque of the rows used alone, without a hierarchy: `τ = Σ jᵀ f`.
+    pub fn torque(&self) -> SVector<T, N> {
+        self.rows.iter().fold(SVector::zeros(), |tau, r| tau + r.jacobian.transpose() * r.force)
+    }
+
+    /// Total potential energy of the rows (J).
+    pub fn potential(&self) -> T {
+        self.rows.iter().fold(T::zero(), |v, r| v + r.potential)
+    }
+}
+
+/// Why a task could not produce its rows. The row list is left as it was before the call.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum TaskError {
+    /// The row list is full.
+    Capacity {
+        /// Its capacity.
+        capacity: usize,
+    },
+    /// A computed or given value is NaN or infinite.
+    NonFinite,
+    /// A parameter is out of its valid range (negative stiffness, ξ < 0, lower > upper, ...).
+    InvalidParameter {
+        /// Which parameter.
+        name: &'static str,
+    },
+    /// A quantity that must be inverted is (numerically) singular.
+    Singular,
+    /// The dynamics refused their input.
+    Dynamics(DynamicsError),
+}
+
+impl From<DynamicsError> for TaskError {
+    fn from(e: DynamicsError) -> Self {
+        Self::Dynamics(e)
+    }
+}
+
+impl fmt::Display for TaskError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Capacity { capacity } => write!(f, "more than {capacity} task rows"),
+            Self::NonFinite => f.write_str("non-finite task value"),
+            Self::InvalidParameter { name } => write!(f, "invalid task parameter {name}"),
+            Self::Singular => f.write_str("singular task quantity"),
+            Self::Dynamics(e) => write!(f, "dynamics: {e}"),
+        }
+    }
+}
+
+impl core::error::Error for TaskError {}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, reason = "tests")]
+    use super::*;
+    use nalgebra::RowVector2;
+
+    #[test]
+    fn rows_sum_to_a_torque_and_reject_bad_input() {
+        let mut rows = TaskRows::<f64, 2, 2>::new();
+        let row = |j: [f64; 2], f| TaskRow { jacobian: RowVector2::new(j[0], j[1]), force: f, potential: 1.5, activation: 1.0 };
+        rows.push(row([1.0, 0.0], 2.0)).unwrap();
+        rows.push(row([0.5, 1.0], -4.0)).unwrap();
+        assert_eq!(rows.torque(), SVector::<f64, 2>::new(0.0, -4.0));
+        assert_eq!(rows.potential(), 3.0);
+        assert_eq!(rows.push(row([0.0, 0.0], 1.0)), Err(TaskError::Capacity { capacity: 2 }));
+        rows.clear();
+        assert_eq!(rows.push(row([f64::NAN, 0.0], 1.0)), Err(TaskError::NonFinite));
+        assert!(rows.is_empty());
+    }
+}
