@@ -1,0 +1,45 @@
+#!/usr/bin/env bash
+# The project's test command (README): sets up a fresh machine and runs every check.
+#   1. host tests of the whole workspace (kernel, hal, fixtures, host-sim, thesis tests)
+#   2. clippy with the panic-freedom lints as errors
+#   3. the firmware image for thumbv7em-none-eabihf, linked WITHOUT a global allocator:
+#      the link fails if anything in the kernel's dependency graph pulls in `alloc`
+#   4. a QEMU smoke run of that image on Cortex-M7 (mps2-an500) and Cortex-M4F (mps2-an386)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+step() { printf '\n==> %s\n' "$*"; }
+
+step "toolchain set-up"
+rustup target add thumbv7em-none-eabihf >/dev/null
+rustup component add clippy >/dev/null 2>&1 || true
+if ! command -v qemu-system-arm >/dev/null; then
+    export DEBIAN_FRONTEND=noninteractive
+    apt-get update -qq && apt-get install -y -qq qemu-system-arm >/dev/null
+fi
+
+step "kernel and hal build for thumbv7em-none-eabihf (no_std)"
+cargo build --locked -p kernel -p hal --target thumbv7em-none-eabihf --release
+
+step "no alloc/std in the kernel's dependency graph"
+if cargo tree --locked -p kernel --target thumbv7em-none-eabihf -e features --prefix none \
+    | grep -E '^(nalgebra|num-traits|simba|num-complex|heapless|libm) feature "(alloc|std)"'; then
+    echo "error: the kernel enables alloc/std in a dependency" >&2
+    exit 1
+fi
+
+step "firmware image (links without a global allocator)"
+(cd firmware && cargo build --locked --release)
+size_line=$(size -A firmware/target/thumbv7em-none-eabihf/release/firmware 2>/dev/null | grep -E '^\.(text|data|bss)' | tr '\n' ' ' || true)
+echo "firmware sections: ${size_line:-n/a}"
+
+step "QEMU smoke run (Cortex-M7, then Cortex-M4F)"
+for machine in mps2-an500 mps2-an386; do
+    (cd firmware && QEMU_MACHINE=$machine QEMU_TIMEOUT=120 cargo run --locked --release)
+done
+
+step "clippy (panic-freedom lints are errors)"
+cargo clippy --locked --workspace --all-targets -- -D warnings
+
+step "workspace tests"
+cargo test --locked --workspace

@@ -1,0 +1,24 @@
+//! # host-sim: the simulated robot behind the `hal` traits
+//!
+//! The host side of the product: it loads robot descriptions (URDF), simulates the robot's
+//! rigid-body dynamics at a fine fixed step with the mobile base driven kinematically by its
+//! velocity interface, implements the `hal` traits over that simulation, runs named scenarios
+//! (controller in the loop at 1 kHz) and writes their time series, summaries and plots.
+//!
+//! Modules:
+//! - [`urdf`]: URDF → kernel [`kernel::Model`] (fixed links lumped into their parents).
+//! - [`dynamics_cli`]: the `dynamics` subcommand (M, C, g, J of a URDF at given states).
+//! - [`sim`]: the simulator and its `hal` implementations.
+//! - [`controllers`]: controllers run in the loop by scenarios.
+//! - [`output`]: the scenario output convention (CSV, summary JSON, SVG plots).
+//! - [`scenario`]: the registry of named scenarios.
+//!
+//! Errors at this level are reported as one-line messages; nothing here panics on bad input.
+
+pub mod codegen;
+pub mod controllers;
+pub mod dynamics_cli;
+pub mod output;
+pub mod scenario;
+pub mod sim;
+pub mod urdf;

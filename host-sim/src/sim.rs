@@ -1,0 +1,792 @@
+//! The simulated robot behind the `hal` traits.
+//!
+//! [`Simulator`] integrates the rigid-body dynamics of a kernel [`Model`] whose first
+//! `base_dof ∈ {0, 3}` coordinates are a planar mobile base `r = (x, y, θ)` (world frame) and
+//! whose remaining `U` coordinates are the torque-controlled upper body `q_u`:
+//!
+//! - **Upper body** (torque-driven): the partitioned equations of motion (2.1) with the base
+//!   motion prescribed,
+//!   `M_uu(q) q̈_u = τ_u + τ_ext,u − h_u(q, q̇) − M_ur(q) r̈`, `h = C(q, q̇) q̇ + g(q)`,
+//!   integrated by classical fourth-order Runge–Kutta at a fixed physics step (default
+//!   [`DEFAULT_PHYSICS_STEP_S`] = 1/6000 s, twice the 3 kHz torque loop of Rollin' Justin).
+//!   Every derivative evaluation runs the kernel: [`forward_kinematics`], [`rnea`] with
+//!   `q̈ = (r̈, 0)` (which yields `h + M_·r r̈` in one pass), [`crba`] for `M`, and a Cholesky
+//!   solve of `M_uu` (nalgebra, fixed size).
+//! - **Mobile base** (kinematic, velocity-controlled): the base velocity follows the commanded
+//!   `ṙ_des` through a first-order lag `T` (`r̈ = (ṙ_des − ṙ)/T`), or exactly (`ṙ = ṙ_des`) for
+//!   `T = 0`. Because `ṙ_des` is held constant between commands, the lag is integrated in
+//!   closed form (`ṙ(s) = ṙ_des + (ṙ₀ − ṙ_des) e^{−s/T}`) at every Runge–Kutta stage, so the
+//!   base follows its first-order response exactly for any `T ≥ 0`. The upper body's reaction
+//!   on the base is not simulated: the base is an ideal velocity source (Sec. 5.1).
+//! - **Legs**: the four leg lengths `λ_i` integrate their commanded rates and stop at the end
+//!   stops of [`SimConfig`]. They do not enter the dynamics (the model has no leg coordinates).
+//! - **Actuation**: the commanded torque is held constant between commands (zero-order hold)
+//!   and clamped to the model's effort limits ([`kernel::model::JointLimits::effort`]);
+//!   whether a clamp happened is reported per command and per step. The torque sensors measure
+//!   the applied (clamped) torque exactly.
+//! - **Disturbances**: [`Simulator::push`] adds a world-frame force at a frame's origin for a
+//!   time window, applied as `τ_ext = J_pᵀ F` with the frame's positional Jacobian
+//!   ([`frame_jacobian`]).
+//! - Joint position limits (end stops) are not simulated; there is no friction and no noise.
+//!
+//! The simulator is ideal: reads never fail. A non-finite command is refused with a
+//! [`SimError`] of kind [`ErrorKind::OutOfRange`] and triggers the documented safe reaction
+//! (brakes for the upper body, a stop for the base), see the trait implementations.
+//!
+//! [`run_loop`] runs a controller at a fixed control period (1 kHz by default) with the physics
+//! substeps in between.
+
+use core::fmt;
+
+use hal::{
+    CycleClock, ErrorKind, ErrorType, JointSample, JointTorqueInterface, PlatformCommand, PlatformSample,
+    PlatformVelocityInterface, LEGS,
+};
+use kernel::dynamics::{
+    crba, forward_kinematics, frame_jacobian, kinetic_energy, potential_energy, rnea, DynamicsError,
+};
+use kernel::model::{Data, FrameId, Model, Placement};
+use nalgebra::{Cholesky, SMatrix, SVector, Vector3};
+
+/// Default physics step (s): 1/6000 s, twice the rate of Rollin' Justin's 3 kHz torque loop.
+pub const DEFAULT_PHYSICS_STEP_S: f64 = 1.0 / 6000.0;
+
+/// Control period of the main loop (s): 1 kHz (DESIGN.md, "control rates").
+pub const CONTROL_PERIOD_S: f64 = 1e-3;
+
+/// Number of planar base coordinates `(x, y, θ)` of a mobile robot.
+pub const PLANAR_BASE_DOF: usize = 3;
+
+/// Tick rate of the simulator's [`CycleClock`]: microseconds of simulated time.
+pub const CLOCK_TICKS_PER_SECOND: u32 = 1_000_000;
+
+/// Settings of the simulator, validated by [`Simulator::new`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SimConfig {
+    /// Fixed Runge–Kutta step (s), `> 0`.
+    pub physics_step_s: f64,
+    /// Time constant `T` (s) of the base velocity loop, `≥ 0`; `0` means `ṙ = ṙ_des` exactly.
+    pub base_lag_s: f64,
+    /// Shortest leg length (m), the inner end stop.
+    pub leg_length_min_m: f64,
+    /// Longest leg length (m), the outer end stop.
+    pub leg_length_max_m: f64,
+    /// Initial length of every leg (m), inside the end stops.
+    pub initial_leg_length_m: f64,
+}
+
+impl Default for SimConfig {
+    /// 1/6000 s physics step, ideal base (`T = 0`), legs of the Justin-like platform
+    /// ([`fixtures::justin::LEG_LENGTH_MIN`] … [`fixtures::justin::LEG_LENGTH_MAX`], starting at
+    /// [`fixtures::justin::LEG_LENGTH_NOMINAL`]).
+    fn default() -> Self {
+        Self {
+            physics_step_s: DEFAULT_PHYSICS_STEP_S,
+            base_lag_s: 0.0,
+            leg_length_min_m: fixtures::justin::LEG_LENGTH_MIN,
+            leg_length_max_m: fixtures::justin::LEG_LENGTH_MAX,
+            initial_leg_length_m: fixtures::justin::LEG_LENGTH_NOMINAL,
+        }
+    }
+}
+
+/// Why the simulator refused a setting, a state or a command.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SimError {
+    /// The model's `N` is not `base_dof + U` with `base_dof ∈ {0, 3}`.
+    InvalidDimensions {
+        /// Coordinates of the model (`N`).
+        coordinates: usize,
+        /// Upper-body coordinates (`U`).
+        upper_body: usize,
+    },
+    /// A configuration value is out of its documented range (or NaN).
+    InvalidConfig {
+        /// The offending field of [`SimConfig`] (or argument).
+        field: &'static str,
+    },
+    /// A command or a state contains NaN or ±∞.
+    NonFinite {
+        /// What was not finite.
+        what: &'static str,
+    },
+    /// A non-zero base velocity was commanded to a robot without a mobile base.
+    FixedBase,
+    /// A frame id is not in the model.
+    UnknownFrame,
+    /// A kernel dynamics algorithm failed (the state diverged).
+    Dynamics(DynamicsError),
+}
+
+impl fmt::Display for SimError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::InvalidDimensions { coordinates, upper_body } => write!(
+                f,
+                "model has {coordinates} coordinates, which is not 0 or 3 base coordinates plus {upper_body} upper-body ones"
+            ),
+            Self::InvalidConfig { field } => write!(f, "invalid simulator setting `{field}`"),
+            Self::NonFinite { what } => write!(f, "{what} is not finite"),
+            Self::FixedBase => f.write_str("non-zero base velocity commanded to a fixed-base robot"),
+            Self::UnknownFrame => f.write_str("unknown frame"),
+            Self::Dynamics(e) => write!(f, "dynamics: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for SimError {}
+
+impl hal::Error for SimError {
+    fn kind(&self) -> ErrorKind {
+        match self {
+            Self::Dynamics(_) => ErrorKind::Other,
+            _ => ErrorKind::OutOfRange,
+        }
+    }
+}
+
+impl From<DynamicsError> for SimError {
+    fn from(e: DynamicsError) -> Self {
+        Self::Dynamics(e)
+    }
+}
+
+/// A world-frame force applied at the origin of a frame during `[start_s, start_s + duration_s)`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Push {
+    /// Frame at whose origin the force acts.
+    pub frame: FrameId,
+    /// Force (N), world frame.
+    pub force_world: Vector3<f64>,
+    /// Start time (s, simulated).
+    pub start_s: f64,
+    /// Duration (s).
+    pub duration_s: f64,
+}
+
+impl Push {
+    fn active(&self, t: f64) -> bool {
+        t >= self.start_s && t < self.start_s + self.duration_s
+    }
+}
+
+/// What happened during one physics step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepReport {
+    /// Simulated time at the end of the step (s).
+    pub time_s: f64,
+    /// The torque applied during the step was clamped at an effort limit.
+    pub torque_saturated: bool,
+    /// At least one push acted during the step.
+    pub pushed: bool,
+}
+
+/// Kinetic, potential and total energy (J) of the robot (kernel [`kinetic_energy`],
+/// [`potential_energy`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Energies {
+    /// Kinetic energy `½ q̇ᵀ M q̇` (J), base motion included.
+    pub kinetic: f64,
+    /// Gravitational potential energy (J), relative to the world origin.
+    pub potential: f64,
+    /// Sum of both (J).
+    pub total: f64,
+}
+
+/// Motion of the kinematic base over one physics step with the command held constant.
+#[derive(Clone, Copy, Debug)]
+struct BaseMotion {
+    pose: [f64; 3],
+    velocity: [f64; 3],
+    desired: [f64; 3],
+    lag_s: f64,
+}
+
+impl BaseMotion {
+    /// `(r, ṙ, r̈)` at `s` seconds into the step: exact first-order lag response.
+    fn at(&self, s: f64) -> ([f64; 3], [f64; 3], [f64; 3]) {
+        let mut out = ([0.0; 3], [0.0; 3], [0.0; 3]);
+        let axes = self.pose.iter().zip(self.velocity.iter()).zip(self.desired.iter());
+        let slots = out.0.iter_mut().zip(out.1.iter_mut()).zip(out.2.iter_mut());
+        for (((r0, v0), vd), ((r, v), a)) in axes.zip(slots) {
+            (*r, *v, *a) = if self.lag_s > 0.0 {
+                let decay = (-s / self.lag_s).exp();
+                let gap = v0 - vd;
+                (
+                    r0 + vd * s + gap * self.lag_s * (1.0 - decay),
+                    vd + gap * decay,
+                    -gap * decay / self.lag_s,
+                )
+            } else {
+                (r0 + vd * s, *vd, 0.0)
+            };
+        }
+        out
+    }
+}
+
+/// The simulated robot: a kernel model with a kinematic planar base (`N − U ∈ {0, 3}`
+/// coordinates) and `U` torque-controlled upper-body coordinates.
+///
+/// Time advances only through [`Simulator::step`] (one physics step) or
+/// [`Simulator::advance`]; the `hal` implementations read the current state and set the
+/// commands held from then on.
+#[derive(Clone, Debug)]
+pub struct Simulator<const N: usize, const B: usize, const F: usize, const U: usize> {
+    model: Model<f64, N, B, F>,
+    data: Data<f64, N, B, F>,
+    config: SimConfig,
+    base_dof: usize,
+    q: SVector<f64, N>,
+    v: SVector<f64, N>,
+    steps: u64,
+    torque: SVector<f64, U>,
+    torque_saturated: bool,
+    brakes: bool,
+    base_command: PlatformCommand<f64>,
+    legs: [f64; LEGS],
+    pushes: Vec<Push>,
+}
+
+impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N, B, F, U> {
+    /// A simulator of `model` at rest at `q = 0`, `t = 0`, with zero commands.
+    ///
+    /// Errors: [`SimError::InvalidDimensions`] unless `N = U` (fixed base) or `N = U + 3`
+    /// (planar base first); [`SimError::InvalidConfig`] for a non-positive step, a negative
+    /// lag or an empty/ill-ordered leg range.
+    pub fn new(model: Model<f64, N, B, F>, config: SimConfig) -> Result<Self, SimError> {
+        let base_dof = match N.checked_sub(U) {
+            Some(b @ (0 | PLANAR_BASE_DOF)) if U > 0 => b,
+            _ => {
+                return Err(SimError::InvalidDimensions {
+                    coordinates: N,
+                    upper_body: U,
+                })
+            }
+        };
+        validate(&config)?;
+        let data = Data::new(&model);
+        Ok(Self {
+            model,
+            data,
+            config,
+            base_dof,
+            q: SVector::zeros(),
+            v: SVector::zeros(),
+            steps: 0,
+            torque: SVector::zeros(),
+            torque_saturated: false,
+            brakes: false,
+            base_command: PlatformCommand {
+                velocity: [0.0; 3],
+                leg_rates: [0.0; LEGS],
+            },
+            legs: [config.initial_leg_length_m; LEGS],
+            pushes: Vec::new(),
+        })
+    }
+
+    /// Sets the full state `(q, q̇)` (base coordinates first). Errors: non-finite values.
+    pub fn set_state(&mut self, q: SVector<f64, N>, v: SVector<f64, N>) -> Result<(), SimError> {
+        if !q.iter().chain(v.iter()).all(|x| x.is_finite()) {
+            return Err(SimError::NonFinite { what: "state" });
+        }
+        self.q = q;
+        self.v = v;
+        Ok(())
+    }
+
+    /// Coordinates `q` (base first), rad or m.
+    pub fn q(&self) -> &SVector<f64, N> {
+        &self.q
+    }
+
+    /// Velocities `q̇` (base first), rad/s or m/s.
+    pub fn v(&self) -> &SVector<f64, N> {
+        &self.v
+    }
+
+    /// Upper-body coordinates `q_u`.
+    pub fn upper_q(&self) -> SVector<f64, U> {
+        upper(&self.q, self.base_dof)
+    }
+
+    /// Upper-body velocities `q̇_u`.
+    pub fn upper_v(&self) -> SVector<f64, U> {
+        upper(&self.v, self.base_dof)
+    }
+
+    /// The applied (clamped) upper-body torque `τ_u` (Nm or N).
+    pub fn applied_torque(&self) -> &SVector<f64, U> {
+        &self.torque
+    }
+
+    /// `true` if the last torque command was clamped at an effort limit.
+    pub fn torque_saturated(&self) -> bool {
+        self.torque_saturated
+    }
+
+    /// `true` while the brakes hold the upper body (after a non-finite torque command).
+    pub fn brakes_engaged(&self) -> bool {
+        self.brakes
+    }
+
+    /// Leg lengths `λ_i` (m).
+    pub fn leg_lengths(&self) -> [f64; LEGS] {
+        self.legs
+    }
+
+    /// Number of base coordinates (0 or 3).
+    pub fn base_dof(&self) -> usize {
+        self.base_dof
+    }
+
+    /// Simulated time (s): the number of physics steps times the step.
+    pub fn time_s(&self) -> f64 {
+        #[allow(clippy::cast_precision_loss, reason = "step counts stay far below 2^52")]
+        let steps = self.steps as f64;
+        steps * self.config.physics_step_s
+    }
+
+    /// Number of physics steps taken.
+    pub fn steps(&self) -> u64 {
+        self.steps
+    }
+
+    /// The settings.
+    pub fn config(&self) -> &SimConfig {
+        &self.config
+    }
+
+    /// The simulated model.
+    pub fn model(&self) -> &Model<f64, N, B, F> {
+        &self.model
+    }
+
+    /// Schedules a world-frame force `force_world` (N) at the origin of `frame` during
+    /// `[start_s, start_s + duration_s)`. Any number of pushes may overlap.
+    ///
+    /// Errors: unknown frame, non-finite force or times, negative duration.
+    pub fn push(
+        &mut self,
+        frame: FrameId,
+        force_world: Vector3<f64>,
+        start_s: f64,
+        duration_s: f64,
+    ) -> Result<(), SimError> {
+        self.model.frame(frame).ok_or(SimError::UnknownFrame)?;
+        if !force_world
+            .iter()
+            .chain([start_s, duration_s].iter())
+            .all(|x| x.is_finite())
+        {
+            return Err(SimError::NonFinite { what: "push" });
+        }
+        if duration_s < 0.0 {
+            return Err(SimError::InvalidConfig { field: "duration_s" });
+        }
+        self.pushes.push(Push {
+            frame,
+            force_world,
+            start_s,
+            duration_s,
+        });
+        Ok(())
+    }
+
+    /// Sum of the pushes active at time `t` on `frame` (N, world frame).
+    pub fn push_force(&self, frame: FrameId, t: f64) -> Vector3<f64> {
+        self.pushes
+            .iter()
+            .filter(|p| p.frame == frame && p.active(t))
+            .map(|p| p.force_world)
+            .sum()
+    }
+
+    /// World placement of `frame` at the current state.
+    pub fn frame_placement(&mut self, frame: FrameId) -> Result<Placement<f64>, SimError> {
+        forward_kinematics(&self.model, &mut self.data, &self.q, &self.v)?;
+        self.data
+            .frame_placements
+            .get(frame.0)
+            .copied()
+            .ok_or(SimError::UnknownFrame)
+    }
+
+    /// Kinetic, potential and total energy at the current state.
+    pub fn energies(&mut self) -> Result<Energies, SimError> {
+        forward_kinematics(&self.model, &mut self.data, &self.q, &self.v)?;
+        let kinetic = kinetic_energy(&self.model, &self.data);
+        let potential = potential_energy(&self.model, &self.data);
+        Ok(Energies {
+            kinetic,
+            potential,
+            total: kinetic + potential,
+        })
+    }
+
+    /// Upper-body accelerations `q̈_u` at time `t` (absolute) and state `(q, v)` with the base
+    /// accelerating at `base_acceleration`.
+    fn upper_acceleration(
+        &mut self,
+        t: f64,
+        q: &SVector<f64, N>,
+        v: &SVector<f64, N>,
+        base_acceleration: &[f64; 3],
+    ) -> Result<SVector<f64, U>, SimError> {
+        let b = self.base_dof;
+        forward_kinematics(&self.model, &mut self.data, q, v)?;
+        let mut qdd = SVector::<f64, N>::zeros();
+        for (slot, a) in qdd.iter_mut().zip(base_acceleration.iter()).take(b) {
+            *slot = *a;
+        }
+        // h + M_·r r̈ in one RNEA pass.
+        let bias = *rnea(&self.model, &mut self.data, &qdd)?;
+        let mut rhs: SVector<f64, U> = self.torque - upper(&bias, b);
+        let mut jacobian = SMatrix::<f64, 6, N>::zeros();
+        for p in self.pushes.iter().filter(|p| p.active(t)) {
+            frame_jacobian(&self.model, &self.data, p.frame, &mut jacobian)?;
+            let generalized: SVector<f64, N> = jacobian.fixed_rows::<3>(0).transpose() * p.force_world;
+            rhs += upper(&generalized, b);
+        }
+        crba(&self.model, &mut self.data);
+        let m_uu = self.data.mass_matrix.fixed_view::<U, U>(b, b).into_owned();
+        let factor = Cholesky::new(m_uu).ok_or(SimError::Dynamics(DynamicsError::MassMatrixNotPositiveDefinite))?;
+        Ok(factor.solve(&rhs))
+    }
+
+    /// The full state from the upper-body state and the base state.
+    fn assemble(
+        &self,
+        qu: &SVector<f64, U>,
+        vu: &SVector<f64, U>,
+        r: &[f64; 3],
+        rd: &[f64; 3],
+    ) -> (SVector<f64, N>, SVector<f64, N>) {
+        let b = self.base_dof;
+        let mut q = SVector::<f64, N>::zeros();
+        let mut v = SVector::<f64, N>::zeros();
+        for (i, (rv, rdv)) in r.iter().zip(rd.iter()).enumerate().take(b) {
+            if let (Some(qi), Some(vi)) = (q.get_mut(i), v.get_mut(i)) {
+                *qi = *rv;
+                *vi = *rdv;
+            }
+        }
+        q.fixed_rows_mut::<U>(b).copy_from(qu);
+        v.fixed_rows_mut::<U>(b).copy_from(vu);
+        (q, v)
+    }
+
+    /// Advances the simulation by one physics step (classical RK4 for the upper body,
+    /// closed-form base motion, leg integration with end stops).
+    ///
+    /// Errors: [`SimError::Dynamics`] if the state diverged (the state is then unchanged).
+    pub fn step(&mut self) -> Result<StepReport, SimError> {
+        let h = self.config.physics_step_s;
+        let t0 = self.time_s();
+        let b = self.base_dof;
+        let mut base = BaseMotion {
+            pose: [0.0; 3],
+            velocity: [0.0; 3],
+            desired: [0.0; 3],
+            lag_s: self.config.base_lag_s,
+        };
+        for i in 0..b {
+            if let (Some(p), Some(v), Some(d), Some(q), Some(qd), Some(cmd)) = (
+                base.pose.get_mut(i),
+                base.velocity.get_mut(i),
+                base.desired.get_mut(i),
+                self.q.get(i),
+                self.v.get(i),
+                self.base_command.velocity.get(i),
+            ) {
+                *p = *q;
+                *v = *qd;
+                *d = *cmd;
+            }
+        }
+        let qu0 = self.upper_q();
+        let vu0 = if self.brakes { SVector::zeros() } else { self.upper_v() };
+        let pushed = self.pushes.iter().any(|p| p.active(t0));
+
+        let (qu, vu) = if self.brakes {
+            (qu0, vu0)
+        } else {
+            let mut stage = |s: f64, qu: &SVector<f64, U>, vu: &SVector<f64, U>| -> Result<SVector<f64, U>, SimError> {
+                let (r, rd, rdd) = base.at(s);
+                let (q, v) = self.assemble(qu, vu, &r, &rd);
+                self.upper_acceleration(t0 + s, &q, &v, &rdd)
+            };
+            let half = 0.5 * h;
+            let a1 = stage(0.0, &qu0, &vu0)?;
+            let (q2, v2) = (qu0 + vu0 * half, vu0 + a1 * half);
+            let a2 = stage(half, &q2, &v2)?;
+            let (q3, v3) = (qu0 + v2 * half, vu0 + a2 * half);
+            let a3 = stage(half, &q3, &v3)?;
+            let (q4, v4) = (qu0 + v3 * h, vu0 + a3 * h);
+            let a4 = stage(h, &q4, &v4)?;
+            let sixth = h / 6.0;
+            (
+                qu0 + (vu0 + v2 * 2.0 + v3 * 2.0 + v4) * sixth,
+                vu0 + (a1 + a2 * 2.0 + a3 * 2.0 + a4) * sixth,
+            )
+        };
+        if !qu.iter().chain(vu.iter()).all(|x| x.is_finite()) {
+            return Err(SimError::Dynamics(DynamicsError::NonFinite { input: "state" }));
+        }
+        let (r, rd, _) = base.at(h);
+        let (q, v) = self.assemble(&qu, &vu, &r, &rd);
+        self.q = q;
+        self.v = v;
+        let (lo, hi) = (self.config.leg_length_min_m, self.config.leg_length_max_m);
+        for (leg, rate) in self.legs.iter_mut().zip(self.base_command.leg_rates.iter()) {
+            *leg = (*leg + rate * h).clamp(lo, hi);
+        }
+        self.steps += 1;
+        Ok(StepReport {
+            time_s: self.time_s(),
+            torque_saturated: self.torque_saturated,
+            pushed,
+        })
+    }
+
+    /// Advances by `duration_s` rounded to a whole number (at least one) of physics steps.
+    /// Returns the number of steps and whether any of them ran with a clamped torque.
+    pub fn advance(&mut self, duration_s: f64) -> Result<(u64, bool), SimError> {
+        let n = substeps(duration_s, self.config.physics_step_s)?;
+        let mut saturated = false;
+        for _ in 0..n {
+            saturated |= self.step()?.torque_saturated;
+        }
+        Ok((n, saturated))
+    }
+}
+
+/// `ceil`-free rounding of a period to a whole number (≥ 1) of steps.
+fn substeps(period_s: f64, step_s: f64) -> Result<u64, SimError> {
+    let ratio = period_s / step_s;
+    if !ratio.is_finite() || ratio < 0.5 {
+        return Err(SimError::InvalidConfig { field: "period_s" });
+    }
+    #[allow(
+        clippy::cast_possible_truncation,
+        clippy::cast_sign_loss,
+        reason = "finite, ≥ 0.5, rounded"
+    )]
+    let n = ratio.round() as u64;
+    Ok(n.max(1))
+}
+
+fn validate(c: &SimConfig) -> Result<(), SimError> {
+    let bad = |field| Err(SimError::InvalidConfig { field });
+    if !(c.physics_step_s > 0.0 && c.physics_step_s.is_finite()) {
+        return bad("physics_step_s");
+    }
+    if !(c.base_lag_s >= 0.0 && c.base_lag_s.is_finite()) {
+        return bad("base_lag_s");
+    }
+    if !(c.leg_length_min_m.is_finite() && c.leg_length_max_m.is_finite() && c.leg_length_min_m <= c.leg_length_max_m) {
+        return bad("leg_length_min_m/leg_length_max_m");
+    }
+    if !(c.initial_leg_length_m >= c.leg_length_min_m && c.initial_leg_length_m <= c.leg_length_max_m) {
+        return bad("initial_leg_length_m");
+    }
+    Ok(())
+}
+
+/// Rows `b..b+U` of a coordinate vector.
+fn upper<const N: usize, const U: usize>(x: &SVector<f64, N>, b: usize) -> SVector<f64, U> {
+    x.fixed_rows::<U>(b).into_owned()
+}
+
+impl<const N: usize, const B: usize, const F: usize, const U: usize> ErrorType for Simulator<N, B, F, U> {
+    type Error = SimError;
+}
+
+/// The upper body: coordinates `base_dof..N` of the model, in model order.
+///
+/// - `read` never fails. `cycle` is the number of physics steps taken (a new sensor frame every
+///   physics step); `torque` is the applied (clamped) torque.
+/// - `write_torque` clamps each entry to `±effort` of the model's limits (reported by
+///   [`Simulator::torque_saturated`]). A non-finite entry is refused with
+///   [`SimError::NonFinite`] (kind `OutOfRange`) and engages the **brakes**: the upper body is
+///   held at rest (`q̇_u = 0`) with zero torque until the next valid command releases them.
+impl<const N: usize, const B: usize, const F: usize, const U: usize> JointTorqueInterface<f64, U>
+    for Simulator<N, B, F, U>
+{
+    fn read(&mut self) -> Result<JointSample<f64, U>, SimError> {
+        Ok(JointSample {
+            position: self.upper_q().into(),
+            velocity: if self.brakes { [0.0; U] } else { self.upper_v().into() },
+            torque: self.torque.into(),
+            cycle: self.steps,
+        })
+    }
+
+    fn write_torque(&mut self, torque: &[f64; U]) -> Result<(), SimError> {
+        if !torque.iter().all(|x| x.is_finite()) {
+            self.brakes = true;
+            self.torque = SVector::zeros();
+            self.torque_saturated = false;
+            self.v.fixed_rows_mut::<U>(self.base_dof).fill(0.0);
+            return Err(SimError::NonFinite { what: "torque command" });
+        }
+        let limits: SVector<f64, U> = upper(&self.model.limits.effort, self.base_dof);
+        let mut saturated = false;
+        for ((applied, commanded), limit) in self.torque.iter_mut().zip(torque.iter()).zip(limits.iter()) {
+            let clamped = commanded.clamp(-limit, *limit);
+            saturated |= clamped != *commanded;
+            *applied = clamped;
+        }
+        self.torque_saturated = saturated;
+        self.brakes = false;
+        Ok(())
+    }
+}
+
+/// The mobile base: coordinates `0..3` (`x`, `y`, `θ`, world frame) and the four legs.
+///
+/// - `read` never fails; a fixed-base robot reads a zero pose and velocity. `cycle` counts
+///   physics steps.
+/// - `write_velocity` sets `ṙ_des`, tracked with the configured first-order lag, and the leg
+///   rates (legs stop at their end stops). A non-finite entry is refused with
+///   [`SimError::NonFinite`] and the base **stops**: `ṙ_des = 0`, leg rates 0 (with a lag the
+///   base decelerates with the lag). A non-zero velocity for a fixed-base robot is refused
+///   with [`SimError::FixedBase`] and the previous command stays in force.
+impl<const N: usize, const B: usize, const F: usize, const U: usize> PlatformVelocityInterface<f64>
+    for Simulator<N, B, F, U>
+{
+    fn read(&mut self) -> Result<PlatformSample<f64>, SimError> {
+        let mut pose = [0.0; 3];
+        let mut velocity = [0.0; 3];
+        for (i, (p, v)) in pose.iter_mut().zip(velocity.iter_mut()).enumerate().take(self.base_dof) {
+            *p = self.q.get(i).copied().unwrap_or(0.0);
+            *v = self.v.get(i).copied().unwrap_or(0.0);
+        }
+        Ok(PlatformSample {
+            pose,
+            velocity,
+            leg_lengths: self.legs,
+            cycle: self.steps,
+        })
+    }
+
+    fn write_velocity(&mut self, command: &PlatformCommand<f64>) -> Result<(), SimError> {
+        if !command
+            .velocity
+            .iter()
+            .chain(command.leg_rates.iter())
+            .all(|x| x.is_finite())
+        {
+            self.base_command = PlatformCommand {
+                velocity: [0.0; 3],
+                leg_rates: [0.0; LEGS],
+            };
+            return Err(SimError::NonFinite {
+                what: "platform command",
+            });
+        }
+        if self.base_dof == 0 && command.velocity.iter().any(|v| *v != 0.0) {
+            return Err(SimError::FixedBase);
+        }
+        self.base_command = *command;
+        Ok(())
+    }
+}
+
+/// Simulated time in microseconds ([`CLOCK_TICKS_PER_SECOND`]), rounded to the nearest µs;
+/// it advances only with the physics, never with wall-clock time.
+impl<const N: usize, const B: usize, const F: usize, const U: usize> CycleClock for Simulator<N, B, F, U> {
+    fn now(&mut self) -> Result<u64, SimError> {
+        let micros = (self.time_s() * f64::from(CLOCK_TICKS_PER_SECOND)).round();
+        #[allow(
+            clippy::cast_possible_truncation,
+            clippy::cast_sign_loss,
+            reason = "time is ≥ 0 and far below 2^64 µs"
+        )]
+        Ok(micros as u64)
+    }
+
+    fn ticks_per_second(&self) -> u32 {
+        CLOCK_TICKS_PER_SECOND
+    }
+}
+
+/// One control instant of [`run_loop`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CycleInfo {
+    /// Control cycle index (0, 1, …).
+    pub cycle: u64,
+    /// Simulated time of the controller call (s).
+    pub time_s: f64,
+}
+
+/// Totals of one [`run_loop`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LoopReport {
+    /// Controller calls.
+    pub control_cycles: u64,
+    /// Physics steps.
+    pub physics_steps: u64,
+    /// Physics steps run with a clamped torque.
+    pub saturated_steps: u64,
+}
+
+/// Runs a controller in the loop for `duration_s` of simulated time.
+///
+/// Every `control_period_s` (rounded to a whole number of physics steps; 1 ms = 6 steps by
+/// default) `cycle(sim, &info)` is called once: it runs the controller (read the sensors,
+/// compute, write the commands through the `hal` traits) and records whatever the scenario
+/// logs (the state at the call and the command just written). Then the physics advances to
+/// the next call with the commands held (zero-order hold).
+///
+/// Errors: the first error of `cycle` or of the physics.
+pub fn run_loop<const N: usize, const B: usize, const F: usize, const U: usize, C>(
+    sim: &mut Simulator<N, B, F, U>,
+    duration_s: f64,
+    control_period_s: f64,
+    mut cycle: C,
+) -> Result<LoopReport, SimError>
+where
+    C: FnMut(&mut Simulator<N, B, F, U>, &CycleInfo) -> Result<(), SimError>,
+{
+    let substeps = substeps(control_period_s, sim.config.physics_step_s)?;
+    #[allow(clippy::cast_precision_loss, reason = "a handful of substeps")]
+    let period = sim.config.physics_step_s * substeps as f64;
+    let cycles = substeps_of(duration_s, period)?;
+    let mut report = LoopReport {
+        control_cycles: 0,
+        physics_steps: 0,
+        saturated_steps: 0,
+    };
+    for index in 0..cycles {
+        cycle(
+            sim,
+            &CycleInfo {
+                cycle: index,
+                time_s: sim.time_s(),
+            },
+        )?;
+        for _ in 0..substeps {
+            let step = sim.step()?;
+            report.physics_steps += 1;
+            report.saturated_steps += u64::from(step.torque_saturated);
+        }
+        report.control_cycles += 1;
+    }
+    Ok(report)
+}
+
+/// Number of whole periods in a duration (rounded; zero allowed).
+fn substeps_of(duration_s: f64, period_s: f64) -> Result<u64, SimError> {
+    let ratio = duration_s / period_s;
+    if !ratio.is_finite() || ratio < 0.0 {
+        return Err(SimError::InvalidConfig { field: "duration_s" });
+    }
+    #[allow(
+        clippy::cast_possible_truncation,
+        clippy::cast_sign_loss,
+        reason = "finite, ≥ 0, rounded"
+    )]
+    Ok(ratio.round() as u64)
+}

@@ -1,0 +1,12 @@
+//! Cross-crate integration tests: the thesis' results as executable checks, one module per
+//! subject (dynamics against independent references and properties, simulation, fixtures).
+//! The tests live in `#[cfg(test)]` modules; the library itself is empty.
+
+#[cfg(test)]
+mod dynamics_properties;
+#[cfg(test)]
+mod dynamics;
+#[cfg(test)]
+mod fixtures_models;
+#[cfg(test)]
+mod simulation;
