@@ -553,7 +553,7 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N
     /// Advances by `duration_s` rounded to a whole number (at least one) of physics steps.
     /// Returns the number of steps and whether any of them ran with a clamped torque.
     pub fn advance(&mut self, duration_s: f64) -> Result<(u64, bool), SimError> {
-        let n = substeps(duration_s, self.config.physics_step_s)?;
+        let n = whole_periods(duration_s, self.config.physics_step_s, 1, "period_s")?;
         let mut saturated = false;
         for _ in 0..n {
             saturated |= self.step()?.torque_saturated;
@@ -562,19 +562,19 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N
     }
 }
 
-/// `ceil`-free rounding of a period to a whole number (≥ 1) of steps.
-fn substeps(period_s: f64, step_s: f64) -> Result<u64, SimError> {
-    let ratio = period_s / step_s;
-    if !ratio.is_finite() || ratio < 0.5 {
-        return Err(SimError::InvalidConfig { field: "period_s" });
+/// Number of whole `period_s` in `duration_s`, rounded to nearest, at least `minimum`.
+/// `field` names the configuration value blamed when the ratio is not finite or below
+/// `minimum − ½`.
+fn whole_periods(duration_s: f64, period_s: f64, minimum: u64, field: &'static str) -> Result<u64, SimError> {
+    let ratio = duration_s / period_s;
+    #[allow(clippy::cast_precision_loss, reason = "minimum is 0 or 1")]
+    let lowest = minimum as f64 - 0.5;
+    if !ratio.is_finite() || ratio < lowest.max(0.0) {
+        return Err(SimError::InvalidConfig { field });
     }
-    #[allow(
-        clippy::cast_possible_truncation,
-        clippy::cast_sign_loss,
-        reason = "finite, ≥ 0.5, rounded"
-    )]
+    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss, reason = "finite, ≥ 0, rounded")]
     let n = ratio.round() as u64;
-    Ok(n.max(1))
+    Ok(n.max(minimum))
 }
 
 fn validate(c: &SimConfig) -> Result<(), SimError> {
@@ -750,10 +750,10 @@ pub fn run_loop<const N: usize, const B: usize, const F: usize, const U: usize, 
 where
     C: FnMut(&mut Simulator<N, B, F, U>, &CycleInfo) -> Result<(), SimError>,
 {
-    let substeps = substeps(control_period_s, sim.config.physics_step_s)?;
+    let substeps = whole_periods(control_period_s, sim.config.physics_step_s, 1, "period_s")?;
     #[allow(clippy::cast_precision_loss, reason = "a handful of substeps")]
     let period = sim.config.physics_step_s * substeps as f64;
-    let cycles = substeps_of(duration_s, period)?;
+    let cycles = whole_periods(duration_s, period, 0, "duration_s")?;
     let mut report = LoopReport {
         control_cycles: 0,
         physics_steps: 0,
@@ -777,16 +777,3 @@ where
     Ok(report)
 }
 
-/// Number of whole periods in a duration (rounded; zero allowed).
-fn substeps_of(duration_s: f64, period_s: f64) -> Result<u64, SimError> {
-    let ratio = duration_s / period_s;
-    if !ratio.is_finite() || ratio < 0.0 {
-        return Err(SimError::InvalidConfig { field: "duration_s" });
-    }
-    #[allow(
-        clippy::cast_possible_truncation,
-        clippy::cast_sign_loss,
-        reason = "finite, ≥ 0, rounded"
-    )]
-    Ok(ratio.round() as u64)
-}
