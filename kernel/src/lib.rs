@@ -12,6 +12,7 @@
 //! 3. [`dynamics`]: rigid-body algorithms (kinematics, Jacobians, RNEA, CRBA, Coriolis matrix,
 //!    energies), one per file, writing into `Data`.
 //! 4. [`tasks`]: the control tasks of Ch. 3 as one-dimensional task rows.
+//! 5. [`hierarchy`]: the null space projections of Ch. 4 by a scalar-inverse row recursion.
 //!
 //! ## Conventions
 //! - Sizes are const generics: `N` coordinates, `B` bodies, `F` frames; all matrices are
@@ -30,6 +31,7 @@
 #![deny(missing_docs)]
 
 pub mod dynamics;
+pub mod hierarchy;
 pub mod math;
 pub mod model;
 pub mod tasks;

@@ -1,0 +1,448 @@
+//! The scalar-inverse projector recursion.
+
+use nalgebra::{RealField, SMatrix, SVector};
+
+use super::{HierarchyConfig, HierarchyError, Recursion, Shaping, Stack, Weighting};
+use crate::math::switching::transition_activation;
+
+/// What the recursion did with one row (stack order).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RowDiagnostics<T> {
+    /// Priority level of the row.
+    pub level: usize,
+    /// Activation used in the projector update: task activation × singularity shaping.
+    pub activation: T,
+    /// Projected-row norm ratio `ρ = √(j̄W⁻¹j̄ᵀ / jW⁻¹jᵀ)`: 1 = independent of the rows above,
+    /// 0 = fully dependent (algorithmic singularity). 0 for a zero row.
+    pub projected_norm_ratio: T,
+    /// `‖N_in jᵀ‖ / ‖jᵀ‖`: the share of the row's torque direction its level's input projector
+    /// passes (as `r₂` in Fig. 4.17). 1 on the first level.
+    pub transmission: T,
+}
+
+/// Per-level result of the projection.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LevelDiagnostics<T> {
+    /// `‖τ_i‖`: norm of the level's task torque before projection (Nm).
+    pub torque_norm: T,
+    /// `‖τ_i^p‖`: after projection (Nm).
+    pub projected_torque_norm: T,
+    /// Conflict with the levels above, `1 − ‖τ_i^p‖/‖τ_i‖ ∈ [0, 1]` (0 if `τ_i = 0`).
+    pub conflict: T,
+}
+
+/// Workspace and outputs of [`project`] for `N` coordinates, `R` rows, `L` levels.
+#[derive(Clone, Debug)]
+pub struct HierarchyData<T: RealField, const N: usize, const R: usize, const L: usize> {
+    /// Accumulated projector after the last level (torque space; `N^s` of the static
+    /// recursion for the acceleration-based weighting).
+    pub projector: SMatrix<T, N, N>,
+    /// The projector of the current level alone (successive recursion).
+    level_projector: SMatrix<T, N, N>,
+    /// The resulting torque `τ = Σ_i N_i τ_i` (4.7).
+    pub torque: SVector<T, N>,
+    /// Diagnostics per row, stack order (the first `stack.rows().len()` are valid).
+    pub rows: [RowDiagnostics<T>; R],
+    /// Diagnostics per level (the first `level_count` are valid).
+    pub levels: [LevelDiagnostics<T>; L],
+    /// Number of levels of the last projection.
+    pub level_count: usize,
+}
+
+impl<T: RealField + Copy, const N: usize, const R: usize, const L: usize> Default for HierarchyData<T, N, R, L> {
+    fn default() -> Self {
+        Self {
+            projector: SMatrix::identity(),
+            level_projector: SMatrix::identity(),
+            torque: SVector::zeros(),
+            rows: [RowDiagnostics { level: 0, activation: T::zero(), projected_norm_ratio: T::zero(), transmission: T::zero() }; R],
+            levels: [LevelDiagnostics { torque_norm: T::zero(), projected_torque_norm: T::zero(), conflict: T::zero() }; L],
+            level_count: 0,
+        }
+    }
+}
+
+/// Projects the stack into one torque `τ = Σ_i N_i τ_i` (4.7), `τ_i = Σ_{rows on i} jᵀ f`.
+///
+/// Levels are processed from 0 (highest priority) upwards. All rows of level `i` share the
+/// input projector `N_i` (successive: product of the level projectors above (4.4)–(4.6);
+/// augmented: the accumulated projector (4.9)–(4.13)). Then, row by row in stack order, the
+/// projected row `j̄ᵀ = N jᵀ` (augmented: the accumulated `N`; successive: the projector of
+/// this level's earlier rows) and `w = W⁻¹ j̄ᵀ` (a Cholesky solve, or nothing for `W = I`) give
+/// the scalar `s = j̄ w`, and `N ← N − a (N j̄ᵀ) wᵀ / s` — the only inversion is `1/s`. With
+/// [`Weighting::AccelerationBased`] the recursion is the static one and the level torque is
+/// mapped as `M N (M⁻¹ τ_i)` (4.38)–(4.42).
+///
+/// A row's activation `a` is its task activation times the shaping of its norm ratio `ρ`
+/// ([`Shaping`]); with the continuous shaping, `a → 0` before `s → 0`, so `1/s` is only formed
+/// for `s ≥ ρ₁² jW⁻¹jᵀ > 0`, and the torque is continuous through rank changes. A zero row
+/// neither acts nor locks. The task force `f` is applied unscaled: unilateral tasks fade their
+/// own force with their potential.
+///
+/// Writes `data` and returns the torque. Cost O(R N²) (+ O(R N²) for the solves with `W`).
+/// Errors (nothing written): a level `≥ L`, more rows than `R`, a non-finite row, an invalid
+/// shaping band.
+pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS: usize, const L: usize>(
+    config: &HierarchyConfig<'_, T, N>,
+    stack: &Stack<T, N, RS>,
+    data: &'d mut HierarchyData<T, N, R, L>,
+) -> Result<&'d SVector<T, N>, HierarchyError> {
+    validate(config, stack, R, L)?;
+    let level_count = stack.level_count();
+    data.projector = SMatrix::identity();
+    data.torque = SVector::zeros();
+    data.level_count = level_count;
+    let mut diagnostics = data.rows.iter_mut();
+    for (level, level_diagnostics) in data.levels.iter_mut().enumerate().take(level_count) {
+        let on_level = || stack.rows().iter().filter(move |r| r.level == level);
+        let input = data.projector;
+        let torque: SVector<T, N> = on_level().fold(SVector::zeros(), |t, r| t + r.row.jacobian.transpose() * r.row.force);
+        let projected = apply_projector(&config.weighting, &input, &torque);
+        data.torque += projected;
+        *level_diagnostics = level_result(&torque, &projected);
+
+        if config.recursion == Recursion::Successive {
+            data.level_projector = SMatrix::identity();
+        }
+        for stack_row in on_level() {
+            let working = match config.recursion {
+                Recursion::Successive => &mut data.level_projector,
+                Recursion::Augmented | Recursion::Unprojected => &mut data.projector,
+            };
+            let mut row = update_row(config, &input, working, stack_row.row.jacobian.transpose(), stack_row.row.activation);
+            row.level = level;
+            if let Some(slot) = diagnostics.next() {
+                *slot = row;
+            }
+        }
+        if config.recursion == Recursion::Successive {
+            data.projector *= data.level_projector;
+        }
+    }
+    Ok(&data.torque)
+}
+
+/// The rank-one update of one row; returns its diagnostics.
+fn update_row<T: RealField + Copy, const N: usize>(
+    config: &HierarchyConfig<'_, T, N>,
+    input: &SMatrix<T, N, N>,
+    working: &mut SMatrix<T, N, N>,
+    row: SVector<T, N>,
+    task_activation: T,
+) -> RowDiagnostics<T> {
+    let row_norm = row.norm();
+    let transmission = if row_norm > T::zero() {
+        apply_projector(&config.weighting, input, &row).norm() / row_norm
+    } else {
+        T::one()
+    };
+    let reference = row.dot(&metric_solve(&config.weighting, &row));
+    let projected = *working * row;
+    let w = metric_solve(&config.weighting, &projected);
+    let s = projected.dot(&w);
+    if !reference.is_finite() || reference <= T::zero() {
+        return RowDiagnostics { level: 0, activation: T::zero(), projected_norm_ratio: T::zero(), transmission };
+    }
+    let ratio = (s.max(T::zero()) / reference).sqrt();
+    let clamped = task_activation.max(T::zero()).min(T::one());
+    let activation = match config.shaping {
+        Shaping::Continuous { singular_full, singular_start } => {
+            clamped * (T::one() - transition_activation(ratio, singular_full, singular_start))
+        }
+        Shaping::Discontinuous { singular_threshold } => {
+            if clamped > T::zero() && ratio > singular_threshold {
+                T::one()
+            } else {
+                T::zero()
+            }
+        }
+    };
+    if activation > T::zero() && s > T::zero() && config.recursion != Recursion::Unprojected {
+        let u = *working * projected;
+        *working -= u * (w.transpose() * (activation / s));
+    }
+    RowDiagnostics { level: 0, activation, projected_norm_ratio: ratio, transmission }
+}
+
+/// `W⁻¹ x` (identity for the static and the acceleration-based recursion).
+fn metric_solve<T: RealField + Copy, const N: usize>(weighting: &Weighting<'_, T, N>, x: &SVector<T, N>) -> SVector<T, N> {
+    match weighting {
+        Weighting::Identity | Weighting::AccelerationBased(_) => *x,
+        Weighting::Inertia(factor) | Weighting::Stiffness(factor) => factor.solve(x),
+    }
+}
+
+/// `N τ`, or `M N M⁻¹ τ` for the acceleration-based projector (4.38).
+fn apply_projector<T: RealField + Copy, const N: usize>(
+    weighting: &Weighting<'_, T, N>,
+    projector: &SMatrix<T, N, N>,
+    torque: &SVector<T, N>,
+) -> SVector<T, N> {
+    match weighting {
+        Weighting::AccelerationBased(mass) => {
+            let l = mass.l();
+            l * (l.transpose() * (projector * mass.solve(torque)))
+        }
+        _ => projector * torque,
+    }
+}
+
+fn level_result<T: RealField + Copy, const N: usize>(torque: &SVector<T, N>, projected: &SVector<T, N>) -> LevelDiagnostics<T> {
+    let (torque_norm, projected_torque_norm) = (torque.norm(), projected.norm());
+    let conflict = if torque_norm > T::zero() {
+        (T::one() - projected_torque_norm / torque_norm).max(T::zero()).min(T::one())
+    } else {
+        T::zero()
+    };
+    LevelDiagnostics { torque_norm, projected_torque_norm, conflict }
+}
+
+fn validate<T: RealField + Copy, const N: usize, const RS: usize>(
+    config: &HierarchyConfig<'_, T, N>,
+    stack: &Stack<T, N, RS>,
+    row_capacity: usize,
+    level_capacity: usize,
+) -> Result<(), HierarchyError> {
+    if stack.rows().len() > row_capacity {
+        return Err(HierarchyError::Capacity { capacity: row_capacity });
+    }
+    if stack.level_count() > level_capacity {
+        return Err(HierarchyError::TooManyLevels { capacity: level_capacity });
+    }
+    let finite = stack.rows().iter().all(|r| {
+        r.row.force.is_finite() && r.row.activation.is_finite() && r.row.jacobian.iter().all(|x| x.is_finite())
+    });
+    if !finite {
+        return Err(HierarchyError::NonFinite);
+    }
+    let band_ok = match config.shaping {
+        Shaping::Continuous { singular_full, singular_start } => {
+            singular_full.is_finite() && singular_start.is_finite() && T::zero() < singular_full && singular_full < singular_start
+        }
+        Shaping::Discontinuous { singular_threshold } => singular_threshold.is_finite() && singular_threshold >= T::zero(),
+    };
+    if band_ok {
+        Ok(())
+    } else {
+        Err(HierarchyError::InvalidShaping)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
+    use super::*;
+    use crate::dynamics::{crba, forward_kinematics, mass_matrix_cholesky};
+    use crate::hierarchy::{push_transitioning, Stack};
+    use crate::math::CholeskyFactor;
+    use crate::tasks::{TaskRow, TaskRows};
+    use crate::test_models::{branched, state, N};
+    use crate::Data;
+    use nalgebra::{DMatrix, RowSVector};
+
+    const CONTINUOUS: Shaping<f64> = Shaping::Continuous { singular_full: 0.05, singular_start: 0.15 };
+
+    fn row(j: RowSVector<f64, N>, f: f64) -> TaskRow<f64, N> {
+        TaskRow { jacobian: j, force: f, potential: 0.0, activation: 1.0 }
+    }
+
+    fn random_stack(seed: u64, levels: &[usize]) -> Stack<f64, N, 8> {
+        let mut stack = Stack::new();
+        for (k, &level) in levels.iter().enumerate() {
+            let j = state(seed * 31 + k as u64, 1.0).transpose();
+            stack.push(level, row(j, 10.0 * state(seed + 99, 1.0)[k % N])).unwrap();
+        }
+        stack
+    }
+
+    fn mass_factor(seed: u64) -> CholeskyFactor<f64, N> {
+        let model = branched::<f64>();
+        let mut data = Data::new(&model);
+        forward_kinematics(&model, &mut data, &state(seed, 2.0), &SVector::zeros()).unwrap();
+        crba(&model, &mut data);
+        mass_matrix_cholesky(&data).unwrap()
+    }
+
+    /// Direct augmented projector I − Jₐᵀ (Jₐ W⁻¹ Jₐᵀ)⁺ Jₐ W⁻¹ (4.9), (4.15) by SVD.
+    fn direct_projector(rows: &[RowSVector<f64, N>], w_inv: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
+        if rows.is_empty() {
+            return SMatrix::identity();
+        }
+        let ja = DMatrix::from_fn(rows.len(), N, |r, c| rows[r][c]);
+        let w = DMatrix::from_fn(N, N, |r, c| w_inv[(r, c)]);
+        let inner = (&ja * &w * ja.transpose()).pseudo_inverse(1e-12).unwrap();
+        let p = DMatrix::identity(N, N) - ja.transpose() * inner * &ja * &w;
+        SMatrix::from_fn(|r, c| p[(r, c)])
+    }
+
+    fn config<'a>(recursion: Recursion, weighting: Weighting<'a, f64, N>) -> HierarchyConfig<'a, f64, N> {
+        HierarchyConfig { recursion, weighting, shaping: CONTINUOUS }
+    }
+
+    #[test]
+    fn scalar_recursion_equals_the_direct_augmented_projector() {
+        let mut checked = 0;
+        for seed in 1..30 {
+            let factor = mass_factor(seed);
+            let m_inv = factor.inverse();
+            let stack = random_stack(seed, &[0, 0, 1, 2, 2]);
+            for (weighting, w_inv) in [(Weighting::Identity, SMatrix::identity()), (Weighting::Inertia(&factor), m_inv)] {
+                let mut data = HierarchyData::<f64, N, 8, 4>::default();
+                let tau = *project(&config(Recursion::Augmented, weighting), &stack, &mut data).unwrap();
+                // Equality holds when no row is near singular: every ρ above the shaping band,
+                // so every activation is exactly 1.
+                let min_ratio = data.rows[..stack.rows().len()].iter().map(|r| r.projected_norm_ratio).fold(f64::MAX, f64::min);
+                if min_ratio < 0.15 {
+                    continue;
+                }
+                checked += 1;
+                let mut expected = SVector::<f64, N>::zeros();
+                let mut above = std::vec::Vec::new();
+                for level in 0..3 {
+                    let n = direct_projector(&above, &w_inv);
+                    for r in stack.rows().iter().filter(|r| r.level == level) {
+                        expected += n * r.row.jacobian.transpose() * r.row.force;
+                    }
+                    above.extend(stack.rows().iter().filter(|r| r.level == level).map(|r| r.row.jacobian));
+                }
+                assert!((tau - expected).amax() < 1e-9 * (1.0 + expected.amax()), "seed {seed}: {}", (tau - expected).amax());
+                assert!((data.projector - direct_projector(&above, &w_inv)).amax() < 1e-9, "seed {seed}");
+            }
+        }
+        assert!(checked >= 30, "only {checked} of 58 cases were non-singular");
+    }
+
+    #[test]
+    fn table_4_3_strictness_and_idempotence() {
+        let factor = mass_factor(7);
+        let m_inv = factor.inverse();
+        let stack = random_stack(3, &[0, 1, 1]);
+        let level0: SVector<f64, N> = stack.rows()[0].row.jacobian.transpose();
+        for (weighting, dynamic) in [(Weighting::Identity, false), (Weighting::Inertia(&factor), true), (Weighting::AccelerationBased(&factor), true)] {
+            let mut data = HierarchyData::<f64, N, 8, 4>::default();
+            project(&config(Recursion::Augmented, weighting), &stack, &mut data).unwrap();
+            let n = data.projector;
+            // Static strictness N_j J_iᵀ = 0 (W = I, W = M); dynamic J_i M⁻¹ N_j = 0 (W = M, accel).
+            match weighting {
+                Weighting::AccelerationBased(_) => {
+                    let full = factor.l() * factor.l().transpose() * n * m_inv;
+                    assert!((level0.transpose() * m_inv * full).amax() < 1e-10);
+                }
+                _ => {
+                    assert!((n * level0).amax() < 1e-10);
+                    if dynamic {
+                        assert!((level0.transpose() * m_inv * n).amax() < 1e-10);
+                    }
+                }
+            }
+            assert!((n * n - n).amax() < 1e-10, "augmented projectors are idempotent");
+        }
+        // Successive projectors (two non-orthogonal rows on consecutive levels) are not.
+        let mut data = HierarchyData::<f64, N, 8, 4>::default();
+        project(&config(Recursion::Successive, Weighting::Identity), &random_stack(3, &[0, 1, 2]), &mut data).unwrap();
+        assert!((data.projector * data.projector - data.projector).amax() > 1e-3);
+    }
+
+    #[test]
+    fn invariance_4_77_only_the_critical_direction_is_touched() {
+        let j = RowSVector::<f64, N>::from_fn(|_, c| [1.0, -2.0, 0.5, 0.0, 1.5, 0.3][c]);
+        for activation in [0.0, 0.3, 1.0] {
+            let mut stack = Stack::<f64, N, 8>::new();
+            stack.push(0, TaskRow { activation, ..row(j, 1.0) }).unwrap();
+            let mut data = HierarchyData::<f64, N, 8, 4>::default();
+            project(&config(Recursion::Augmented, Weighting::Identity), &stack, &mut data).unwrap();
+            let n = data.projector;
+            assert!((n * j.transpose() - j.transpose() * (1.0 - activation)).amax() < 1e-12);
+            let v = SVector::<f64, N>::from_fn(|r, _| [2.0, 1.0, 0.0, 3.0, 0.0, 0.0][r]);
+            assert!(j.dot(&v.transpose()).abs() < 1e-15);
+            assert!((n * v - v).amax() < 1e-12, "directions orthogonal to the row are untouched");
+        }
+    }
+
+    /// Two rows on levels 0 and 1 that become parallel as `t → 0`: an algorithmic
+    /// singularity. Returns the level-2 torque as a function of `t`.
+    fn torque_near_singularity(t: f64, shaping: Shaping<f64>) -> SVector<f64, N> {
+        let a = RowSVector::<f64, N>::from_fn(|_, c| [1.0, 0.0, 0.0, 0.0, 0.0, 0.0][c]);
+        let b = RowSVector::<f64, N>::from_fn(|_, c| [1.0, t, 0.0, 0.0, 0.0, 0.0][c]);
+        let mut stack = Stack::<f64, N, 8>::new();
+        stack.push(0, row(a, 1.0)).unwrap();
+        stack.push(1, row(b, 1.0)).unwrap();
+        stack.push(2, row(RowSVector::from_fn(|_, c| [0.3, 1.0, 0.2, 0.0, 0.0, 0.0][c]), 5.0)).unwrap();
+        let mut data = HierarchyData::<f64, N, 8, 4>::default();
+        let cfg = HierarchyConfig { recursion: Recursion::Augmented, weighting: Weighting::Identity, shaping };
+        *project(&cfg, &stack, &mut data).unwrap()
+    }
+
+    #[test]
+    fn continuous_through_an_algorithmic_singularity_classical_jumps() {
+        let classical = Shaping::Discontinuous { singular_threshold: 1e-3 };
+        let (mut worst_continuous, mut worst_classical) = (0.0_f64, 0.0_f64);
+        let steps = 4000;
+        for k in 0..steps {
+            let t0 = 0.4 * k as f64 / steps as f64;
+            let t1 = 0.4 * (k + 1) as f64 / steps as f64;
+            worst_continuous = worst_continuous.max((torque_near_singularity(t1, CONTINUOUS) - torque_near_singularity(t0, CONTINUOUS)).amax());
+            worst_classical = worst_classical.max((torque_near_singularity(t1, classical) - torque_near_singularity(t0, classical)).amax());
+        }
+        // Step 1e-4 in t: a continuous torque changes by O(1e-3); the classical one jumps by
+        // the full blocked component (5 · 1.0 of the level-2 force along the unlocked axis).
+        assert!(worst_continuous < 1e-2, "continuous shaping jumped by {worst_continuous}");
+        assert!(worst_classical > 1.0, "classical projector should jump, max step {worst_classical}");
+    }
+
+    #[test]
+    fn level_transition_is_continuous_and_exact_at_the_ends() {
+        let mut task = TaskRows::<f64, N, 2>::new();
+        task.push(row(RowSVector::from_fn(|_, c| [0.0, 1.0, 0.5, 0.0, 0.0, 0.0][c]), 4.0)).unwrap();
+        let other = row(RowSVector::from_fn(|_, c| [0.2, 1.0, 0.0, 0.0, 0.0, 0.0][c]), -3.0);
+        let torque = |progress: f64| {
+            let mut stack = Stack::<f64, N, 8>::new();
+            stack.push(1, other).unwrap();
+            push_transitioning(&mut stack, &task, 2, 0, progress).unwrap();
+            let mut data = HierarchyData::<f64, N, 8, 4>::default();
+            *project(&config(Recursion::Augmented, Weighting::Identity), &stack, &mut data).unwrap()
+        };
+        let on = |level: usize| {
+            let mut stack = Stack::<f64, N, 8>::new();
+            stack.push(1, other).unwrap();
+            stack.push_rows(level, &task).unwrap();
+            let mut data = HierarchyData::<f64, N, 8, 4>::default();
+            *project(&config(Recursion::Augmented, Weighting::Identity), &stack, &mut data).unwrap()
+        };
+        assert!((torque(0.0) - on(2)).amax() < 1e-12 && (torque(1.0) - on(0)).amax() < 1e-12);
+        let mut worst = 0.0_f64;
+        for k in 0..1000 {
+            worst = worst.max((torque((k + 1) as f64 / 1000.0) - torque(k as f64 / 1000.0)).amax());
+        }
+        assert!(worst < 0.05, "max torque step {worst} for a progress step of 1e-3");
+    }
+
+    #[test]
+    fn bad_input_is_rejected_without_output() {
+        let mut stack = random_stack(1, &[0, 5]);
+        let mut data = HierarchyData::<f64, N, 8, 4> { torque: SVector::repeat(7.0), ..Default::default() };
+        let cfg = config(Recursion::Augmented, Weighting::Identity);
+        assert_eq!(project(&cfg, &stack, &mut data), Err(HierarchyError::TooManyLevels { capacity: 4 }));
+        stack.clear();
+        stack.push(0, TaskRow { force: f64::NAN, ..row(RowSVector::zeros(), 0.0) }).unwrap();
+        assert_eq!(project(&cfg, &stack, &mut data), Err(HierarchyError::NonFinite));
+        assert_eq!(data.torque, SVector::<f64, N>::repeat(7.0));
+        let bad = HierarchyConfig { shaping: Shaping::Continuous { singular_full: 0.2, singular_start: 0.1 }, ..cfg };
+        assert_eq!(project(&bad, &Stack::<f64, N, 8>::new(), &mut data), Err(HierarchyError::InvalidShaping));
+    }
+
+    #[test]
+    fn f32_agrees_with_f64() {
+        let stack = random_stack(5, &[0, 0, 1, 2]);
+        let mut stack32 = Stack::<f32, N, 8>::new();
+        for r in stack.rows() {
+            stack32.push(r.level, TaskRow { jacobian: r.row.jacobian.cast(), force: r.row.force as f32, potential: 0.0, activation: 1.0 }).unwrap();
+        }
+        let mut d64 = HierarchyData::<f64, N, 8, 4>::default();
+        let mut d32 = HierarchyData::<f32, N, 8, 4>::default();
+        let t64 = *project(&config(Recursion::Augmented, Weighting::Identity), &stack, &mut d64).unwrap();
+        let cfg32 = HierarchyConfig { recursion: Recursion::Augmented, weighting: Weighting::Identity, shaping: Shaping::Continuous { singular_full: 0.05_f32, singular_start: 0.15 } };
+        let t32 = project(&cfg32, &stack32, &mut d32).unwrap().cast::<f64>();
+        assert!((t64 - t32).amax() < 1e-4 * (1.0 + t64.amax()));
+    }
+}
