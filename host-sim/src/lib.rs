@@ -22,3 +22,5 @@ pub mod output;
 pub mod scenario;
 pub mod sim;
 pub mod urdf;
+pub mod mobile_controller;
+pub mod wheels;

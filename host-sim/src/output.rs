@@ -280,13 +280,16 @@ fn draw_panel(area: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>, panel:
     for span in &panel.spans {
         let shade = RGBColor(255, 200, 120);
         if span.to > span.from {
-            chart
-                .draw_series(std::iter::once(Rectangle::new(
-                    [(span.from, y_range.start), (span.to, y_range.end)],
-                    shade.mix(0.35).filled(),
-                )))?
-                .label(&span.label)
-                .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 18, y + 5)], shade.mix(0.6).filled()));
+            let drawn = chart.draw_series(std::iter::once(Rectangle::new(
+                [(span.from, y_range.start), (span.to, y_range.end)],
+                shade.mix(0.35).filled(),
+            )))?;
+            // An empty label keeps the span out of the legend (e.g. repeated windows).
+            if !span.label.is_empty() {
+                drawn
+                    .label(&span.label)
+                    .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 18, y + 5)], shade.mix(0.6).filled()));
+            }
         } else {
             let marker = RGBColor(90, 90, 90);
             chart

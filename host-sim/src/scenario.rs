@@ -13,6 +13,36 @@ use crate::output::{self, Figure, Summary, TimeSeries};
 pub mod cartesian_step;
 #[path = "scenarios/energy_planar4.rs"]
 pub mod energy_planar4;
+#[path = "scenarios/hierarchy_common.rs"]
+pub mod hierarchy_common;
+#[path = "scenarios/projectors_sim1.rs"]
+pub mod projectors_sim1;
+#[path = "scenarios/stiffness_sim2.rs"]
+pub mod stiffness_sim2;
+#[path = "scenarios/unilateral_sim.rs"]
+pub mod unilateral_sim;
+#[path = "scenarios/torso_workspace.rs"]
+pub mod torso_workspace;
+#[path = "scenarios/sca_damping.rs"]
+pub mod sca_damping;
+#[path = "scenarios/multilevel_planar.rs"]
+pub mod multilevel_planar;
+#[path = "scenarios/multilevel_sim1.rs"]
+pub mod multilevel_sim1;
+#[path = "scenarios/multilevel_sim2.rs"]
+pub mod multilevel_sim2;
+#[path = "scenarios/multilevel_sim3.rs"]
+pub mod multilevel_sim3;
+#[path = "scenarios/multilevel_arm.rs"]
+pub mod multilevel_arm;
+#[path = "scenarios/mobile_impedance.rs"]
+pub mod mobile_impedance;
+#[path = "scenarios/mobile_impedance_critical.rs"]
+pub mod mobile_impedance_critical;
+#[path = "scenarios/stability_map.rs"]
+pub mod stability_map;
+#[path = "scenarios/icr_avoidance.rs"]
+pub mod icr_avoidance;
 
 /// What a scenario produced.
 #[derive(Clone, Debug)]
@@ -50,11 +80,17 @@ impl Progress {
     }
 }
 
+/// Writes the files a scenario draws itself from its [`Outcome`] (maps and plots that are not
+/// line figures, extra tables); returns their names.
+type FileWriter = fn(&Path, &Outcome) -> Result<Vec<&'static str>, String>;
+
 /// A registered scenario.
 struct Entry {
     name: &'static str,
     description: &'static str,
     simulate: fn(Progress) -> Result<Outcome, String>,
+    /// Extra output files beyond the standard ones, if the scenario has any.
+    extra_files: Option<FileWriter>,
 }
 
 const SCENARIOS: &[Entry] = &[
@@ -62,11 +98,91 @@ const SCENARIOS: &[Entry] = &[
         name: cartesian_step::NAME,
         description: cartesian_step::DESCRIPTION,
         simulate: cartesian_step::simulate,
+        extra_files: None,
     },
     Entry {
         name: energy_planar4::NAME,
         description: energy_planar4::DESCRIPTION,
         simulate: energy_planar4::simulate,
+        extra_files: None,
+    },
+    Entry {
+        name: projectors_sim1::NAME,
+        description: projectors_sim1::DESCRIPTION,
+        simulate: projectors_sim1::simulate,
+        extra_files: None,
+    },
+    Entry {
+        name: stiffness_sim2::NAME,
+        description: stiffness_sim2::DESCRIPTION,
+        simulate: stiffness_sim2::simulate,
+        extra_files: None,
+    },
+    Entry {
+        name: unilateral_sim::NAME,
+        description: unilateral_sim::DESCRIPTION,
+        simulate: unilateral_sim::simulate,
+        extra_files: None,
+    },
+    Entry {
+        name: torso_workspace::NAME,
+        description: torso_workspace::DESCRIPTION,
+        simulate: torso_workspace::simulate,
+        extra_files: Some(torso_workspace::write_files),
+    },
+    Entry {
+        name: sca_damping::NAME,
+        description: sca_damping::DESCRIPTION,
+        simulate: sca_damping::simulate,
+        extra_files: None,
+    },
+    Entry {
+        name: multilevel_sim1::NAME,
+        description: multilevel_sim1::DESCRIPTION,
+        simulate: multilevel_sim1::simulate,
+        extra_files: None,
+    },
+    Entry {
+        name: multilevel_sim2::NAME,
+        description: multilevel_sim2::DESCRIPTION,
+        simulate: multilevel_sim2::simulate,
+        extra_files: None,
+    },
+    Entry {
+        name: multilevel_sim3::NAME,
+        description: multilevel_sim3::DESCRIPTION,
+        simulate: multilevel_sim3::simulate,
+        extra_files: None,
+    },
+    Entry {
+        name: multilevel_arm::NAME,
+        description: multilevel_arm::DESCRIPTION,
+        simulate: multilevel_arm::simulate,
+        extra_files: None,
+    },
+    Entry {
+        name: mobile_impedance::NAME,
+        description: mobile_impedance::DESCRIPTION,
+        simulate: mobile_impedance::simulate,
+        extra_files: None,
+    },
+    Entry {
+        name: mobile_impedance_critical::NAME,
+        description: mobile_impedance_critical::DESCRIPTION,
+        simulate: mobile_impedance_critical::simulate,
+        extra_files: None,
+    },
+    Entry {
+        name: stability_map::NAME,
+        description: stability_map::DESCRIPTION,
+        simulate: stability_map::simulate,
+        extra_files: Some(stability_map::write_files),
+    },
+    Entry {
+        name: icr_avoidance::NAME,
+        description: icr_avoidance::DESCRIPTION,
+        simulate: icr_avoidance::simulate,
+        extra_files: Some(icr_avoidance::write_files),
     },
 ];
 
@@ -93,6 +209,9 @@ pub fn run(name: &str, out: &Path) -> Result<(), String> {
     for (file, figure) in &outcome.figures {
         output::plot(&out.join(file), figure)?;
         files.push(file);
+    }
+    if let Some(write) = entry.extra_files {
+        files.extend(write(out, &outcome)?);
     }
     let passed = outcome.summary.passed_claims();
     let failed = outcome.summary.failed_claims();

@@ -27,7 +27,13 @@
 //! - **Disturbances**: [`Simulator::push`] adds a world-frame force at a frame's origin for a
 //!   time window, applied as `τ_ext = J_pᵀ F` with the frame's positional Jacobian
 //!   ([`frame_jacobian`]).
-//! - Joint position limits (end stops) are not simulated; there is no friction and no noise.
+//! - **Passive joint elements** (optional, [`Simulator::set_passive_joints`]): a linear spring
+//!   and a viscous damper per upper-body coordinate, `τ_passive = −K (q_u − q_rest) − D q̇_u`,
+//!   evaluated at every Runge–Kutta stage like the dynamics (the parallel springs of Fig. 4.3,
+//!   (4.43), and the viscous joint friction of Fig. 4.11). None by default. The torque sensors
+//!   measure the motor torque only.
+//! - Joint position limits (end stops) are not simulated; there is no other friction and no
+//!   noise.
 //!
 //! The simulator is ideal: reads never fail. A non-finite command is refused with a
 //! [`SimError`] of kind [`ErrorKind::OutOfRange`] and triggers the documented safe reaction
@@ -151,6 +157,35 @@ impl From<DynamicsError> for SimError {
     }
 }
 
+/// Linear passive elements on the upper-body coordinates: `τ_passive = −K (q_u − q_rest) − D q̇_u`
+/// with diagonal `K` (Nm/rad or N/m) and `D` (Nms/rad or Ns/m), e.g. the parallel springs and
+/// joint dampers of Fig. 4.3 or viscous joint friction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PassiveJoints<const U: usize> {
+    /// Spring stiffness per coordinate, `≥ 0`.
+    pub stiffness: SVector<f64, U>,
+    /// Spring rest position per coordinate (rad or m).
+    pub rest: SVector<f64, U>,
+    /// Viscous damping per coordinate, `≥ 0`.
+    pub damping: SVector<f64, U>,
+}
+
+impl<const U: usize> PassiveJoints<U> {
+    /// No springs, no damping.
+    pub fn none() -> Self {
+        Self {
+            stiffness: SVector::zeros(),
+            rest: SVector::zeros(),
+            damping: SVector::zeros(),
+        }
+    }
+
+    /// The torque the elements exert at `(q_u, q̇_u)`.
+    pub fn torque(&self, q: &SVector<f64, U>, v: &SVector<f64, U>) -> SVector<f64, U> {
+        -(self.stiffness.component_mul(&(q - self.rest)) + self.damping.component_mul(v))
+    }
+}
+
 /// A world-frame force applied at the origin of a frame during `[start_s, start_s + duration_s)`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Push {
@@ -246,6 +281,7 @@ pub struct Simulator<const N: usize, const B: usize, const F: usize, const U: us
     base_command: PlatformCommand<f64>,
     legs: [f64; LEGS],
     pushes: Vec<Push>,
+    passive: PassiveJoints<U>,
 }
 
 impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N, B, F, U> {
@@ -283,6 +319,7 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N
             },
             legs: [config.initial_leg_length_m; LEGS],
             pushes: Vec::new(),
+            passive: PassiveJoints::none(),
         })
     }
 
@@ -394,6 +431,27 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N
         Ok(())
     }
 
+    /// Installs passive joint springs and dampers on the upper body (see the module docs);
+    /// they act from the next physics step on.
+    ///
+    /// Errors: a non-finite entry, or a negative stiffness or damping.
+    pub fn set_passive_joints(&mut self, passive: PassiveJoints<U>) -> Result<(), SimError> {
+        let all = || passive.stiffness.iter().chain(passive.rest.iter()).chain(passive.damping.iter());
+        if !all().all(|x| x.is_finite()) {
+            return Err(SimError::NonFinite { what: "passive joints" });
+        }
+        if passive.stiffness.iter().chain(passive.damping.iter()).any(|x| *x < 0.0) {
+            return Err(SimError::InvalidConfig { field: "passive joints" });
+        }
+        self.passive = passive;
+        Ok(())
+    }
+
+    /// The installed passive joint elements.
+    pub fn passive_joints(&self) -> &PassiveJoints<U> {
+        &self.passive
+    }
+
     /// Sum of the pushes active at time `t` on `frame` (N, world frame).
     pub fn push_force(&self, frame: FrameId, t: f64) -> Vector3<f64> {
         self.pushes
@@ -442,7 +500,8 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N
         }
         // h + M_·r r̈ in one RNEA pass.
         let bias = *rnea(&self.model, &mut self.data, &qdd)?;
-        let mut rhs: SVector<f64, U> = self.torque - upper(&bias, b);
+        let mut rhs: SVector<f64, U> =
+            self.torque - upper(&bias, b) + self.passive.torque(&upper(q, b), &upper(v, b));
         let mut jacobian = SMatrix::<f64, 6, N>::zeros();
         for p in self.pushes.iter().filter(|p| p.active(t)) {
             frame_jacobian(&self.model, &self.data, p.frame, &mut jacobian)?;

@@ -13,6 +13,8 @@
 //!    energies), one per file, writing into `Data`.
 //! 4. [`tasks`]: the control tasks of Ch. 3 as one-dimensional task rows.
 //! 5. [`hierarchy`]: the null space projections of Ch. 4 by a scalar-inverse row recursion.
+//! 6. [`platform`]: the wheeled platform: admittance, coupling compensation, storage function
+//!    (Sec. 5.1) and the ICR singularity avoidance with leg motion (Sec. 3.2).
 //!
 //! ## Conventions
 //! - Sizes are const generics: `N` coordinates, `B` bodies, `F` frames; all matrices are
@@ -35,6 +37,7 @@ pub mod hierarchy;
 pub mod math;
 pub mod model;
 pub mod tasks;
+pub mod platform;
 
 #[cfg(test)]
 mod test_models;

@@ -3,10 +3,20 @@
 //! The tests live in `#[cfg(test)]` modules; the library itself is empty.
 
 #[cfg(test)]
+mod collision;
+#[cfg(test)]
 mod dynamics_properties;
 #[cfg(test)]
 mod dynamics;
 #[cfg(test)]
 mod fixtures_models;
 #[cfg(test)]
+mod hierarchy;
+#[cfg(test)]
 mod simulation;
+#[cfg(test)]
+mod torso_workspace;
+#[cfg(test)]
+mod platform;
+#[cfg(test)]
+mod multilevel;

@@ -86,3 +86,6 @@ fn check_finite<T: RealField + Copy, const R: usize>(
         Err(DynamicsError::NonFinite { input })
     }
 }
+
+mod jacobian_derivative;
+pub use jacobian_derivative::{frame_jacobian_derivative, point_jacobian_derivative};

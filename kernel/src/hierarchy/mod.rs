@@ -17,6 +17,7 @@
 //! `N (I − J̄ᵀ (J̄^W#)ᵀ)` (4.13) with `J̄^W# = W⁻¹J̄ᵀ(J̄W⁻¹J̄ᵀ)⁻¹` (4.15); a fractional `a`
 //! is the continuous projector `N = I − ĵᵀ a ĵ` of (4.70)–(4.72).
 
+pub mod multilevel;
 mod projection;
 mod stack;
 mod transition;

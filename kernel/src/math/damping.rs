@@ -100,13 +100,19 @@ pub fn double_diagonalization<T: RealField + Copy, const D: usize>(
             l.transpose().solve_upper_triangular(&v).ok_or(DampingError::InertiaNotPositiveDefinite)?
         }
     };
-    let tolerance = nalgebra::convert::<f64, T>(1e3) * T::default_epsilon() * (k0.amax() + T::one());
+    // The eigensolver returns a stiffness-free mode (e.g. the common mode of a collision pair)
+    // as O(ε max k₀) rather than 0; damping it by 2ξ√(ε k) would be spurious, and unboundedly
+    // so relative to the real damping as the inertias grow apart. Modes within rounding of
+    // zero are zero.
+    let tolerance = nalgebra::convert::<f64, T>(1e3) * T::default_epsilon() * k0.amax();
     let mut modal = SVector::<T, D>::zeros();
     for ((d0, k), xi) in modal.iter_mut().zip(k0.iter()).zip(damping_ratio.iter()) {
         if *k < -tolerance {
             return Err(DampingError::StiffnessNotPositiveSemidefinite);
         }
-        *d0 = nalgebra::convert::<f64, T>(2.0) * *xi * k.max(T::zero()).sqrt();
+        if *k > tolerance {
+            *d0 = nalgebra::convert::<f64, T>(2.0) * *xi * k.sqrt();
+        }
     }
     Ok(q * SMatrix::from_diagonal(&modal) * q.transpose())
 }
@@ -158,6 +164,31 @@ mod tests {
         let d = double_diagonalization(ReflectedInertia::Inertia(&lambda), &stiffness, &Vector2::repeat(xi)).unwrap();
         let expected = Matrix2::new(1.0, -1.0, -1.0, 1.0) * 2.0 * xi * (k * mi * mj / (mi + mj)).sqrt();
         assert!((d - expected).amax() < 1e-10, "{d}");
+    }
+
+    /// Without the rounding guard the common mode picks up damping of relative size
+    /// √ε · m_max/m_min; with it the pair damping is exact at any mass ratio.
+    #[test]
+    fn stiffness_free_modes_get_no_damping_at_extreme_mass_ratios() {
+        for ratio in [1.0, 1e2, 1e6, 1e9] {
+            let (mi, mj, k, xi) = (1.0_f64, ratio, 300.0, 0.7);
+            let expected = 2.0 * xi * (k * mi * mj / (mi + mj)).sqrt();
+            let inverse = Matrix2::new(1.0 / mi, 0.0, 0.0, 1.0 / mj);
+            let stiffness = Matrix2::new(k, -k, -k, k);
+            let d = double_diagonalization(ReflectedInertia::Inverse(&inverse), &stiffness, &Vector2::repeat(xi)).unwrap();
+            // Both points moving together (no relative velocity) must not be damped.
+            let common = d * Vector2::new(1.0, 1.0);
+            assert!(common.amax() < 1e-12 * expected, "ratio {ratio}: common mode damped by {common}");
+            assert!((d[(0, 0)] - expected).abs() < 1e-9 * expected, "ratio {ratio}: {d}");
+            let d32 = double_diagonalization(
+                ReflectedInertia::Inverse(&inverse.cast::<f32>()),
+                &stiffness.cast::<f32>(),
+                &Vector2::repeat(0.7_f32),
+            )
+            .unwrap();
+            assert!(((d32[(0, 0)] as f64) - expected).abs() < 1e-5 * expected, "f32, ratio {ratio}: {d32}");
+            assert!(((d32[(0, 1)] as f64) + expected).abs() < 1e-5 * expected, "f32, ratio {ratio}: {d32}");
+        }
     }
 
     #[test]

@@ -154,3 +154,10 @@ mod tests {
         assert!(rows.is_empty());
     }
 }
+pub mod collision;
+
+pub mod cartesian_impedance;
+pub mod end_stops;
+pub mod joint_impedance;
+pub mod manipulability;
+pub mod torso_workspace;

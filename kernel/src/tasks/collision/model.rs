@@ -1,0 +1,291 @@
+//! The geometric collision model (Sec. 3.1.1): swept-sphere volumes attached to bodies (or to
+//! the world), the list of pairs that can collide, and the per-cycle world update and distance
+//! computation.
+//!
+//! [`CollisionModel`] is constant (capacities `V` volumes and `P` pairs, validated once by
+//! [`CollisionModelBuilder::try_build`]); [`CollisionData`] is its preallocated workspace.
+
+use core::fmt;
+
+use heapless::Vec;
+use nalgebra::{RealField, Vector3};
+
+use super::volumes::{proximity, Core, Proximity, SweptSphere};
+use crate::model::{BodyId, Data, Model};
+
+/// Index of a volume in [`CollisionModel::volumes`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct VolumeId(pub usize);
+
+/// One bounding volume.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Volume<T: RealField> {
+    /// Body the volume moves with; `None` for an environment volume fixed in the world
+    /// (floor, table, wall).
+    pub body: Option<BodyId>,
+    /// The volume in the body frame (in the world frame if `body` is `None`), m.
+    pub shape: SweptSphere<T>,
+}
+
+/// A pair of volumes that can collide; `first < second`. The collision direction `e` of (3.5)
+/// points from `first` (`i`) to `second` (`j`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CollisionPair {
+    /// Volume `i`.
+    pub first: VolumeId,
+    /// Volume `j`.
+    pub second: VolumeId,
+}
+
+/// Why a pair of volumes is not checked ([`exclusion_rule`], or listed by the author).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Exclusion {
+    /// Both volumes are on the same rigid body (or both fixed in the world): their distance
+    /// never changes.
+    SameBody,
+    /// The bodies are joined by one joint, or by two joints whose axes intersect in a body of
+    /// zero length (the middle body's child joint sits at its origin, like a pitch-pitch
+    /// wrist): neighbouring link volumes overlap at the joint by design.
+    Adjacent,
+    /// Excluded by the model's author: the kinematics cannot bring the volumes together (or
+    /// their distance cannot change), documented with the model.
+    Listed,
+}
+
+/// Why a collision model was rejected.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum CollisionError {
+    /// More than `V` volumes.
+    TooManyVolumes {
+        /// The capacity `V`.
+        capacity: usize,
+    },
+    /// More than `P` pairs remain after the exclusions.
+    TooManyPairs {
+        /// The capacity `P`.
+        capacity: usize,
+    },
+    /// A volume refers to a body that is not in the model.
+    UnknownBody {
+        /// The volume.
+        volume: usize,
+    },
+    /// An exclusion refers to a volume that does not exist.
+    UnknownVolume {
+        /// The index given.
+        volume: usize,
+    },
+    /// A volume has a negative or non-finite radius or a non-finite point.
+    InvalidVolume {
+        /// The volume.
+        volume: usize,
+    },
+}
+
+impl fmt::Display for CollisionError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::TooManyVolumes { capacity } => write!(f, "more than {capacity} collision volumes"),
+            Self::TooManyPairs { capacity } => write!(f, "more than {capacity} collision pairs"),
+            Self::UnknownBody { volume } => write!(f, "collision volume {volume} is on an unknown body"),
+            Self::UnknownVolume { volume } => write!(f, "unknown collision volume {volume}"),
+            Self::InvalidVolume { volume } => write!(f, "collision volume {volume} has a bad radius or point"),
+        }
+    }
+}
+
+impl core::error::Error for CollisionError {}
+
+/// Volumes and enabled pairs. Build it with [`CollisionModelBuilder`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct CollisionModel<T: RealField, const V: usize, const P: usize> {
+    volumes: Vec<Volume<T>, V>,
+    pairs: Vec<CollisionPair, P>,
+}
+
+impl<T: RealField + Copy, const V: usize, const P: usize> CollisionModel<T, V, P> {
+    /// The volumes.
+    pub fn volumes(&self) -> &[Volume<T>] {
+        &self.volumes
+    }
+
+    /// The enabled pairs, in lexicographic order of `(first, second)`.
+    pub fn pairs(&self) -> &[CollisionPair] {
+        &self.pairs
+    }
+
+    /// A volume by id.
+    pub fn volume(&self, id: VolumeId) -> Option<&Volume<T>> {
+        self.volumes.get(id.0)
+    }
+
+    /// [`Self::update_world`] then [`Self::compute_distances`]: the per-cycle geometric update
+    /// of Sec. 3.1.1 ("All volumes are transformed into the world frame and the distances as
+    /// well as the contact points are determined").
+    pub fn update<const N: usize, const B: usize, const F: usize>(
+        &self,
+        data: &Data<T, N, B, F>,
+        collision: &mut CollisionData<T, V, P>,
+    ) {
+        self.update_world(data, collision);
+        self.compute_distances(collision);
+    }
+
+    /// Transforms every volume into the world frame with the body placements of the last
+    /// [`crate::dynamics::forward_kinematics`]: writes `collision.world_volumes`. Cost O(V).
+    pub fn update_world<const N: usize, const B: usize, const F: usize>(
+        &self,
+        data: &Data<T, N, B, F>,
+        collision: &mut CollisionData<T, V, P>,
+    ) {
+        for (volume, slot) in self.volumes.iter().zip(collision.world_volumes.iter_mut()) {
+            let placement = volume.body.and_then(|b| data.body_placements.get(b.0)).copied();
+            *slot = match placement {
+                Some(p) => volume.shape.transformed(&p),
+                None => volume.shape,
+            };
+        }
+    }
+
+    /// Distance and closest points of every enabled pair from `collision.world_volumes`:
+    /// writes `collision.proximities`. Cost O(P), fixed per pair kind.
+    pub fn compute_distances(&self, collision: &mut CollisionData<T, V, P>) {
+        let CollisionData { world_volumes, proximities } = collision;
+        for (pair, slot) in self.pairs.iter().zip(proximities.iter_mut()) {
+            if let (Some(a), Some(b)) = (world_volumes.get(pair.first.0), world_volumes.get(pair.second.0)) {
+                *slot = proximity(a, b);
+            }
+        }
+    }
+}
+
+/// Preallocated workspace of a [`CollisionModel`].
+#[derive(Clone, Debug)]
+pub struct CollisionData<T: RealField, const V: usize, const P: usize> {
+    /// Every volume in the world frame ([`CollisionModel::update_world`]).
+    pub world_volumes: [SweptSphere<T>; V],
+    /// Distance, closest points and direction of each enabled pair, in the order of
+    /// [`CollisionModel::pairs`] ([`CollisionModel::compute_distances`]).
+    pub proximities: [Proximity<T>; P],
+}
+
+impl<T: RealField + Copy, const V: usize, const P: usize> CollisionData<T, V, P> {
+    /// A zeroed workspace for `model`.
+    pub fn new(_model: &CollisionModel<T, V, P>) -> Self {
+        let origin = Vector3::zeros();
+        Self {
+            world_volumes: [SweptSphere { core: Core::Point(origin), radius: T::zero() }; V],
+            proximities: [Proximity { distance: T::zero(), core_first: origin, core_second: origin, direction: None }; P],
+        }
+    }
+}
+
+/// Builds and validates a [`CollisionModel`].
+///
+/// ```
+/// use kernel::tasks::collision::{CollisionModelBuilder, SweptSphere, VolumeId};
+/// use kernel::model::{Inertia, JointDrive, JointKind, ModelBuilder, Placement};
+/// use nalgebra::{Unit, Vector3};
+/// // A slider on x carrying a sphere, above a world-fixed floor triangle.
+/// let mut b = ModelBuilder::<f64, 1, 1, 1>::new(Vector3::new(0.0, 0.0, -9.81));
+/// let slider = b.add_body(None, Placement::identity(),
+///     JointKind::Prismatic { axis: Unit::new_normalize(Vector3::x()) }, JointDrive::actuated(0),
+///     Inertia::point_mass(2.0, Vector3::zeros())).unwrap();
+/// let robot = b.try_build().unwrap();
+/// let mut c = CollisionModelBuilder::<f64, 3, 2>::new();
+/// let ball = c.add_volume(Some(slider), SweptSphere::sphere(Vector3::new(0.0, 0.0, 0.5), 0.1)).unwrap();
+/// let floor = c.add_volume(None, SweptSphere::swept_triangle(Vector3::new(-10.0, -10.0, 0.0),
+///     Vector3::new(30.0, -10.0, 0.0), Vector3::new(-10.0, 30.0, 0.0), 0.0)).unwrap();
+/// c.add_volume(None, SweptSphere::sphere(Vector3::new(5.0, 0.0, 0.5), 0.2)).unwrap();
+/// let model = c.try_build(&robot, &[(ball, floor)]).unwrap();
+/// // Floor–wall share the world (same body); ball–floor is listed: one pair remains.
+/// assert_eq!(model.pairs().len(), 1);
+/// assert_eq!(model.pairs()[0].second, VolumeId(2));
+/// ```
+#[derive(Clone, Debug)]
+pub struct CollisionModelBuilder<T: RealField, const V: usize, const P: usize> {
+    volumes: Vec<Volume<T>, V>,
+}
+
+impl<T: RealField + Copy, const V: usize, const P: usize> Default for CollisionModelBuilder<T, V, P> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<T: RealField + Copy, const V: usize, const P: usize> CollisionModelBuilder<T, V, P> {
+    /// No volumes yet.
+    pub const fn new() -> Self {
+        Self { volumes: Vec::new() }
+    }
+
+    /// Appends a volume attached to `body` (`None`: fixed in the world); `shape` is given in
+    /// the body frame (world frame). Returns its id.
+    pub fn add_volume(&mut self, body: Option<BodyId>, shape: SweptSphere<T>) -> Result<VolumeId, CollisionError> {
+        let id = self.volumes.len();
+        if !(shape.core.is_finite() && shape.radius.is_finite() && shape.radius >= T::zero()) {
+            return Err(CollisionError::InvalidVolume { volume: id });
+        }
+        self.volumes.push(Volume { body, shape }).map_err(|_| CollisionError::TooManyVolumes { capacity: V })?;
+        Ok(VolumeId(id))
+    }
+
+    /// Validates the volumes against `model` and enables every pair except those excluded by
+    /// the rules ([`Exclusion::SameBody`], [`Exclusion::Adjacent`]) or listed in `excluded`
+    /// (in either order).
+    pub fn try_build<const N: usize, const B: usize, const F: usize>(
+        self,
+        model: &Model<T, N, B, F>,
+        excluded: &[(VolumeId, VolumeId)],
+    ) -> Result<CollisionModel<T, V, P>, CollisionError> {
+        for (index, volume) in self.volumes.iter().enumerate() {
+            if volume.body.is_some_and(|b| model.body(b).is_none()) {
+                return Err(CollisionError::UnknownBody { volume: index });
+            }
+        }
+        if let Some(&(a, b)) = excluded.iter().find(|(a, b)| a.0 >= self.volumes.len() || b.0 >= self.volumes.len()) {
+            return Err(CollisionError::UnknownVolume { volume: a.0.max(b.0) });
+        }
+        let mut pairs = Vec::new();
+        for (i, a) in self.volumes.iter().enumerate() {
+            for (j, b) in self.volumes.iter().enumerate().skip(i + 1) {
+                let listed = excluded.iter().any(|&(x, y)| (x.0, y.0) == (i, j) || (x.0, y.0) == (j, i));
+                if listed || exclusion_rule(model, a.body, b.body).is_some() {
+                    continue;
+                }
+                pairs
+                    .push(CollisionPair { first: VolumeId(i), second: VolumeId(j) })
+                    .map_err(|_| CollisionError::TooManyPairs { capacity: P })?;
+            }
+        }
+        Ok(CollisionModel { volumes: self.volumes, pairs })
+    }
+}
+
+/// Why the automatic rules exclude a pair of volumes on `a` and `b` (`None`: world-fixed):
+/// [`Exclusion::SameBody`] or [`Exclusion::Adjacent`]; `None` if the rules keep the pair (an
+/// author's list may still exclude it). The world is not a link: an environment volume is
+/// adjacent to no body.
+pub fn exclusion_rule<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
+    model: &Model<T, N, B, F>,
+    a: Option<BodyId>,
+    b: Option<BodyId>,
+) -> Option<Exclusion> {
+    if a == b {
+        return Some(Exclusion::SameBody);
+    }
+    let (Some(a), Some(b)) = (a, b) else {
+        return None;
+    };
+    let parent = |x: BodyId| model.body(x).and_then(|body| body.parent);
+    // The body sits at its parent's origin: a zero-length parent link.
+    let at_parent_origin =
+        |x: BodyId| model.body(x).is_some_and(|body| body.joint_placement.translation.vector == Vector3::zeros());
+    let adjacent = |child: BodyId, ancestor: BodyId| {
+        parent(child) == Some(ancestor)
+            || (at_parent_origin(child) && parent(child).and_then(parent) == Some(ancestor))
+    };
+    (adjacent(a, b) || adjacent(b, a)).then_some(Exclusion::Adjacent)
+}

@@ -1,0 +1,676 @@
+//! Repulsive potential, pair Jacobians, reflected masses, damping and task rows of the
+//! collision pairs (Sec. 3.1.2–3.1.4, (3.2)–(3.24)).
+//!
+//! For a pair `(i, j)` with closest points `x_i`, `x_j`, distance `d` and unit direction
+//! `e = (x_j − x_i)/‖x_j − x_i‖` (3.4)–(3.5):
+//! - pair Jacobians `J_i = eᵀ J_{x_i,q}`, `J_j = eᵀ J_{x_j,q}` (1×N, (3.17)–(3.18)): the motions
+//!   `ż_i`, `ż_j` of the closest points along `e`, both positive from `x_i` to `x_j`;
+//! - reflected masses `m_i = (J_i M⁻¹ J_iᵀ)⁻¹` (3.20), `m_j` alike; a volume that cannot move
+//!   along `e` (fixed in the world, or `J_i = 0`) has infinite mass, `m_i⁻¹ = 0`;
+//! - potential `V(d) = −F_max/(3 d0²) (d − d0)³` for `d ≤ d0`, else 0 (3.8), repulsive force
+//!   `F_sca(d) = −∂V/∂d = F_max/d0² (d − d0)²` (3.10), local stiffness
+//!   `k = ∂²V/∂d² = 2 F_max/d0² (d0 − d)`; `V` is C² at `d0`, so the damping is continuous;
+//! - damping `D_(i,j) = D(diag(m_i, m_j), k [[1, −1], [−1, 1]], ξ)` by double diagonalisation
+//!   (3.21)–(3.23); the pair stiffness has rank one, so `D = c [[1, −1], [−1, 1]]` with
+//!   `c = 2 ξ √(k m_eff)`, `m_eff⁻¹ = m_i⁻¹ + m_j⁻¹`, and the common mode is undamped;
+//! - torque (3.24) `τ = [J_i; J_j]ᵀ ((−F_sca, F_sca)ᵀ − D [J_i; J_j] q̇)`.
+//!
+//! Because `D` acts only on the relative motion, (3.24) equals **one task row**: Jacobian
+//! `j = J_j − J_i` (the rate `ḋ = j q̇` of the distance), force `f = F_sca(d) − c ḋ`, potential
+//! `V(d)`: `τ = jᵀ f`. With `q̇ = 0`, `τ = −(∂V/∂q)ᵀ` wherever the closest points are unique
+//! (envelope theorem: sliding the points along the surfaces does not change `d` to first
+//! order, which is why only the principal block diagonal of (3.6) remains, (3.7)).
+
+use heapless::Vec;
+use nalgebra::{convert, Cholesky, Const, Matrix1, Matrix2, RealField, RowSVector, SMatrix, SVector, Vector1, Vector2};
+
+use super::model::{CollisionData, CollisionModel, CollisionPair};
+use super::volumes::Proximity;
+use crate::dynamics::point_jacobian;
+use crate::math::damping::{double_diagonalization, DampingError, ReflectedInertia};
+use crate::model::{BodyId, Data, Model};
+use crate::tasks::{TaskError, TaskRow, TaskRows};
+
+/// Parameters of the repulsive potentials, shared by all pairs (Table 3.1, Table 4.5).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CollisionParameters<T> {
+    max_force: T,
+    influence_distance: T,
+    damping_ratio: T,
+    activation_full: T,
+    activation_zero: T,
+}
+
+impl<T: RealField + Copy> CollisionParameters<T> {
+    /// Validated parameters:
+    /// - `max_force` `F_max > 0` (N): the repulsive force at contact, `d = 0` (3.8);
+    /// - `influence_distance` `d0 > 0` (m): the potential vanishes for `d ≥ d0`;
+    /// - `damping_ratio` `ξ ≥ 0` of every pair (3.23);
+    /// - the activation band `0 ≤ ϑ1 < ϑ2` (m) of (4.68) for the hierarchy: a row's
+    ///   activation is 1 for `d ≤ ϑ1`, 0 for `d ≥ ϑ2`, and `1 − (3s² − 2s³)`, `s = (d − ϑ1)/(ϑ2 − ϑ1)`
+    ///   in between (Table 4.5: `N'max = 1.5/(ϑ2 − ϑ1)`).
+    ///
+    /// ```
+    /// use kernel::tasks::collision::CollisionParameters;
+    /// // Table 3.1: F_max = 25 N, d0 = 0.15 m, ξ = 0.7 (activation band [0, d0]).
+    /// let p = CollisionParameters::try_new(25.0_f64, 0.15, 0.7, 0.0, 0.15).unwrap();
+    /// assert_eq!(p.force(0.0), 25.0);
+    /// assert!((p.stiffness(0.0) - 2.0 * 25.0 / 0.15).abs() < 1e-12); // 333 N/m
+    /// assert_eq!(p.potential(0.2), 0.0);
+    /// ```
+    pub fn try_new(
+        max_force: T,
+        influence_distance: T,
+        damping_ratio: T,
+        activation_full: T,
+        activation_zero: T,
+    ) -> Result<Self, TaskError> {
+        let finite = [max_force, influence_distance, damping_ratio, activation_full, activation_zero]
+            .iter()
+            .all(|x| x.is_finite());
+        if !finite {
+            return Err(TaskError::NonFinite);
+        }
+        let zero = T::zero();
+        if max_force <= zero {
+            return Err(TaskError::InvalidParameter { name: "max_force" });
+        }
+        if influence_distance <= zero {
+            return Err(TaskError::InvalidParameter { name: "influence_distance" });
+        }
+        if damping_ratio < zero {
+            return Err(TaskError::InvalidParameter { name: "damping_ratio" });
+        }
+        if activation_full < zero || activation_zero <= activation_full {
+            return Err(TaskError::InvalidParameter { name: "activation band" });
+        }
+        Ok(Self { max_force, influence_distance, damping_ratio, activation_full, activation_zero })
+    }
+
+    /// `F_max` (N).
+    pub fn max_force(&self) -> T {
+        self.max_force
+    }
+
+    /// `d0` (m).
+    pub fn influence_distance(&self) -> T {
+        self.influence_distance
+    }
+
+    /// `ξ`.
+    pub fn damping_ratio(&self) -> T {
+        self.damping_ratio
+    }
+
+    /// The same parameters with damping ratio `ξ` (validated).
+    pub fn with_damping_ratio(&self, damping_ratio: T) -> Result<Self, TaskError> {
+        Self::try_new(self.max_force, self.influence_distance, damping_ratio, self.activation_full, self.activation_zero)
+    }
+
+    /// Distance below which a pair emits a row: `max(d0, ϑ2)` (m).
+    pub fn emit_distance(&self) -> T {
+        self.influence_distance.max(self.activation_zero)
+    }
+
+    /// Potential `V(d)` (J), (3.8): `−F_max/(3 d0²) (d − d0)³` for `d ≤ d0`, else 0. For
+    /// `d < 0` (overlapping volumes) the same cubic continues.
+    pub fn potential(&self, d: T) -> T {
+        let s = (d - self.influence_distance) / self.influence_distance;
+        if s >= T::zero() {
+            return T::zero();
+        }
+        -self.max_force * self.influence_distance / convert::<f64, T>(3.0) * s * s * s
+    }
+
+    /// Repulsive force `F_sca(d) = −∂V/∂d = F_max/d0² (d − d0)²` for `d ≤ d0`, else 0 (N),
+    /// (3.10); `F_sca(0) = F_max`.
+    pub fn force(&self, d: T) -> T {
+        let s = (d - self.influence_distance) / self.influence_distance;
+        if s >= T::zero() {
+            return T::zero();
+        }
+        self.max_force * s * s
+    }
+
+    /// Local stiffness `k = ∂²V/∂d² = 2 F_max/d0² (d0 − d)` for `d ≤ d0`, else 0 (N/m), (3.22).
+    pub fn stiffness(&self, d: T) -> T {
+        let s = (self.influence_distance - d) / self.influence_distance;
+        if s <= T::zero() {
+            return T::zero();
+        }
+        convert::<f64, T>(2.0) * self.max_force / self.influence_distance * s
+    }
+
+    /// Activation `a(d) = 1 − N_des(d)` with the cubic `N_des` of (4.68) on `[ϑ1, ϑ2]`.
+    pub fn activation(&self, d: T) -> T {
+        crate::math::switching::transition_activation(d, self.activation_full, self.activation_zero)
+    }
+}
+
+/// Everything computed for one collision pair.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PairEvaluation<T, const N: usize> {
+    /// Index of the pair in [`CollisionModel::pairs`].
+    pub pair: usize,
+    /// Signed distance `d` (m).
+    pub distance: T,
+    /// `J_i` (1×N), (3.18): motion of `x_i` along `e`.
+    pub jacobian_first: RowSVector<T, N>,
+    /// `J_j` (1×N): motion of `x_j` along `e`.
+    pub jacobian_second: RowSVector<T, N>,
+    /// `(m_i⁻¹, m_j⁻¹) = (J_i M⁻¹ J_iᵀ, J_j M⁻¹ J_jᵀ)` (1/kg), (3.20); 0 means infinite mass.
+    pub inverse_masses: Vector2<T>,
+    /// Pair damping matrix `D_(i,j)` (Ns/m), (3.23).
+    pub damping: Matrix2<T>,
+    /// The pair as one task row: `j = J_j − J_i`, `f = F_sca(d) − c ḋ`, `V(d)`, activation.
+    pub row: TaskRow<T, N>,
+}
+
+impl<T: RealField + Copy, const N: usize> PairEvaluation<T, N> {
+    /// Reflected masses `(m_i, m_j)` (kg), (3.20); `None` for an infinite one.
+    pub fn reflected_masses(&self) -> (Option<T>, Option<T>) {
+        let mass = |w: T| (w > T::zero()).then(|| T::one() / w);
+        (mass(self.inverse_masses.x), mass(self.inverse_masses.y))
+    }
+
+    /// The pair's torque by (3.24), `[J_i; J_j]ᵀ ((−F_sca, F_sca)ᵀ − D [J_i; J_j] q̇)`, with
+    /// the 2×2 damping matrix (equal to `rowᵀ f` up to rounding).
+    pub fn torque(&self, force: T, velocity: &SVector<T, N>) -> SVector<T, N> {
+        let z = Vector2::new((self.jacobian_first * velocity).x, (self.jacobian_second * velocity).x);
+        let f = Vector2::new(-force, force) - self.damping * z;
+        self.jacobian_first.transpose() * f.x + self.jacobian_second.transpose() * f.y
+    }
+}
+
+/// `eᵀ J_{x,q}` for the point `point` (world, m) on `body`; zero for a world-fixed volume.
+fn projected_jacobian<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
+    model: &Model<T, N, B, F>,
+    data: &Data<T, N, B, F>,
+    body: Option<BodyId>,
+    point: &nalgebra::Vector3<T>,
+    direction: &nalgebra::Vector3<T>,
+) -> Result<RowSVector<T, N>, TaskError> {
+    let Some(body) = body else {
+        return Ok(RowSVector::zeros());
+    };
+    let mut jacobian = SMatrix::<T, 6, N>::zeros();
+    point_jacobian(model, data, body, point, &mut jacobian)?;
+    Ok(direction.transpose() * jacobian.fixed_rows::<3>(0))
+}
+
+/// `J M⁻¹ Jᵀ = ‖L⁻¹ Jᵀ‖²` with `M = L Lᵀ` (1/kg): the inverse reflected mass (3.20).
+pub fn inverse_reflected_mass<T: RealField + Copy, const N: usize>(
+    mass_cholesky: &Cholesky<T, Const<N>>,
+    jacobian: &RowSVector<T, N>,
+) -> Result<T, TaskError> {
+    let y = mass_cholesky.l_dirty().solve_lower_triangular(&jacobian.transpose()).ok_or(TaskError::Singular)?;
+    Ok(y.norm_squared())
+}
+
+fn damping_error(e: DampingError) -> TaskError {
+    match e {
+        DampingError::NonFinite => TaskError::NonFinite,
+        DampingError::InvalidDampingRatio => TaskError::InvalidParameter { name: "damping_ratio" },
+        DampingError::StiffnessNotPositiveSemidefinite => TaskError::InvalidParameter { name: "stiffness" },
+        DampingError::InertiaNotPositiveDefinite => TaskError::Singular,
+    }
+}
+
+/// Pair damping (3.21)–(3.23) for inverse reflected masses `(m_i⁻¹, m_j⁻¹)`, local stiffness
+/// `k` (N/m) and damping ratio `ξ`: returns `(c, D)` with `D = c [[1, −1], [−1, 1]]` (Ns/m),
+/// `c = 2 ξ √(k m_eff)`, `m_eff⁻¹ = m_i⁻¹ + m_j⁻¹`.
+///
+/// Both masses finite: [`double_diagonalization`] of `(Λ⁻¹ = diag(m_i⁻¹, m_j⁻¹),
+/// K = k [[1, −1], [−1, 1]], ξ)`; the common mode (both points moving together) has no
+/// stiffness and gets no damping, so the result is `c [[1, −1], [−1, 1]]` and `c` is its first
+/// entry.
+/// One mass infinite (`m⁻¹ ≤ ε (m_i⁻¹ + m_j⁻¹)`: a world-fixed or locked volume): the 1-D
+/// design `c = D(m, k, ξ)` of the moving side. Both infinite or `k = 0`: no damping.
+///
+/// ```
+/// use kernel::tasks::collision::pair_damping;
+/// use nalgebra::Vector2;
+/// // m_i = 2 kg, m_j = 6 kg: m_eff = 1.5 kg; k = 300 N/m, ξ = 1: c = 2·√450 Ns/m.
+/// let (c, d) = pair_damping(&Vector2::new(0.5, 1.0 / 6.0), 300.0_f64, 1.0).unwrap();
+/// assert!((c - 2.0 * 450.0_f64.sqrt()).abs() < 1e-9 && (d[(0, 1)] + c).abs() < 1e-9);
+/// // Against a world-fixed volume: m_eff = m_i.
+/// let (c, _) = pair_damping(&Vector2::new(0.5, 0.0), 300.0_f64, 1.0).unwrap();
+/// assert!((c - 2.0 * 600.0_f64.sqrt()).abs() < 1e-9);
+/// ```
+pub fn pair_damping<T: RealField + Copy>(
+    inverse_masses: &Vector2<T>,
+    stiffness: T,
+    damping_ratio: T,
+) -> Result<(T, Matrix2<T>), TaskError> {
+    let pattern = Matrix2::new(T::one(), -T::one(), -T::one(), T::one());
+    let (wi, wj) = (inverse_masses.x, inverse_masses.y);
+    if !(wi.is_finite() && wj.is_finite() && stiffness.is_finite()) {
+        return Err(TaskError::NonFinite);
+    }
+    if !damping_ratio.is_finite() || damping_ratio < T::zero() {
+        return Err(TaskError::InvalidParameter { name: "damping_ratio" });
+    }
+    let threshold = T::default_epsilon() * (wi + wj);
+    let c = match (wi > threshold, wj > threshold) {
+        _ if stiffness <= T::zero() => T::zero(),
+        (true, true) => {
+            let inverse = Matrix2::new(wi, T::zero(), T::zero(), wj);
+            let d = double_diagonalization(
+                ReflectedInertia::Inverse(&inverse),
+                &(pattern * stiffness),
+                &Vector2::repeat(damping_ratio),
+            )
+            .map_err(damping_error)?;
+            d.m11
+        }
+        (true, false) | (false, true) => {
+            let d = double_diagonalization(
+                ReflectedInertia::Inverse(&Matrix1::new(wi.max(wj))),
+                &Matrix1::new(stiffness),
+                &Vector1::new(damping_ratio),
+            )
+            .map_err(damping_error)?;
+            d.x
+        }
+        (false, false) => T::zero(),
+    };
+    Ok((c, pattern * c))
+}
+
+/// Evaluates pair `pair` of `collision_model` from its proximity in `collision` (after
+/// [`CollisionModel::update`]) and the dynamics of the last `forward_kinematics` (velocity
+/// `data.v`) with `M = L Lᵀ` (`mass_cholesky`, from `crba` and `mass_matrix_cholesky`).
+///
+/// Cost: two point Jacobians O(depth·N), two triangular solves O(N²), one 2×2 damping design.
+/// Errors: unknown pair or body, cores touching (no direction: [`TaskError::Singular`]),
+/// non-finite values.
+pub fn evaluate_pair<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const V: usize, const P: usize>(
+    collision_model: &CollisionModel<T, V, P>,
+    collision: &CollisionData<T, V, P>,
+    model: &Model<T, N, B, F>,
+    data: &Data<T, N, B, F>,
+    mass_cholesky: &Cholesky<T, Const<N>>,
+    parameters: &CollisionParameters<T>,
+    pair: usize,
+) -> Result<PairEvaluation<T, N>, TaskError> {
+    let invalid = TaskError::InvalidParameter { name: "pair" };
+    let &CollisionPair { first, second } = collision_model.pairs().get(pair).ok_or(invalid)?;
+    let proximity: &Proximity<T> = collision.proximities.get(pair).ok_or(invalid)?;
+    let (Some(a), Some(b)) = (collision_model.volume(first), collision_model.volume(second)) else {
+        return Err(invalid);
+    };
+    let e = proximity.direction.ok_or(TaskError::Singular)?.into_inner();
+    let jacobian_first = projected_jacobian(model, data, a.body, &proximity.core_first, &e)?;
+    let jacobian_second = projected_jacobian(model, data, b.body, &proximity.core_second, &e)?;
+    let inverse_masses = Vector2::new(
+        inverse_reflected_mass(mass_cholesky, &jacobian_first)?,
+        inverse_reflected_mass(mass_cholesky, &jacobian_second)?,
+    );
+    let d = proximity.distance;
+    let (c, damping) = pair_damping(&inverse_masses, parameters.stiffness(d), parameters.damping_ratio)?;
+    let jacobian = jacobian_second - jacobian_first;
+    let rate = (jacobian * data.v).x;
+    let row = TaskRow {
+        jacobian,
+        force: parameters.force(d) - c * rate,
+        potential: parameters.potential(d),
+        activation: parameters.activation(d),
+    };
+    Ok(PairEvaluation { pair, distance: d, jacobian_first, jacobian_second, inverse_masses, damping, row })
+}
+
+/// What [`self_collision_rows`] did in one cycle (telemetry).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CollisionReport<T> {
+    /// Pairs closer than [`CollisionParameters::emit_distance`].
+    pub candidates: usize,
+    /// Rows appended.
+    pub rows: usize,
+    /// Candidates left out because the row list was full (the farthest ones).
+    pub dropped: usize,
+    /// Candidates whose cores touch (no collision direction): deep penetration, left out.
+    pub undefined_direction: usize,
+    /// The smallest distance over all enabled pairs (m), `None` without pairs.
+    pub min_distance: Option<T>,
+}
+
+/// The self- and environment-collision avoidance rows of one control cycle (Sec. 3.1,
+/// n_sca contact-point pairs of (3.3)).
+///
+/// Updates the geometry ([`CollisionModel::update`]), selects the pairs closer than
+/// `max(d0, ϑ2)` — the closest ones if more than the free row capacity `R − rows.len()` —
+/// and appends one row per selected pair in pair order ([`evaluate_pair`]). Summed alone the
+/// rows give τ_sca of (3.2)/(3.24): `rows.torque()`.
+///
+/// Preconditions: `forward_kinematics` at `(q, q̇)`, then `crba` and `mass_matrix_cholesky`.
+/// Writes `collision`; appends to `rows`. Cost O(V + P·R) plus O(R·N²). On error `rows` is
+/// unchanged (the geometry in `collision` is updated).
+pub fn self_collision_rows<
+    T: RealField + Copy,
+    const N: usize,
+    const B: usize,
+    const F: usize,
+    const V: usize,
+    const P: usize,
+    const R: usize,
+>(
+    collision_model: &CollisionModel<T, V, P>,
+    collision: &mut CollisionData<T, V, P>,
+    model: &Model<T, N, B, F>,
+    data: &Data<T, N, B, F>,
+    mass_cholesky: &Cholesky<T, Const<N>>,
+    parameters: &CollisionParameters<T>,
+    rows: &mut TaskRows<T, N, R>,
+) -> Result<CollisionReport<T>, TaskError> {
+    collision_model.update(data, collision);
+    let free = R.saturating_sub(rows.len());
+    let limit = parameters.emit_distance();
+    let mut report = CollisionReport { candidates: 0, rows: 0, dropped: 0, undefined_direction: 0, min_distance: None };
+    // The `free` closest candidates: (distance, pair index).
+    let mut selected: Vec<(T, usize), R> = Vec::new();
+    for (index, proximity) in collision.proximities.iter().take(collision_model.pairs().len()).enumerate() {
+        let d = proximity.distance;
+        if !d.is_finite() {
+            return Err(TaskError::NonFinite);
+        }
+        report.min_distance = Some(report.min_distance.map_or(d, |m: T| m.min(d)));
+        if d >= limit {
+            continue;
+        }
+        report.candidates += 1;
+        if proximity.direction.is_none() {
+            report.undefined_direction += 1;
+            continue;
+        }
+        if selected.len() < free {
+            let _ = selected.push((d, index));
+            continue;
+        }
+        report.dropped += 1;
+        let farthest = selected.iter_mut().reduce(|a, b| if b.0 > a.0 { b } else { a });
+        if let Some(slot) = farthest {
+            if d < slot.0 {
+                *slot = (d, index);
+            }
+        }
+    }
+    selected.sort_unstable_by_key(|&(_, index)| index);
+    let mut staged: Vec<TaskRow<T, N>, R> = Vec::new();
+    for &(_, index) in &selected {
+        let evaluation = evaluate_pair(collision_model, collision, model, data, mass_cholesky, parameters, index)?;
+        let r = evaluation.row;
+        let finite = r.force.is_finite() && r.potential.is_finite() && r.jacobian.iter().all(|x| x.is_finite());
+        if !finite {
+            return Err(TaskError::NonFinite);
+        }
+        staged.push(r).map_err(|_| TaskError::Capacity { capacity: R })?;
+    }
+    for r in staged {
+        rows.push(r)?;
+    }
+    report.rows = selected.len();
+    Ok(report)
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
+    use super::*;
+    use crate::dynamics::{crba, forward_kinematics, mass_matrix_cholesky};
+    use crate::tasks::collision::{CollisionModelBuilder, SweptSphere};
+    use crate::test_models::{branched, state, Branched, B, F, N};
+    use nalgebra::Vector3;
+
+    const V: usize = 6;
+    const P: usize = 15;
+
+    fn v3<T: RealField + Copy>(x: f64, y: f64, z: f64) -> Vector3<T> {
+        Vector3::new(convert(x), convert(y), convert(z))
+    }
+
+    /// Volumes on both branches of the test tree and in the world: a capsule on the coupled
+    /// branch, a swept triangle and a sphere on the prismatic branch, a capsule on the pitch
+    /// body, a world-fixed floor triangle and a world-fixed sphere.
+    fn collision_model<T: RealField + Copy>(robot: &Branched<T>) -> CollisionModel<T, V, P> {
+        let mut c = CollisionModelBuilder::<T, V, P>::new();
+        let r = |x: f64| convert::<f64, T>(x);
+        c.add_volume(Some(BodyId(4)), SweptSphere::capsule(v3(0.0, 0.0, 0.0), v3(0.15, 0.02, 0.0), r(0.05))).unwrap();
+        c.add_volume(Some(BodyId(6)), SweptSphere::swept_triangle(v3(0.0, 0.0, 0.0), v3(0.1, 0.0, 0.05), v3(0.0, 0.12, 0.1), r(0.03))).unwrap();
+        c.add_volume(Some(BodyId(5)), SweptSphere::sphere(v3(0.05, -0.02, 0.1), r(0.06))).unwrap();
+        c.add_volume(Some(BodyId(2)), SweptSphere::capsule(v3(0.05, 0.0, 0.0), v3(0.25, 0.0, 0.0), r(0.04))).unwrap();
+        c.add_volume(None, SweptSphere::swept_triangle(v3(-5.0, -5.0, -0.2), v3(10.0, -5.0, -0.2), v3(-5.0, 10.0, -0.2), r(0.0))).unwrap();
+        c.add_volume(None, SweptSphere::sphere(v3(0.4, 0.3, 0.5), r(0.1))).unwrap();
+        c.try_build(robot, &[]).unwrap()
+    }
+
+    fn parameters<T: RealField + Copy>(xi: f64) -> CollisionParameters<T> {
+        // d0 large enough that most pairs are inside their potential at random states.
+        CollisionParameters::try_new(convert(25.0), convert(1.0), convert(xi), convert(0.1), convert(0.6)).unwrap()
+    }
+
+    #[test]
+    fn potential_force_and_stiffness() {
+        let p = CollisionParameters::try_new(25.0_f64, 0.15, 0.7, 0.0, 0.15).unwrap();
+        // (3.10): F(0) = F_max; local stiffness 2 F_max/d0 = 333 N/m at contact.
+        assert_eq!(p.force(0.0), 25.0);
+        assert!((p.stiffness(0.0) - 1000.0 / 3.0).abs() < 1e-12);
+        assert!((p.potential(0.0) - 25.0 * 0.15 / 3.0).abs() < 1e-15);
+        // F = −dV/dd and k = dF/dd... = −dF/dd, by central differences (relative 1e-6).
+        let h = 1e-6;
+        for k in 0..300 {
+            let d = -0.05 + 0.2 * f64::from(k) / 300.0;
+            if (d - 0.15).abs() < 2.0 * h {
+                continue;
+            }
+            let force = -(p.potential(d + h) - p.potential(d - h)) / (2.0 * h);
+            let stiffness = -(p.force(d + h) - p.force(d - h)) / (2.0 * h);
+            assert!((force - p.force(d)).abs() <= 1e-6 * p.force(d).max(1e-3), "F at {d}");
+            assert!((stiffness - p.stiffness(d)).abs() <= 1e-6 * p.stiffness(d).max(1e-3), "k at {d}");
+        }
+        // C² at d0: one-sided second differences of V on both sides tend to V''(d0) = 0.
+        let d0 = 0.15;
+        for h in [1e-3, 1e-4] {
+            let left = (p.potential(d0) - 2.0 * p.potential(d0 - h) + p.potential(d0 - 2.0 * h)) / (h * h);
+            let right = (p.potential(d0 + 2.0 * h) - 2.0 * p.potential(d0 + h) + p.potential(d0)) / (h * h);
+            assert!(right == 0.0 && left.abs() <= 2.0 * 25.0 / (0.15 * 0.15) * 3.0 * h, "V'' left {left} right {right}");
+        }
+        assert_eq!((p.potential(d0), p.force(d0), p.stiffness(d0)), (0.0, 0.0, 0.0));
+        // Activation band [0, d0]: 1 at contact, ½ in the middle, 0 beyond.
+        assert_eq!((p.activation(0.0), p.activation(0.2)), (1.0, 0.0));
+        assert!((p.activation(0.075) - 0.5).abs() < 1e-15);
+        // Table 4.5 band: maximal slope 1.5/(ϑ2 − ϑ1) = 18.75 1/m.
+        let t = CollisionParameters::try_new(30.0_f64, 0.10, 0.5, 0.05, 0.13).unwrap();
+        let slope = (t.activation(0.09 - 1e-7) - t.activation(0.09 + 1e-7)) / 2e-7;
+        assert!((slope - 18.75).abs() < 1e-5);
+        // f32.
+        let p32 = CollisionParameters::try_new(25.0_f32, 0.15, 0.7, 0.0, 0.15).unwrap();
+        assert_eq!(p32.force(0.0), 25.0);
+        assert!((p32.potential(0.05) - 25.0 / (3.0 * 0.0225) * 0.001).abs() < 1e-6);
+        // Validation.
+        assert_eq!(CollisionParameters::try_new(0.0_f64, 0.1, 0.5, 0.0, 0.1), Err(TaskError::InvalidParameter { name: "max_force" }));
+        assert_eq!(CollisionParameters::try_new(1.0_f64, 0.1, -0.5, 0.0, 0.1), Err(TaskError::InvalidParameter { name: "damping_ratio" }));
+        assert_eq!(CollisionParameters::try_new(1.0_f64, 0.1, 0.5, 0.2, 0.1), Err(TaskError::InvalidParameter { name: "activation band" }));
+        assert_eq!(CollisionParameters::try_new(1.0_f64, f64::NAN, 0.5, 0.0, 0.1), Err(TaskError::NonFinite));
+    }
+
+    #[test]
+    fn pair_damping_matches_the_closed_form() {
+        for seed in 7..207 {
+            let s = state(seed, 1.0);
+            let (mi, mj, k, xi) = (0.5 + 10.0 * s[0].abs(), 0.5 + 10.0 * s[1].abs(), 400.0 * s[2].abs(), 1.5 * s[3].abs());
+            let (c, d) = pair_damping(&Vector2::new(1.0 / mi, 1.0 / mj), k, xi).unwrap();
+            let expected = 2.0 * xi * (k * mi * mj / (mi + mj)).sqrt();
+            assert!((c - expected).abs() <= 1e-12 * (1.0 + expected), "{c} vs {expected}");
+            // D = c [[1, −1], [−1, 1]]: the common mode is undamped.
+            assert_eq!(d * Vector2::new(1.0, 1.0), Vector2::zeros());
+            // World-fixed partner: m_eff = m_i.
+            let (c, _) = pair_damping(&Vector2::new(0.0, 1.0 / mj), k, xi).unwrap();
+            assert!((c - 2.0 * xi * (k * mj).sqrt()).abs() <= 1e-9 * (1.0 + c));
+        }
+        // Extreme mass ratios (a point near a joint axis): still the closed form, f64 and f32.
+        for ratio in [1e2, 1e4, 1e6, 1e9] {
+            let (c, _) = pair_damping(&Vector2::new(1.0 / ratio, 0.5), 300.0_f64, 0.7).unwrap();
+            let expected = 2.0 * 0.7 * (300.0 / (0.5 + 1.0 / ratio)).sqrt();
+            assert!((c - expected).abs() <= 1e-10 * expected, "ratio {ratio}: {c} vs {expected}");
+            let (c, _) = pair_damping(&Vector2::new(1.0 / ratio as f32, 0.5), 300.0_f32, 0.7).unwrap();
+            assert!((f64::from(c) - expected).abs() <= 1e-4 * expected, "f32 ratio {ratio}: {c} vs {expected}");
+        }
+        assert_eq!(pair_damping(&Vector2::new(0.0, 0.0), 100.0, 0.7).unwrap().0, 0.0);
+        assert_eq!(pair_damping(&Vector2::new(1.0, 1.0), 0.0, 0.7).unwrap().0, 0.0);
+        assert_eq!(pair_damping(&Vector2::new(1.0, f64::NAN), 1.0, 0.7), Err(TaskError::NonFinite));
+        // f32.
+        let (c, _) = pair_damping(&Vector2::new(0.5_f32, 0.5), 200.0, 1.0).unwrap();
+        assert!((c - 2.0 * 200.0_f32.sqrt()).abs() < 1e-3);
+    }
+
+    /// Total collision potential `Σ V(d_k(q))` of all enabled pairs.
+    fn total_potential(
+        robot: &Branched<f64>,
+        data: &mut Data<f64, N, B, F>,
+        cm: &CollisionModel<f64, V, P>,
+        cd: &mut CollisionData<f64, V, P>,
+        p: &CollisionParameters<f64>,
+        q: &SVector<f64, N>,
+    ) -> f64 {
+        forward_kinematics(robot, data, q, &SVector::zeros()).unwrap();
+        cm.update(data, cd);
+        cd.proximities.iter().take(cm.pairs().len()).map(|x| p.potential(x.distance)).sum()
+    }
+
+    /// τ = Σ jᵀ f equals −∂V/∂q (central differences, relative 1e-6) at random states, and
+    /// j q̇ equals the rate of each distance; with q̇ ≠ 0 the rows equal (3.24) with the 2×2
+    /// damping matrices.
+    #[test]
+    fn torques_are_the_negative_potential_gradient() {
+        let robot = branched::<f64>();
+        let cm = collision_model(&robot);
+        assert_eq!(cm.pairs().len(), 13, "15 pairs minus world–world and wrist–prism (adjacent)");
+        let mut cd = CollisionData::new(&cm);
+        let mut data = Data::new(&robot);
+        let p = parameters::<f64>(0.7);
+        let mut checked = 0;
+        for seed in 0..200 {
+            let q = state(seed, 1.5);
+            let v = state(seed + 1000, 1.0);
+            forward_kinematics(&robot, &mut data, &q, &SVector::zeros()).unwrap();
+            crba(&robot, &mut data);
+            let factor = mass_matrix_cholesky(&data).unwrap();
+            let mut rows = TaskRows::<f64, N, P>::new();
+            let report = self_collision_rows(&cm, &mut cd, &robot, &data, &factor, &p, &mut rows).unwrap();
+            assert_eq!(report.dropped, 0);
+            if report.undefined_direction > 0 || rows.is_empty() {
+                continue;
+            }
+            let tau = rows.torque();
+            let h = 1e-6;
+            let gradient = SVector::<f64, N>::from_fn(|k, _| {
+                let e = SVector::<f64, N>::from_fn(|i, _| if i == k { h } else { 0.0 });
+                (total_potential(&robot, &mut data, &cm, &mut cd, &p, &(q + e))
+                    - total_potential(&robot, &mut data, &cm, &mut cd, &p, &(q - e)))
+                    / (2.0 * h)
+            });
+            assert!((tau + gradient).amax() <= 1e-6 * tau.amax().max(1e-3), "seed {seed}: {tau} vs {gradient}");
+            assert!((rows.potential() - total_potential(&robot, &mut data, &cm, &mut cd, &p, &q)).abs() < 1e-12);
+            checked += 1;
+
+            // Rates: j q̇ = ḋ by central differences along q̇.
+            let distances = |data: &mut Data<f64, N, B, F>, cd: &mut CollisionData<f64, V, P>, q: &SVector<f64, N>| {
+                forward_kinematics(&robot, data, q, &SVector::zeros()).unwrap();
+                cm.update(data, cd);
+                cd.proximities.map(|x| x.distance)
+            };
+            let (plus, minus) = (distances(&mut data, &mut cd, &(q + v * h)), distances(&mut data, &mut cd, &(q - v * h)));
+            forward_kinematics(&robot, &mut data, &q, &v).unwrap();
+            crba(&robot, &mut data);
+            cm.update(&data, &mut cd);
+            for pair in 0..cm.pairs().len() {
+                if cd.proximities[pair].distance >= p.emit_distance() {
+                    continue;
+                }
+                let e = evaluate_pair(&cm, &cd, &robot, &data, &factor, &p, pair).unwrap();
+                let rate = (plus[pair] - minus[pair]) / (2.0 * h);
+                assert!(((e.row.jacobian * v).x - rate).abs() <= 1e-6 * (1.0 + rate.abs()));
+                // (3.24) with the 2×2 matrix equals the row form.
+                let row_torque = e.row.jacobian.transpose() * e.row.force;
+                let thesis = e.torque(p.force(e.distance), &v);
+                assert!((row_torque - thesis).amax() <= 1e-12 * (1.0 + row_torque.amax()), "{row_torque} vs {thesis}");
+                // Reflected masses against an explicit inverse of M.
+                let inverse = data.mass_matrix.try_inverse().unwrap();
+                let wi = (e.jacobian_first * inverse * e.jacobian_first.transpose()).x;
+                let wj = (e.jacobian_second * inverse * e.jacobian_second.transpose()).x;
+                assert!((e.inverse_masses - Vector2::new(wi, wj)).amax() <= 1e-10 * (1.0 + wi.max(wj)));
+                let world_fixed = cm.volume(cm.pairs()[pair].second).unwrap().body.is_none();
+                assert_eq!(e.reflected_masses().1.is_none(), world_fixed);
+            }
+        }
+        assert!(checked > 150, "only {checked} states had active pairs");
+    }
+
+    #[test]
+    fn rows_keep_the_closest_pairs_and_errors_leave_rows_unchanged() {
+        let robot = branched::<f64>();
+        let cm = collision_model(&robot);
+        let mut cd = CollisionData::new(&cm);
+        let mut data = Data::new(&robot);
+        let q = state(3, 1.0);
+        forward_kinematics(&robot, &mut data, &q, &state(4, 1.0)).unwrap();
+        crba(&robot, &mut data);
+        let factor = mass_matrix_cholesky(&data).unwrap();
+        let p = parameters::<f64>(1.0);
+        let mut all = TaskRows::<f64, N, P>::new();
+        let full = self_collision_rows(&cm, &mut cd, &robot, &data, &factor, &p, &mut all).unwrap();
+        assert!(full.candidates >= 4, "{full:?}");
+        // Capacity 3 with one row already present: the two closest candidates.
+        let mut few = TaskRows::<f64, N, 3>::new();
+        let marker = TaskRow { jacobian: RowSVector::zeros(), force: 1.0, potential: 0.0, activation: 1.0 };
+        few.push(marker).unwrap();
+        let report = self_collision_rows(&cm, &mut cd, &robot, &data, &factor, &p, &mut few).unwrap();
+        assert_eq!((report.rows, report.dropped), (2, full.candidates - 2));
+        let mut candidates: std::vec::Vec<(f64, usize)> = cd
+            .proximities
+            .iter()
+            .take(cm.pairs().len())
+            .enumerate()
+            .filter(|(_, x)| x.distance < p.emit_distance())
+            .map(|(i, x)| (x.distance, i))
+            .collect();
+        candidates.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut closest: std::vec::Vec<usize> = candidates.iter().take(2).map(|c| c.1).collect();
+        closest.sort_unstable();
+        for (row, pair) in few.rows()[1..].iter().zip(&closest) {
+            let e = evaluate_pair(&cm, &cd, &robot, &data, &factor, &p, *pair).unwrap();
+            assert_eq!(*row, e.row);
+        }
+        // A full list stays as it was.
+        let before = few.clone();
+        let report = self_collision_rows(&cm, &mut cd, &robot, &data, &factor, &p, &mut few).unwrap();
+        assert_eq!((report.rows, few), (0, before));
+        // Unknown pair.
+        assert!(evaluate_pair(&cm, &cd, &robot, &data, &factor, &p, 99).is_err());
+    }
+
+    #[test]
+    fn f32_rows_agree_with_f64() {
+        let (r64, r32) = (branched::<f64>(), branched::<f32>());
+        let (c64, c32) = (collision_model(&r64), collision_model(&r32));
+        let (mut d64, mut d32) = (Data::new(&r64), Data::new(&r32));
+        let (mut k64, mut k32) = (CollisionData::new(&c64), CollisionData::new(&c32));
+        let (p64, p32) = (parameters::<f64>(0.7), parameters::<f32>(0.7));
+        for seed in 0..20 {
+            let (q, v) = (state(seed, 1.5), state(seed + 50, 1.0));
+            forward_kinematics(&r64, &mut d64, &q, &v).unwrap();
+            forward_kinematics(&r32, &mut d32, &q.cast(), &v.cast()).unwrap();
+            crba(&r64, &mut d64);
+            crba(&r32, &mut d32);
+            let (f64_, f32_) = (mass_matrix_cholesky(&d64).unwrap(), mass_matrix_cholesky(&d32).unwrap());
+            let (mut rows64, mut rows32) = (TaskRows::<f64, N, P>::new(), TaskRows::<f32, N, P>::new());
+            self_collision_rows(&c64, &mut k64, &r64, &d64, &f64_, &p64, &mut rows64).unwrap();
+            self_collision_rows(&c32, &mut k32, &r32, &d32, &f32_, &p32, &mut rows32).unwrap();
+            if rows64.len() != rows32.len() {
+                continue; // a pair at the emit distance
+            }
+            let (t64, t32) = (rows64.torque(), rows32.torque().cast::<f64>());
+            assert!((t64 - t32).amax() <= 1e-3 * (1.0 + t64.amax()), "seed {seed}: {:?}", (t64 - t32).transpose());
+        }
+    }
+}

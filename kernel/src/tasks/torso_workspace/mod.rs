@@ -1,0 +1,603 @@
+//! Workspace of the tendon-coupled torso (Sec. 3.3, App. A): its kinematic and load-dependent
+//! dynamic boundaries, the distance of the torso centre point to each of them, and the
+//! repulsive potential with damping (3.53) as unilateral task rows.
+//!
+//! # Model
+//! Justin's torso pitches with two driven joints `q_t2`, `q_t3`; tendons keep the chest upright
+//! through the passive joint `q_t4 = −(q_t2 + q_t3)` (3.41). The torso centre point `p_t`
+//! (the `q_t4` axis) moves in the torso's X-Z plane ([`TorsoGeometry`] and [`direction`]
+//! define `x`, `z` and the angle convention): `p_t = l_t2 e(q_t2) + l_t3 e(q_t2 + q_t3)` (3.42).
+//!
+//! # Boundaries ([`Boundary`], twelve in a fixed order)
+//! - **Kinematic** (Table 3.2 → Table A.1): six arcs, one per range limit of `q_t2`, `q_t3`,
+//!   `q_t2 + q_t3`.
+//! - **Dynamic, joint 2** (3.48): two straight lines where the torque that holds the load
+//!   `F_t` (3.44) at `p_t` reaches `τ_t2,min` or `τ_t2,max`.
+//! - **Dynamic, joint 3** (3.49)–(3.52), Table A.2: up to four half circles where that torque
+//!   reaches `τ_t3,min` or `τ_t3,max`. Each limit excludes the band of angle sums between its
+//!   two circles and exists only if `F_t,load l_t3 > |τ|` ("at the point of overlapping, the
+//!   constraints vanish", Fig. 3.16d).
+//!
+//! # Distance to a boundary
+//! The Euclidean distance (m) in the torso plane from `p_t` to the boundary curve, signed
+//! positive on the feasible side: to the arc segment itself for arcs (not to the full circle,
+//! which can pass through the inside of the workspace), to the full line for the joint-2
+//! limits. The sign comes from the joint-space side of the limit, so a folded configuration
+//! (`q_t3 < 0`, mapped onto the same points as `q_t3 > 0`) is reported as violated. A joint-3
+//! band is left through its nearer side: each of its two circles governs the angle sums on its
+//! own half of the band (and beyond it); a circle outside the kinematic workspace is absent
+//! and the present one governs the whole band.
+//!
+//! # Repulsion (3.53)
+//! Each boundary is one unilateral row with the potential of (3.8) in its distance `d`,
+//! `V(d) = F_max/(3 d₀²) (d₀ − d)³` for `d < d₀`, else 0: C² at the activation distance
+//! `d₀` (value, force and stiffness vanish there, Sec. 3.1.2), force `f = −∂V/∂d =
+//! F_max/d₀² (d₀ − d)²` pushing `p_t` away from the boundary, local stiffness
+//! `k = ∂²V/∂d² = 2 F_max (d₀ − d)/d₀²` (largest, `2 F_max/d₀`, at the boundary). The rows of
+//! all boundaries are summed (`V_tws = Σ V(d_i)`) rather than taking only the nearest one: the
+//! nearest boundary switches on the medial axis of the workspace, where a single row would
+//! make the force direction jump; near one boundary the sum is the thesis' "repulsion from
+//! the nearest boundary", near a corner both walls push. Damping as in Sec. 3.1.3 with the
+//! stiffness `k` and the reflected mass `m = (j M⁻¹ jᵀ)⁻¹` of the row: the 1-D double
+//! diagonalisation gives `D = 2 ξ √(k m)`. Gravity `g(q)` of (3.53) is compensated elsewhere.
+//!
+//! The Jacobian row is `j = (∂d/∂p_t)ᵀ J_t` (3.43) in the columns of `q_t2`, `q_t3`. At the
+//! outstretched torso (`q_t3 = 0`, arc 5) `J_t` is singular with the radial direction in its
+//! left null space, so the row of arc 5 vanishes there (the distance is quadratic in `q_t3`):
+//! the thesis adds a separate singularity avoidance against it (Sec. 3.3.5).
+//!
+//! **Unilateral-row convention** (as [`super::end_stops`]): [`torso_workspace`] always emits
+//! exactly [`BOUNDARIES`] rows in [`Boundary::ALL`] order. A row whose boundary is absent (no
+//! load, no joint-3 band, arc outside the workspace) or not governing has `j = 0`, `f = 0`,
+//! `V = 0`, `a = 0`. The activation is the cubic (4.68)
+//! ([`crate::math::switching::transition_activation`]) of the distance, 1 at
+//! [`RepulsionGains::activation_full`], 0 from [`RepulsionGains::activation_start`] on.
+
+mod distance;
+mod dynamic_limits;
+mod kinematics;
+
+pub use dynamic_limits::{joint2_lines, load_torque, TorqueBand, TorqueLimits, TorqueLine, TorsoLoad};
+pub use kinematics::{direction, Arc, JointLine, Range, TorsoGeometry};
+
+use nalgebra::{Cholesky, Const, RealField, RowSVector, SVector, Vector2};
+
+use self::distance::ArcBoundary;
+use self::kinematics::{wrap_from, wrap_to_pi};
+use crate::math::switching::transition_activation;
+use super::{TaskError, TaskRow, TaskRows};
+
+/// Number of workspace boundaries (rows) of the torso.
+pub const BOUNDARIES: usize = 12;
+
+/// One boundary of the torso workspace.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Boundary {
+    /// Arc 1 of Table A.1: `q_t2 = q_t2,min` (−90°); centre `(−l_t2, 0)`, radius `l_t3`.
+    Joint2Min,
+    /// Arc 2: `q_t3 = q_t3,max` (135°); centre 0, radius `√(l_t2² + l_t3² − √2 l_t2 l_t3)`.
+    Joint3Max,
+    /// Arc 3: `q_t2 + q_t3 = max` (135°); centre `(l_t3/√2, −l_t3/√2)`, radius `l_t2`.
+    SumMax,
+    /// Arc 4: `q_t2 = q_t2,max` (90°); centre `(l_t2, 0)`, radius `l_t3`.
+    Joint2Max,
+    /// Arc 5: `q_t3 = q_t3,min` (0°, outstretched); centre 0, radius `l_t2 + l_t3`.
+    Joint3Min,
+    /// Arc 6: `q_t2 + q_t3 = min` (0°); centre `(0, l_t3)`, radius `l_t2`.
+    SumMin,
+    /// Line `τ_t2 = τ_t2,min` (3.48).
+    Torque2Min,
+    /// Line `τ_t2 = τ_t2,max` (3.48).
+    Torque2Max,
+    /// Circle `τ_t3,min`, `+` sign of (3.49) (Table A.2 row 1: feasible inside).
+    Torque3MinPlus,
+    /// Circle `τ_t3,min`, `−` sign (Table A.2 row 2: feasible outside).
+    Torque3MinMinus,
+    /// Circle `τ_t3,max`, `+` sign (Table A.2 row 3: feasible outside).
+    Torque3MaxPlus,
+    /// Circle `τ_t3,max`, `−` sign (Table A.2 row 4: feasible inside).
+    Torque3MaxMinus,
+}
+
+impl Boundary {
+    /// All boundaries in row order.
+    pub const ALL: [Self; BOUNDARIES] = [
+        Self::Joint2Min,
+        Self::Joint3Max,
+        Self::SumMax,
+        Self::Joint2Max,
+        Self::Joint3Min,
+        Self::SumMin,
+        Self::Torque2Min,
+        Self::Torque2Max,
+        Self::Torque3MinPlus,
+        Self::Torque3MinMinus,
+        Self::Torque3MaxPlus,
+        Self::Torque3MaxMinus,
+    ];
+
+    /// Position in [`Boundary::ALL`] (the row index).
+    pub const fn index(self) -> usize {
+        self as usize
+    }
+
+    /// The arc number of Table A.1 / Fig. 3.15b for a kinematic boundary.
+    pub const fn table_a1_arc(self) -> Option<u8> {
+        match self {
+            Self::Joint2Min => Some(1),
+            Self::Joint3Max => Some(2),
+            Self::SumMax => Some(3),
+            Self::Joint2Max => Some(4),
+            Self::Joint3Min => Some(5),
+            Self::SumMin => Some(6),
+            _ => None,
+        }
+    }
+
+    /// `true` for the six kinematic boundaries, `false` for the load-dependent ones.
+    pub const fn is_kinematic(self) -> bool {
+        self.table_a1_arc().is_some()
+    }
+
+    /// Short snake-case name (for logs and plots), e.g. `"joint2_min"`, `"torque3_min_plus"`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Joint2Min => "joint2_min",
+            Self::Joint3Max => "joint3_max",
+            Self::SumMax => "sum_max",
+            Self::Joint2Max => "joint2_max",
+            Self::Joint3Min => "joint3_min",
+            Self::SumMin => "sum_min",
+            Self::Torque2Min => "torque2_min",
+            Self::Torque2Max => "torque2_max",
+            Self::Torque3MinPlus => "torque3_min_plus",
+            Self::Torque3MinMinus => "torque3_min_minus",
+            Self::Torque3MaxPlus => "torque3_max_plus",
+            Self::Torque3MaxMinus => "torque3_max_minus",
+        }
+    }
+}
+
+/// Gains of the repulsive potential (3.8) and of its damping and activation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RepulsionGains<T> {
+    /// Activation distance `d₀ > 0` (m): the potential is zero beyond it.
+    pub distance: T,
+    /// Force `F_max ≥ 0` (N) at the boundary (`d = 0`); the largest stiffness is `2 F_max/d₀`.
+    pub max_force: T,
+    /// Damping ratio `ξ ≥ 0` of each row (Sec. 3.1.3).
+    pub damping_ratio: T,
+    /// Distance (m) at and below which the activation is 1 (`ϑ₁` of (4.68)).
+    pub activation_full: T,
+    /// Distance (m) from which on the activation is 0 (`ϑ₂` of (4.68)), `> activation_full`.
+    pub activation_start: T,
+}
+
+impl<T: RealField + Copy> RepulsionGains<T> {
+    /// Gains from the largest stiffness `k_max = 2 F_max/d₀` (N/m) at the boundary; activation
+    /// from 0 at `d₀` to 1 at the boundary.
+    pub fn from_max_stiffness(max_stiffness: T, distance: T, damping_ratio: T) -> Self {
+        let half: T = nalgebra::convert(0.5);
+        Self {
+            distance,
+            max_force: half * max_stiffness * distance,
+            damping_ratio,
+            activation_full: T::zero(),
+            activation_start: distance,
+        }
+    }
+
+    /// The torso experiment of Sec. 3.3.5: largest stiffness 1000 N/m, `d₀ = 0.1 m`
+    /// (so `F_max = 50 N`), `ξ = 0.3`.
+    pub fn thesis_experiment() -> Self {
+        Self::from_max_stiffness(nalgebra::convert(1000.0), nalgebra::convert(0.1), nalgebra::convert(0.3))
+    }
+
+    /// Potential `V(d)` (J) of (3.8): `F_max/(3 d₀²) (d₀ − d)³` for `d < d₀`, else 0.
+    #[inline]
+    pub fn potential(&self, d: T) -> T {
+        let gap = (self.distance - d).max(T::zero());
+        let three: T = nalgebra::convert(3.0);
+        self.max_force / (three * self.distance * self.distance) * gap * gap * gap
+    }
+
+    /// Repulsive force `−∂V/∂d = F_max/d₀² (d₀ − d)²` (N) for `d < d₀`, else 0 (3.10).
+    #[inline]
+    pub fn force(&self, d: T) -> T {
+        let gap = (self.distance - d).max(T::zero());
+        self.max_force / (self.distance * self.distance) * gap * gap
+    }
+
+    /// Local stiffness `∂²V/∂d² = 2 F_max (d₀ − d)/d₀²` (N/m) for `d < d₀`, else 0.
+    #[inline]
+    pub fn stiffness(&self, d: T) -> T {
+        let gap = (self.distance - d).max(T::zero());
+        let two: T = nalgebra::convert(2.0);
+        two * self.max_force / (self.distance * self.distance) * gap
+    }
+
+    /// Finite `d₀ > 0`, `F_max ≥ 0`, `ξ ≥ 0`, `activation_full < activation_start`.
+    pub fn validate(&self) -> Result<(), TaskError> {
+        let finite = |x: T| x.is_finite();
+        if !(finite(self.distance) && self.distance > T::zero()) {
+            return Err(TaskError::InvalidParameter { name: "distance" });
+        }
+        if !(finite(self.max_force) && self.max_force >= T::zero()) {
+            return Err(TaskError::InvalidParameter { name: "max_force" });
+        }
+        if !(finite(self.damping_ratio) && self.damping_ratio >= T::zero()) {
+            return Err(TaskError::InvalidParameter { name: "damping_ratio" });
+        }
+        if !(finite(self.activation_full)
+            && finite(self.activation_start)
+            && self.activation_full < self.activation_start)
+        {
+            return Err(TaskError::InvalidParameter { name: "activation" });
+        }
+        Ok(())
+    }
+}
+
+/// Everything the torso-workspace task needs. Validate with [`TorsoWorkspace::try_new`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TorsoWorkspaceConfig<T> {
+    /// Link lengths and joint ranges.
+    pub geometry: TorsoGeometry<T>,
+    /// Actuator torque limits of `q_t2`, `q_t3`.
+    pub torque_limits: TorqueLimits<T>,
+    /// The load at the torso centre point.
+    pub load: TorsoLoad<T>,
+    /// Potential, damping and activation.
+    pub gains: RepulsionGains<T>,
+    /// Indices of `q_t2` and `q_t3` in the coordinate vector (`[4, 5]` for the Justin-like
+    /// model).
+    pub coordinates: [usize; 2],
+}
+
+/// A boundary's curve in the torso plane, for plotting and planning.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum BoundaryCurve<T> {
+    /// The boundary does not exist for this load, or misses the kinematic workspace.
+    Absent,
+    /// A circular arc (kinematic limits, joint-3 torque limits).
+    Arc(Arc<T>),
+    /// A straight line (joint-2 torque limits).
+    Line(TorqueLine<T>),
+}
+
+/// The joint-space side of an arc boundary and, for joint-3 torque bands, which angle sums
+/// the arc governs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Side<T> {
+    /// A range limit: feasible where `±(line offset) ≥ 0`.
+    Limit { line: JointLine<T>, above: bool },
+    /// One circle of a joint-3 torque band: the upper (`above`) or lower edge.
+    Band { band: TorqueBand<T>, above: bool, governs_all: bool },
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Shape<T> {
+    Absent,
+    Arc(ArcBoundary<T>, Side<T>),
+    Line(TorqueLine<T>),
+}
+
+/// The state of the torso relative to its workspace (one call of [`torso_workspace`] or
+/// [`TorsoWorkspace::report`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TorsoWorkspaceReport<T> {
+    /// Torso centre point `p_t = (x, z)` (m), (3.42).
+    pub center: Vector2<T>,
+    /// Signed distance (m) to each boundary in [`Boundary::ALL`] order; positive on the
+    /// feasible side. `None`: the boundary is absent, or (joint-3 bands) the other circle of
+    /// the band governs this angle sum.
+    pub distances: [Option<T>; BOUNDARIES],
+    /// Torques `(τ_t2, τ_t3)` (Nm) that hold the configured load here, (3.45).
+    pub load_torque: Vector2<T>,
+    /// `(q_t2, q_t3)` within the ranges of Table 3.2.
+    pub kinematically_feasible: bool,
+    /// [`TorsoWorkspaceReport::load_torque`] within the torque limits (3.46)–(3.47).
+    pub dynamically_feasible: bool,
+}
+
+impl<T: RealField + Copy> TorsoWorkspaceReport<T> {
+    /// Signed distance to `boundary` (m), if it is present and governing.
+    pub fn distance(&self, boundary: Boundary) -> Option<T> {
+        self.distances.get(boundary.index()).copied().flatten()
+    }
+
+    /// The nearest boundary and its signed distance (m) (smallest signed distance, so a
+    /// violated boundary comes first).
+    pub fn nearest(&self) -> Option<(Boundary, T)> {
+        Boundary::ALL.iter().zip(self.distances.iter()).filter_map(|(b, d)| d.map(|d| (*b, d))).fold(
+            None,
+            |best, (b, d)| match best {
+                Some((_, e)) if e <= d => best,
+                _ => Some((b, d)),
+            },
+        )
+    }
+}
+
+/// The validated torso-workspace task with its boundaries for the current load.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TorsoWorkspace<T, const N: usize> {
+    config: TorsoWorkspaceConfig<T>,
+    shapes: [Shape<T>; BOUNDARIES],
+}
+
+impl<T: RealField + Copy, const N: usize> TorsoWorkspace<T, N> {
+    /// Validates `config` (geometry, torque limits, load, gains, two distinct coordinates
+    /// `< N`) and computes the boundaries. Errors: [`TaskError::InvalidParameter`].
+    ///
+    /// ```
+    /// use kernel::tasks::torso_workspace::*;
+    /// let config = TorsoWorkspaceConfig {
+    ///     geometry: TorsoGeometry::<f64>::justin(),
+    ///     torque_limits: TorqueLimits::symmetric(230.0),
+    ///     load: TorsoLoad::from_degrees(800.0, 90.0),
+    ///     gains: RepulsionGains::thesis_experiment(),
+    ///     coordinates: [0, 1],
+    /// };
+    /// let task = TorsoWorkspace::<f64, 2>::try_new(config).unwrap();
+    /// // Upright torso, 800 N downwards: x = 0, so 230 Nm / 800 N = 0.2875 m to each τ_t2 line.
+    /// let report = task.report(0.0, 0.0);
+    /// assert!((report.distance(Boundary::Torque2Max).unwrap() - 0.2875).abs() < 1e-12);
+    /// ```
+    pub fn try_new(config: TorsoWorkspaceConfig<T>) -> Result<Self, TaskError> {
+        config.geometry.validate()?;
+        config.torque_limits.validate()?;
+        config.load.validate()?;
+        config.gains.validate()?;
+        let [i2, i3] = config.coordinates;
+        if i2 == i3 || i2 >= N || i3 >= N {
+            return Err(TaskError::InvalidParameter { name: "coordinates" });
+        }
+        let mut task = Self { config, shapes: [Shape::Absent; BOUNDARIES] };
+        task.update_shapes();
+        Ok(task)
+    }
+
+    /// The validated configuration.
+    pub fn config(&self) -> &TorsoWorkspaceConfig<T> {
+        &self.config
+    }
+
+    /// Changes the load (e.g. a new payload from the planner, Table 7.1) and recomputes the
+    /// dynamic boundaries. Errors (the task is unchanged): [`TaskError::InvalidParameter`].
+    pub fn set_load(&mut self, load: TorsoLoad<T>) -> Result<(), TaskError> {
+        load.validate()?;
+        self.config.load = load;
+        self.update_shapes();
+        Ok(())
+    }
+
+    /// The curve of `boundary` in the torso plane.
+    pub fn curve(&self, boundary: Boundary) -> BoundaryCurve<T> {
+        match self.shapes.get(boundary.index()) {
+            Some(Shape::Arc(arc, _)) => BoundaryCurve::Arc(arc.arc),
+            Some(Shape::Line(line)) => BoundaryCurve::Line(*line),
+            Some(Shape::Absent) | None => BoundaryCurve::Absent,
+        }
+    }
+
+    /// The state of `(q_t2, q_t3)` (rad) relative to the workspace: `p_t`, the signed distance
+    /// to every boundary, the load torques and the feasibility flags. Cost O(1) (12 distances).
+    pub fn report(&self, q2: T, q3: T) -> TorsoWorkspaceReport<T> {
+        self.evaluate(q2, q3).0
+    }
+
+    /// Report plus, per boundary, the gradient `∂d/∂p_t` (zero where absent).
+    fn evaluate(&self, q2: T, q3: T) -> (TorsoWorkspaceReport<T>, [Vector2<T>; BOUNDARIES]) {
+        let c = &self.config;
+        let p = c.geometry.center(q2, q3);
+        let tiny = (c.geometry.link2 + c.geometry.link3) * T::default_epsilon() * nalgebra::convert::<f64, T>(64.0);
+        let mut distances = [None; BOUNDARIES];
+        let mut gradients = [Vector2::zeros(); BOUNDARIES];
+        for ((shape, distance), gradient) in self.shapes.iter().zip(distances.iter_mut()).zip(gradients.iter_mut()) {
+            let value = match shape {
+                Shape::Absent => None,
+                Shape::Line(line) => Some((line.normal.dot(&p) + line.offset, line.normal)),
+                Shape::Arc(arc, side) => {
+                    governing_side(side, q2, q3).map(|feasible| arc.signed_distance(&p, feasible, tiny))
+                }
+            };
+            if let Some((d, g)) = value {
+                *distance = Some(d);
+                *gradient = g;
+            }
+        }
+        let load_torque = load_torque(&c.geometry, &c.load, q2, q3);
+        let report = TorsoWorkspaceReport {
+            center: p,
+            distances,
+            load_torque,
+            kinematically_feasible: c.geometry.contains(q2, q3),
+            dynamically_feasible: c.torque_limits.contains(&load_torque),
+        };
+        (report, gradients)
+    }
+
+    fn update_shapes(&mut self) {
+        let c = self.config;
+        let g = &c.geometry;
+        let limit = |line: JointLine<T>, above: bool| {
+            // Near the arc the feasible side is inside the circle for a lower limit of q_t3 or
+            // of the sum and for an upper limit of q_t2 (see `kinematics`: increasing q_t3 or
+            // the sum at fixed q_t2 moves p_t inwards, increasing q_t2 at fixed sum outwards).
+            let inside = match line {
+                JointLine::Joint2(_) => !above,
+                JointLine::Joint3(_) | JointLine::Sum(_) => above,
+            };
+            g.arc(line)
+                .map_or(Shape::Absent, |arc| Shape::Arc(ArcBoundary::new(arc, inside), Side::Limit { line, above }))
+        };
+        let lines = joint2_lines(&c.load, &c.torque_limits.joint2);
+        let band_min = TorqueBand::new(g.link3, &c.load, c.torque_limits.joint3.min);
+        let band_max = TorqueBand::new(g.link3, &c.load, c.torque_limits.joint3.max);
+        // The circles of a band: the edge at a sum φ exists if φ (mod 2π) meets the workspace.
+        let edges = |band: Option<TorqueBand<T>>| -> [Shape<T>; 2] {
+            let Some(band) = band else { return [Shape::Absent; 2] };
+            let mut shapes = [Shape::Absent; 2];
+            for (shape, (phi, above)) in shapes.iter_mut().zip(band.boundaries().into_iter().zip([false, true])) {
+                let sum = wrap_from(phi, g.sum.min);
+                if let Some(arc) = g.arc(JointLine::Sum(sum)) {
+                    let side = Side::Band { band, above, governs_all: false };
+                    *shape = Shape::Arc(ArcBoundary::new(arc, above), side);
+                }
+            }
+            // A lone edge governs the whole band.
+            if let [Shape::Arc(_, Side::Band { governs_all: a, .. }), Shape::Absent]
+            | [Shape::Absent, Shape::Arc(_, Side::Band { governs_all: a, .. })] = &mut shapes
+            {
+                *a = true;
+            }
+            shapes
+        };
+        let [min_lower, min_upper] = edges(band_min);
+        let [max_lower, max_upper] = edges(band_max);
+        self.shapes = [
+            limit(JointLine::Joint2(g.joint2.min), true),
+            limit(JointLine::Joint3(g.joint3.max), false),
+            limit(JointLine::Sum(g.sum.max), false),
+            limit(JointLine::Joint2(g.joint2.max), false),
+            limit(JointLine::Joint3(g.joint3.min), true),
+            limit(JointLine::Sum(g.sum.min), true),
+            lines.map_or(Shape::Absent, |[low, _]| Shape::Line(low)),
+            lines.map_or(Shape::Absent, |[_, high]| Shape::Line(high)),
+            // Table A.2 signs: τ_min "+" is the upper edge of the band around α, "−" the lower;
+            // τ_max "+" (α + π − w) is the lower edge of the band around α + π, "−" the upper.
+            min_upper,
+            min_lower,
+            max_lower,
+            max_upper,
+        ];
+    }
+}
+
+/// For an arc boundary at `(q_t2, q_t3)`: `Some(feasible)` with the joint-space verdict (the
+/// range limit holds; the angle sum is outside the torque band), or `None` if the other edge
+/// of its torque band governs this angle sum (the other half of the circle of sums).
+fn governing_side<T: RealField + Copy>(side: &Side<T>, q2: T, q3: T) -> Option<bool> {
+    match *side {
+        Side::Limit { line, above } => {
+            let offset = line.offset(q2, q3);
+            Some(if above { offset >= T::zero() } else { offset <= T::zero() })
+        }
+        Side::Band { band, above, governs_all } => {
+            let delta = wrap_to_pi(q2 + q3 - band.center);
+            if !governs_all && above != (delta >= T::zero()) {
+                return None;
+            }
+            // Feasible for this band: outside it, on either side.
+            Some(delta.abs() >= band.half_width)
+        }
+    }
+}
+
+/// Torso-workspace repulsion (3.53): appends exactly [`BOUNDARIES`] rows, one per
+/// [`Boundary`] in [`Boundary::ALL`] order (see the module docs), and returns the
+/// [`TorsoWorkspaceReport`].
+///
+/// Row of a present boundary at distance `d`: `j = (∂d/∂p_t)ᵀ J_t` in the columns of `q_t2`,
+/// `q_t3`; `f = F_max/d₀² (d₀ − d)² − 2 ξ √(k m) ḋ` for `d < d₀` with `k = 2 F_max (d₀ − d)/d₀²`,
+/// `m = 1/(j M⁻¹ jᵀ)`, `ḋ = j q̇`; `V = F_max/(3 d₀²)(d₀ − d)³`; `a` the cubic (4.68) of `d`.
+/// Used alone, `τ = Σ jᵀ f = −(∂V_tws/∂q)ᵀ − D_tws q̇`.
+///
+/// Inputs: `q`, `q̇` (rad, rad/s), the Cholesky factor of `M(q)`
+/// ([`crate::dynamics::mass_matrix_cholesky`]). Cost O(N²) per row (two triangular solves).
+/// Errors (the row list is unchanged): [`TaskError::NonFinite`], [`TaskError::Capacity`] if
+/// fewer than [`BOUNDARIES`] rows are free.
+///
+/// ```
+/// use kernel::tasks::{torso_workspace::*, TaskRows};
+/// use nalgebra::{Cholesky, Matrix2, Vector2};
+/// let config = TorsoWorkspaceConfig {
+///     geometry: TorsoGeometry::<f64>::justin(),
+///     torque_limits: TorqueLimits::symmetric(230.0),
+///     load: TorsoLoad::from_degrees(550.0, 90.0),
+///     gains: RepulsionGains::thesis_experiment(), // F_max = 50 N, d₀ = 0.1 m
+///     coordinates: [0, 1],
+/// };
+/// let task = TorsoWorkspace::<f64, 2>::try_new(config).unwrap();
+/// let inertia = Cholesky::new(Matrix2::new(3.0, 0.5, 0.5, 1.0)).unwrap();
+/// let mut rows = TaskRows::<f64, 2, 12>::new();
+/// // 10° inside the limit q_t2 = −90° (arc 1), a few cm from it: F = F_max/d₀² (d₀ − d)².
+/// let q = Vector2::new((-80.0_f64).to_radians(), 2.0);
+/// let report = torso_workspace(&task, &q, &Vector2::zeros(), &inertia, &mut rows).unwrap();
+/// let d = report.distance(Boundary::Joint2Min).unwrap();
+/// let row = rows.rows()[Boundary::Joint2Min.index()];
+/// assert!(d > 0.0 && d < 0.1);
+/// assert!((row.force - 5000.0 * (0.1 - d).powi(2)).abs() < 1e-9);
+/// ```
+pub fn torso_workspace<T: RealField + Copy, const N: usize, const R: usize>(
+    task: &TorsoWorkspace<T, N>,
+    q: &SVector<T, N>,
+    v: &SVector<T, N>,
+    inertia: &Cholesky<T, Const<N>>,
+    rows: &mut TaskRows<T, N, R>,
+) -> Result<TorsoWorkspaceReport<T>, TaskError> {
+    if !(crate::math::all_finite(q) && crate::math::all_finite(v)) {
+        return Err(TaskError::NonFinite);
+    }
+    if rows.len().saturating_add(BOUNDARIES) > R {
+        return Err(TaskError::Capacity { capacity: R });
+    }
+    let c = &task.config;
+    let [i2, i3] = c.coordinates;
+    let (Some(&q2), Some(&q3)) = (q.get(i2), q.get(i3)) else {
+        return Err(TaskError::InvalidParameter { name: "coordinates" });
+    };
+    let (report, gradients) = task.evaluate(q2, q3);
+    let jt = c.geometry.jacobian(q2, q3);
+    let gains = &c.gains;
+    let two: T = nalgebra::convert(2.0);
+    let mut new_rows =
+        [TaskRow { jacobian: RowSVector::zeros(), force: T::zero(), potential: T::zero(), activation: T::zero() };
+            BOUNDARIES];
+    for ((row, distance), gradient) in new_rows.iter_mut().zip(report.distances.iter()).zip(gradients.iter()) {
+        let Some(d) = *distance else { continue };
+        let local = gradient.transpose() * jt;
+        let mut jacobian = RowSVector::<T, N>::zeros();
+        if let (Some(a), Some(b)) = (jacobian.get_mut(i2), local.get(0)) {
+            *a = *b;
+        }
+        if let (Some(a), Some(b)) = (jacobian.get_mut(i3), local.get(1)) {
+            *a = *b;
+        }
+        let rate = (jacobian * v).x;
+        // Damping 2ξ√(k m) ḋ with m = 1/(j M⁻¹ jᵀ): 2ξ√k ḋ/√(j M⁻¹ jᵀ). At a singular row
+        // (j → 0) both ḋ and √(j M⁻¹ jᵀ) vanish linearly; below the guard no damping.
+        let stiffness = gains.stiffness(d);
+        let mobility = (jacobian * inertia.solve(&jacobian.transpose())).x.max(T::zero()).sqrt();
+        let damping = crate::math::guarded_divide(
+            two * gains.damping_ratio * stiffness.sqrt() * rate,
+            mobility,
+            T::default_epsilon(),
+        )
+        .unwrap_or_else(T::zero);
+        *row = TaskRow {
+            jacobian,
+            force: gains.force(d) - damping,
+            potential: gains.potential(d),
+            activation: transition_activation(d, gains.activation_full, gains.activation_start),
+        };
+    }
+    let finite = new_rows.iter().all(|r| {
+        r.force.is_finite()
+            && r.potential.is_finite()
+            && r.activation.is_finite()
+            && crate::math::all_finite(&r.jacobian)
+    });
+    if !finite {
+        return Err(TaskError::NonFinite);
+    }
+    for row in new_rows {
+        rows.push(row)?;
+    }
+    Ok(report)
+}
+
+#[cfg(test)]
+mod tests;
