@@ -274,6 +274,20 @@ pub fn run(setup: &Setup, progress: Progress) -> Result<TimeSeries, String> {
     Ok(series)
 }
 
+/// The cross-level acceleration columns: `acc<i>…_by<j>` is the acceleration of level `i`'s
+/// task coordinates caused by level `j`'s torque (zero under dynamic consistency).
+pub const CROSS_COLUMNS: [&str; 9] = [
+    "acc1.x_by2",
+    "acc1.y_by2",
+    "acc1.x_by3",
+    "acc1.y_by3",
+    "acc2_op_by3",
+    "acc2_by1",
+    "acc2_by3",
+    "acc3_by1",
+    "acc3_by2",
+];
+
 /// The columns of [`run`]'s time series.
 pub fn columns() -> Vec<String> {
     let mut columns = vec!["t".to_owned()];
@@ -286,20 +300,7 @@ pub fn columns() -> Vec<String> {
     for level in 1..=3 {
         columns.extend((1..=4).map(|k| format!("tau{level}p.{k}")));
     }
-    columns.extend(
-        [
-            "acc1.x_by2",
-            "acc1.y_by2",
-            "acc1.x_by3",
-            "acc1.y_by3",
-            "acc2_op_by3",
-            "acc2_by1",
-            "acc2_by3",
-            "acc3_by1",
-            "acc3_by2",
-        ]
-        .map(String::from),
-    );
+    columns.extend(CROSS_COLUMNS.map(String::from));
     columns
 }
 

@@ -33,18 +33,7 @@ pub const SETTLE_BOUND_S: f64 = 0.5;
 /// Largest admissible cross-level acceleration (m/s², rad/s²).
 pub const CROSS_ACCELERATION_BOUND: f64 = 1e-9;
 
-/// The acceleration columns of [`super::multilevel_planar::columns`].
-pub const CROSS_COLUMNS: [&str; 9] = [
-    "acc1.x_by2",
-    "acc1.y_by2",
-    "acc1.x_by3",
-    "acc1.y_by3",
-    "acc2_op_by3",
-    "acc2_by1",
-    "acc2_by3",
-    "acc3_by1",
-    "acc3_by2",
-];
+pub use super::multilevel_planar::CROSS_COLUMNS;
 
 /// Runs the scenario.
 pub fn simulate(progress: Progress) -> Result<Outcome, String> {
