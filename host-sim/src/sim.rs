@@ -17,7 +17,10 @@
 //!   `T = 0`. Because `ṙ_des` is held constant between commands, the lag is integrated in
 //!   closed form (`ṙ(s) = ṙ_des + (ṙ₀ − ṙ_des) e^{−s/T}`) at every Runge–Kutta stage, so the
 //!   base follows its first-order response exactly for any `T ≥ 0`. The upper body's reaction
-//!   on the base is not simulated: the base is an ideal velocity source (Sec. 5.1).
+//!   on the base is not simulated: the base is an ideal velocity source (Sec. 5.1). With
+//!   `T = 0` a velocity command takes effect as a step, so the base acceleration `r̈` never acts
+//!   on the upper body through `M_ur r̈`; experiments on the dynamic coupling (Sec. 5.1.3, the
+//!   coupling compensation) need `T > 0` (the mobile-impedance scenarios use 50 ms).
 //! - **Legs**: the four leg lengths `λ_i` integrate their commanded rates and stop at the end
 //!   stops of [`SimConfig`]. They do not enter the dynamics (the model has no leg coordinates).
 //! - **Actuation**: the commanded torque is held constant between commands (zero-order hold)
