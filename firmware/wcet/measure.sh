@@ -1,0 +1,114 @@
+#!/usr/bin/env bash
+# Exact per-call instruction counts (QEMU TCG plugin), stack high-water marks (painting) and
+# image sizes of the kernel stages measured by `src/bin/wcet.rs`, on
+#   m7-f32  Cortex-M7 (mps2-an500), target-cpu=cortex-m7, f32
+#   m7-f64  Cortex-M7 (mps2-an500), target-cpu=cortex-m7 (double-precision FPU), f64
+#   m4-f32  Cortex-M4F (mps2-an386), target-cpu=cortex-m4, f32
+# Each variant runs twice; the script fails if any count differs between the runs.
+# With --callgrind, also counts the same stages on the host (x86-64, valgrind callgrind, one
+# process per case and precision; the bench in wcet/host shares wcet/stages.rs with the image).
+# Usage: bash firmware/wcet/measure.sh [--callgrind]   (raw outputs in firmware/target/wcet/)
+# Recipe: /work/shared/wcet/RECIPE.md (sections 3.3 and 5.1).
+set -euo pipefail
+here="$(cd "$(dirname "$0")" && pwd)"
+fw="$(dirname "$here")"
+cd "$fw"
+out="$fw/target/wcet"
+mkdir -p "$out"
+
+# --- set-up ---------------------------------------------------------------------------------
+rustup target add thumbv7em-none-eabihf >/dev/null
+if ! command -v qemu-system-arm >/dev/null || ! command -v gcc >/dev/null; then
+    export DEBIAN_FRONTEND=noninteractive
+    apt-get update -qq && apt-get install -y -qq qemu-system-arm gcc >/dev/null
+fi
+# The plugin declares the QEMU plugin API itself: no glib or qemu headers needed.
+qemu_major=$(qemu-system-arm --version | sed -n 's/.*version \([0-9]*\)\..*/\1/p' | head -n1)
+api=""
+if [ "${qemu_major:-7}" -ge 9 ]; then api="-DQEMU_PLUGIN_API_VERSION=3"; fi
+plugin="$out/wcet_insn.so"
+# shellcheck disable=SC2086
+gcc -O2 -shared -fPIC -fvisibility=hidden $api -o "$plugin" "$here/wcet_insn.c"
+
+# --- build and run --------------------------------------------------------------------------
+variants=(m7-f32 m7-f64 m4-f32)
+declare -A cpu=([m7-f32]=cortex-m7 [m7-f64]=cortex-m7 [m4-f32]=cortex-m4)
+declare -A machine=([m7-f32]=mps2-an500 [m7-f64]=mps2-an500 [m4-f32]=mps2-an386)
+declare -A features=([m7-f32]="" [m7-f64]="--features wcet-f64" [m4-f32]="")
+stages=(dynamics self_collision projection)
+
+for v in "${variants[@]}"; do
+    echo "==> build $v (target-cpu=${cpu[$v]} ${features[$v]})" >&2
+    # shellcheck disable=SC2086
+    CARGO_TARGET_DIR="$fw/target/wcet-$v" RUSTFLAGS="-C link-arg=-Tlink.x -C target-cpu=${cpu[$v]}" \
+        cargo build --locked --release --bin wcet ${features[$v]} >&2
+    elf="$fw/target/wcet-$v/thumbv7em-none-eabihf/release/wcet"
+    cp "$elf" "$out/wcet-$v.elf"
+    for run in 1 2; do
+        echo "==> run $v on ${machine[$v]} ($run/2)" >&2
+        QEMU_MACHINE=${machine[$v]} QEMU_TIMEOUT=600 ./run-qemu.sh "$elf" \
+            -plugin "$plugin,out=$out/$v.counts.$run" > "$out/$v.log.$run"
+    done
+    if ! cmp -s "$out/$v.counts.1" "$out/$v.counts.2" || ! cmp -s "$out/$v.log.1" "$out/$v.log.2"; then
+        echo "error: $v counts or outputs differ between two runs" >&2
+        diff "$out/$v.counts.1" "$out/$v.counts.2" >&2 || true
+        exit 1
+    fi
+done
+
+# --- table ----------------------------------------------------------------------------------
+summary() { # file region -> "min max samples"
+    sed -n "s/^wcet SUMMARY region=$2 samples=\([0-9]*\) min=\([0-9]*\) max=\([0-9]*\).*/\2 \3 \1/p" "$1"
+}
+stack_of() { # log stage -> bytes
+    sed -n "s/^wcet-stack.* $2=\([0-9]*\).*/\1/p" "$1"
+}
+echo
+echo "Instructions per call (QEMU TCG plugin; min - max over cases; identical in both runs)"
+printf '%-8s %-15s %12s %12s %7s %8s %12s\n' variant stage min max cases spread "stack [B]"
+for v in "${variants[@]}"; do
+    for r in 0 1 2; do
+        read -r mn mx n < <(summary "$out/$v.counts.1" "$r")
+        printf '%-8s %-15s %12s %12s %7s %7.2f%% %12s\n' "$v" "${stages[$r]}" "$mn" "$mx" "$n" \
+            "$(awk -v a="$mn" -v b="$mx" 'BEGIN { print (b - a) * 100 / b }')" "$(stack_of "$out/$v.log.1" "${stages[$r]}")"
+    done
+done
+echo
+echo "Image sizes (size: text = flash code+rodata, data = flash+RAM, bss = RAM; stack not included)"
+size "$out"/wcet-*.elf
+echo "smoke image (default bin, f32, generic thumbv7em):"
+(cargo build --locked --release --bin firmware >/dev/null 2>&1 && size target/thumbv7em-none-eabihf/release/firmware) || true
+
+# --- host callgrind (optional) --------------------------------------------------------------
+if [ "${1:-}" = "--callgrind" ]; then
+    if ! command -v valgrind >/dev/null; then
+        export DEBIAN_FRONTEND=noninteractive
+        apt-get update -qq && apt-get install -y -qq valgrind >/dev/null
+    fi
+    cases=$(sed -n 's/^pub const CASES: u32 = \([0-9]*\);/\1/p' "$here/stages.rs")
+    echo
+    echo "Host x86-64 instructions per call (callgrind, $cases cases, min - max)"
+    printf '%-8s %-15s %12s %12s\n' variant stage min max
+    for prec in f32 f64; do
+        feat=""; [ "$prec" = f64 ] && feat="--features wcet-f64"
+        # shellcheck disable=SC2086
+        (cd "$here/host" && CARGO_TARGET_DIR="$fw/target/wcet-host-$prec" cargo build --locked --release $feat >&2)
+        bin="$fw/target/wcet-host-$prec/x86_64-unknown-linux-gnu/release/wcet-host"
+        : > "$out/host-$prec.callgrind"
+        for ((k = 0; k < cases; k++)); do
+            valgrind --tool=callgrind --collect-atstart=no --toggle-collect=wcet_dynamics \
+                --toggle-collect=wcet_self_collision --toggle-collect=wcet_projection \
+                --callgrind-out-file="$out/cg.out" "$bin" "$k" >/dev/null 2>&1
+            # The stage's own line (file stages.rs) carries its inclusive cost.
+            for st in "${stages[@]}"; do
+                n=$(callgrind_annotate --inclusive=yes "$out/cg.out" 2>/dev/null \
+                    | grep -E "stages\.rs:wcet_$st( |\$)" | head -n1 | awk '{ gsub(",", "", $1); print $1 }')
+                echo "$st $k $n" >> "$out/host-$prec.callgrind"
+            done
+        done
+        for st in "${stages[@]}"; do
+            awk -v st="$st" -v v="x86-$prec" '$1 == st { if (min == "" || $3 < min) min = $3; if ($3 > max) max = $3 }
+                END { printf "%-8s %-15s %12s %12s\n", v, st, min, max }' "$out/host-$prec.callgrind"
+        done
+    done
+fi
