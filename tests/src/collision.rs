@@ -11,6 +11,8 @@
 
 use std::path::PathBuf;
 
+use crate::support::Rng;
+
 use fixtures::justin::{self, collision as jc};
 use kernel::dynamics::{crba, forward_kinematics, mass_matrix_cholesky};
 use kernel::model::BodyId;
@@ -347,21 +349,6 @@ fn volumes_cover_the_urdf_visuals() {
     println!("largest signed distance of a URDF visual sample to its volumes: {worst:.2e} m");
 }
 
-/// A small deterministic generator (xorshift64*), uniform in [0, 1).
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    fn uniform(&mut self, lower: f64, upper: f64) -> f64 {
-        lower + (upper - lower) * self.next()
-    }
-}
 
 /// A random configuration within the limits (platform within ±1 m, ±π), with the torso's
 /// coupled bound `0 ≤ q_t2 + q_t3 ≤ 135°` respected.

@@ -9,6 +9,8 @@
 
 use std::path::PathBuf;
 
+use crate::support::Rng;
+
 use fixtures::justin;
 use host_sim::codegen;
 use host_sim::urdf::{self, Coupling};
@@ -53,21 +55,6 @@ fn generated_justin_constructor_is_up_to_date() {
     }
 }
 
-/// A small deterministic generator (xorshift64*), uniform in [0, 1).
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    fn uniform(&mut self, lower: f64, upper: f64) -> f64 {
-        lower + (upper - lower) * self.next()
-    }
-}
 
 type Justin = Model<f64, { justin::N }, { justin::BODIES }, { justin::FRAMES }>;
 

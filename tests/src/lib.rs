@@ -20,3 +20,5 @@ mod torso_workspace;
 mod platform;
 #[cfg(test)]
 mod multilevel;
+#[cfg(test)]
+mod support;

@@ -235,6 +235,20 @@ impl<T: RealField + Copy> TorsoGeometry<T> {
         self.joint2.contains(q2) && self.joint3.contains(q3) && self.sum.contains(q2 + q3)
     }
 
+    /// The six range limits bounding the kinematic workspace, in the order of Table A.1's arcs
+    /// 1–6: `q_t2 = min`, `q_t3 = max`, `q_t2 + q_t3 = max`, `q_t2 = max`, `q_t3 = min`,
+    /// `q_t2 + q_t3 = min`.
+    pub fn arc_lines(&self) -> [JointLine<T>; 6] {
+        [
+            JointLine::Joint2(self.joint2.min),
+            JointLine::Joint3(self.joint3.max),
+            JointLine::Sum(self.sum.max),
+            JointLine::Joint2(self.joint2.max),
+            JointLine::Joint3(self.joint3.min),
+            JointLine::Sum(self.sum.min),
+        ]
+    }
+
     /// The part of the joint-plane line `line` that lies in the joint ranges, mapped to the
     /// torso plane by (3.42): a circular arc (Table A.1 for the six range limits, Table A.2
     /// for `q_t2 + q_t3 = const`). `None` if the line misses the ranges.
@@ -355,15 +369,7 @@ mod tests {
     #[test]
     fn arc_points_satisfy_their_limit_with_equality() {
         let g = TorsoGeometry::<f64>::justin();
-        let lines = [
-            JointLine::Joint2(g.joint2.min),
-            JointLine::Joint3(g.joint3.max),
-            JointLine::Sum(g.sum.max),
-            JointLine::Joint2(g.joint2.max),
-            JointLine::Joint3(g.joint3.min),
-            JointLine::Sum(g.sum.min),
-        ];
-        for line in lines {
+        for line in g.arc_lines() {
             let arc = g.arc(line).unwrap();
             assert!(arc.end - arc.start <= PI + 1e-12);
             for k in 0..=20 {

@@ -457,13 +457,14 @@ impl<T: RealField + Copy, const N: usize> TorsoWorkspace<T, N> {
         };
         let [min_lower, min_upper] = edges(band_min);
         let [max_lower, max_upper] = edges(band_max);
+        let [arc1, arc2, arc3, arc4, arc5, arc6] = g.arc_lines();
         self.shapes = [
-            limit(JointLine::Joint2(g.joint2.min), true),
-            limit(JointLine::Joint3(g.joint3.max), false),
-            limit(JointLine::Sum(g.sum.max), false),
-            limit(JointLine::Joint2(g.joint2.max), false),
-            limit(JointLine::Joint3(g.joint3.min), true),
-            limit(JointLine::Sum(g.sum.min), true),
+            limit(arc1, true),
+            limit(arc2, false),
+            limit(arc3, false),
+            limit(arc4, false),
+            limit(arc5, true),
+            limit(arc6, true),
             lines.map_or(Shape::Absent, |[low, _]| Shape::Line(low)),
             lines.map_or(Shape::Absent, |[_, high]| Shape::Line(high)),
             // Table A.2 signs: τ_min "+" is the upper edge of the band around α, "−" the lower;

@@ -179,15 +179,7 @@ fn rows_are_continuous_across_activation() {
 /// Brute-force Euclidean distance from p to the boundary of the kinematic workspace (dense
 /// samples of the six arcs).
 fn brute_kinematic_distance(g: &TorsoGeometry<f64>, p: &Vector2<f64>) -> f64 {
-    let lines = [
-        JointLine::Joint2(g.joint2.min),
-        JointLine::Joint3(g.joint3.max),
-        JointLine::Sum(g.sum.max),
-        JointLine::Joint2(g.joint2.max),
-        JointLine::Joint3(g.joint3.min),
-        JointLine::Sum(g.sum.min),
-    ];
-    lines
+    g.arc_lines()
         .iter()
         .map(|line| {
             let arc = g.arc(*line).unwrap();
