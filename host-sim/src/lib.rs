@@ -12,6 +12,7 @@
 //! - [`controllers`]: controllers run in the loop by scenarios.
 //! - [`output`]: the scenario output convention (CSV, summary JSON, SVG plots).
 //! - [`scenario`]: the registry of named scenarios.
+//! - [`wbc`]: the simulated Justin under the kernel's whole-body controller.
 //!
 //! Errors at this level are reported as one-line messages; nothing here panics on bad input.
 
@@ -24,3 +25,4 @@ pub mod sim;
 pub mod urdf;
 pub mod mobile_controller;
 pub mod wheels;
+pub mod wbc;

@@ -15,6 +15,9 @@
 //! 5. [`hierarchy`]: the null space projections of Ch. 4 by a scalar-inverse row recursion.
 //! 6. [`platform`]: the wheeled platform: admittance, coupling compensation, storage function
 //!    (Sec. 5.1) and the ICR singularity avoidance with leg motion (Sec. 3.2).
+//! 7. [`controller`]: the whole-body controller of Ch. 6 (the hierarchy as data, one `step` per
+//!    cycle from a sensor frame to an actuator frame, faults and safe outputs, output guards) and
+//!    the planner channel of Ch. 7.
 //!
 //! ## Conventions
 //! - Sizes are const generics: `N` coordinates, `B` bodies, `F` frames; all matrices are
@@ -38,6 +41,7 @@ pub mod math;
 pub mod model;
 pub mod tasks;
 pub mod platform;
+pub mod controller;
 
 #[cfg(test)]
 mod test_models;

@@ -24,7 +24,7 @@ mod transition;
 
 pub use projection::{project, HierarchyData, LevelDiagnostics, RowDiagnostics};
 pub use stack::{Stack, StackRow};
-pub use transition::push_transitioning;
+pub use transition::{push_scaled, push_transitioning, transition_weight};
 
 use core::fmt;
 

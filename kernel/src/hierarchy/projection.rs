@@ -45,6 +45,9 @@ pub struct HierarchyData<T: RealField, const N: usize, const R: usize, const L: 
     pub rows: [RowDiagnostics<T>; R],
     /// Diagnostics per level (the first `level_count` are valid).
     pub levels: [LevelDiagnostics<T>; L],
+    /// Projected torque `N_i τ_i` of each level (the first `level_count` are valid; they sum to
+    /// [`Self::torque`]). Used to saturate with priority (lower levels are scaled first).
+    pub level_torques: [SVector<T, N>; L],
     /// Number of levels of the last projection.
     pub level_count: usize,
 }
@@ -57,6 +60,7 @@ impl<T: RealField + Copy, const N: usize, const R: usize, const L: usize> Defaul
             torque: SVector::zeros(),
             rows: [RowDiagnostics { level: 0, activation: T::zero(), projected_norm_ratio: T::zero(), transmission: T::zero() }; R],
             levels: [LevelDiagnostics { torque_norm: T::zero(), projected_torque_norm: T::zero(), conflict: T::zero() }; L],
+            level_torques: [SVector::zeros(); L],
             level_count: 0,
         }
     }
@@ -93,12 +97,15 @@ pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS
     data.torque = SVector::zeros();
     data.level_count = level_count;
     let mut diagnostics = data.rows.iter_mut();
-    for (level, level_diagnostics) in data.levels.iter_mut().enumerate().take(level_count) {
+    for (level, (level_diagnostics, level_torque)) in
+        data.levels.iter_mut().zip(data.level_torques.iter_mut()).enumerate().take(level_count)
+    {
         let on_level = || stack.rows().iter().filter(move |r| r.level == level);
         let input = data.projector;
         let torque: SVector<T, N> = on_level().fold(SVector::zeros(), |t, r| t + r.row.jacobian.transpose() * r.row.force);
         let projected = apply_projector(&config.weighting, &input, &torque);
         data.torque += projected;
+        *level_torque = projected;
         *level_diagnostics = level_result(&torque, &projected);
 
         if config.recursion == Recursion::Successive {

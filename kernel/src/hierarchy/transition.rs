@@ -23,17 +23,49 @@ pub fn push_transitioning<T: RealField + Copy, const N: usize, const R: usize, c
     if !progress.is_finite() {
         return Err(HierarchyError::NonFinite);
     }
-    let sigma = T::one() - transition_activation(progress, T::zero(), T::one());
+    let sigma = transition_weight(progress);
     let sides = [(from, T::one() - sigma), (to, sigma)];
     let needed = sides.iter().filter(|(_, w)| *w > T::zero()).count() * rows.len();
     if stack.rows().len() + needed > R {
         return Err(HierarchyError::Capacity { capacity: R });
     }
     for (level, weight) in sides.into_iter().filter(|(_, w)| *w > T::zero()) {
-        for row in rows.rows() {
-            let scaled = TaskRow { force: row.force * weight, activation: row.activation * weight, ..*row };
-            stack.push(level, scaled)?;
-        }
+        push_scaled(stack, rows, level, weight)?;
+    }
+    Ok(())
+}
+
+/// The cubic (4.68) weight of a transition's `progress ∈ [0, 1]`: 0 at the start, 1 at the end,
+/// zero slope at both ends. Non-finite progress gives 0.
+pub fn transition_weight<T: RealField + Copy>(progress: T) -> T {
+    if progress.is_finite() {
+        T::one() - transition_activation(progress, T::zero(), T::one())
+    } else {
+        T::zero()
+    }
+}
+
+/// Puts a task's rows on `level` with force and activation scaled by `weight ∈ [0, 1]` (a task
+/// fading in or out of the hierarchy: `weight = transition_weight(progress)` or its
+/// complement). Nothing is pushed for `weight ≤ 0`. All or nothing.
+pub fn push_scaled<T: RealField + Copy, const N: usize, const R: usize, const Q: usize>(
+    stack: &mut Stack<T, N, R>,
+    rows: &TaskRows<T, N, Q>,
+    level: usize,
+    weight: T,
+) -> Result<(), HierarchyError> {
+    if !weight.is_finite() {
+        return Err(HierarchyError::NonFinite);
+    }
+    if weight <= T::zero() {
+        return Ok(());
+    }
+    if stack.rows().len() + rows.len() > R {
+        return Err(HierarchyError::Capacity { capacity: R });
+    }
+    let weight = weight.min(T::one());
+    for row in rows.rows() {
+        stack.push(level, TaskRow { force: row.force * weight, activation: row.activation * weight, ..*row })?;
     }
     Ok(())
 }

@@ -1,0 +1,220 @@
+//! The simulated Rollin' Justin under the kernel's whole-body controller
+//! ([`kernel::controller::Controller`]): the rig every `wbc_*` and service-task scenario uses.
+//!
+//! Per control cycle ([`Rig::cycle`]): read the joint and platform samples through the `hal`
+//! traits, number the frame with the control-cycle counter (the simulator counts physics
+//! steps), call the controller's `step`, write the torques and the platform command back, and
+//! record one row in the scenario convention of DESIGN.md (`t`, `q.*`, `dq.*`, `tau.*`, the TCP
+//! errors `e0.*` (right) and `e1.*` (left), the storage `S<level>` per level, the activation
+//! `a.<task>` per hierarchy entry, then the controller's platform commands and diagnostics).
+
+use fixtures::justin::{self, collision, whole_body};
+use hal::{JointTorqueInterface, PlatformVelocityInterface};
+use kernel::controller::config::{ControllerConfig, Hand, TaskKind, TaskSpec, MAX_LEVELS};
+use kernel::controller::faults::SafeOutput;
+use kernel::controller::{Controller, SensorFrame};
+use kernel::tasks::collision::SweptSphere;
+use nalgebra::SVector;
+
+use crate::output::TimeSeries;
+use crate::sim::{CycleInfo, SimConfig, SimError, Simulator, CONTROL_PERIOD_S};
+
+/// Collision volumes: the robot's 28 plus up to four environment volumes (table, wall, …).
+pub const VOLUMES: usize = collision::VOLUMES + MAX_ENVIRONMENT;
+/// Most environment volumes.
+pub const MAX_ENVIRONMENT: usize = 4;
+/// Pair capacity: the robot's pairs plus 27 per environment volume.
+pub const PAIRS: usize = collision::PAIRS + 27 * MAX_ENVIRONMENT;
+
+/// The Justin-like simulator.
+pub type JustinSim = Simulator<{ justin::N }, { justin::BODIES }, { justin::FRAMES }, { justin::UPPER_DOF }>;
+/// The whole-body controller of the Justin-like robot, `f64`.
+pub type JustinController =
+    Controller<f64, { justin::N }, { justin::BODIES }, { justin::FRAMES }, { justin::UPPER_DOF }, VOLUMES, PAIRS>;
+
+/// Base velocity-loop lag of the simulated platform (s): an imperfect velocity loop, as in the
+/// `mobile_impedance` scenarios.
+pub const BASE_LAG_S: f64 = 0.05;
+
+/// The simulator and the controller, wired.
+pub struct Rig {
+    /// The simulated robot.
+    pub sim: JustinSim,
+    /// The controller.
+    pub controller: JustinController,
+    /// Faults seen so far (cycles with a safe output).
+    pub faulty_cycles: u64,
+    /// Smallest collision distance seen (m) over all pairs.
+    pub min_distance_m: f64,
+}
+
+/// Builds the rig: the robot at `q0` at rest, the collision model with `environment` volumes
+/// (world frame), the controller with `config` and `hierarchy`.
+pub fn rig(
+    q0: &SVector<f64, { justin::N }>,
+    environment: &[SweptSphere<f64>],
+    config: ControllerConfig<f64, { justin::N }>,
+    hierarchy: &[TaskSpec],
+) -> Result<Rig, String> {
+    if environment.len() > MAX_ENVIRONMENT {
+        return Err(format!("at most {MAX_ENVIRONMENT} environment volumes"));
+    }
+    let model = justin::model::<f64>().map_err(|e| format!("model: {e}"))?;
+    let collision_model = collision::collision_model_with_environment::<f64, VOLUMES, PAIRS>(&model, environment)
+        .map_err(|e| format!("collision model: {e}"))?;
+    let controller = JustinController::try_new(model.clone(), collision_model, config, hierarchy)
+        .map_err(|e| format!("controller: {e}"))?;
+    let mut sim = Simulator::new(model, SimConfig { base_lag_s: BASE_LAG_S, ..SimConfig::default() })
+        .map_err(|e| format!("simulator: {e}"))?;
+    sim.set_state(*q0, SVector::zeros()).map_err(|e| format!("initial state: {e}"))?;
+    Ok(Rig { sim, controller, faulty_cycles: 0, min_distance_m: f64::INFINITY })
+}
+
+/// The default rig of Ch. 6: Justin at its home pose, the configuration of
+/// [`whole_body::controller_config`] and the Fig. 6.3 hierarchy for `hand`.
+pub fn chapter_6_rig(hand: Hand, environment: &[SweptSphere<f64>]) -> Result<Rig, String> {
+    let config = whole_body::controller_config::<f64>().map_err(|e| format!("config: {e}"))?;
+    rig(&justin::home_configuration(), environment, config, &whole_body::fig_6_3_hierarchy(hand))
+}
+
+/// A short name of a task for column headers.
+pub fn task_name(kind: TaskKind) -> String {
+    use kernel::controller::config::{Field, JointGroup};
+    let hand = |h: Hand| if h == Hand::Right { "right" } else { "left" };
+    let group = |g: JointGroup| match g {
+        JointGroup::Platform => "platform".to_string(),
+        JointGroup::Torso => "torso".to_string(),
+        JointGroup::Arm(h) => format!("{}_arm", hand(h)),
+        JointGroup::UpperBody => "upper_body".to_string(),
+    };
+    match kind {
+        TaskKind::CartesianImpedance(h) => format!("cartesian_{}", hand(h)),
+        TaskKind::CollisionAvoidance(Field::Strong) => "collision_strong".into(),
+        TaskKind::CollisionAvoidance(Field::Weak) => "collision_weak".into(),
+        TaskKind::SingularityAvoidance(h) => format!("singularity_{}", hand(h)),
+        TaskKind::EndStops => "end_stops".into(),
+        TaskKind::TorsoWorkspace => "torso_workspace".into(),
+        TaskKind::JointImpedance(g) => format!("joint_impedance_{}", group(g)),
+        TaskKind::JointDamping(g) => format!("joint_damping_{}", group(g)),
+    }
+}
+
+/// Every task kind the controller knows, for the fixed `a.<task>` / `tn.<task>` columns.
+pub fn all_tasks() -> Vec<TaskKind> {
+    use kernel::controller::config::{Field, JointGroup};
+    let mut kinds = Vec::new();
+    for hand in Hand::BOTH {
+        kinds.push(TaskKind::CartesianImpedance(hand));
+    }
+    kinds.extend([TaskKind::CollisionAvoidance(Field::Strong), TaskKind::CollisionAvoidance(Field::Weak)]);
+    for hand in Hand::BOTH {
+        kinds.push(TaskKind::SingularityAvoidance(hand));
+    }
+    kinds.extend([TaskKind::EndStops, TaskKind::TorsoWorkspace]);
+    let groups = [JointGroup::Platform, JointGroup::Torso, JointGroup::Arm(Hand::Right), JointGroup::Arm(Hand::Left), JointGroup::UpperBody];
+    kinds.extend(groups.iter().map(|g| TaskKind::JointImpedance(*g)));
+    kinds.extend(groups.iter().map(|g| TaskKind::JointDamping(*g)));
+    kinds
+}
+
+/// The columns [`Rig::record`] writes, in order.
+pub fn columns() -> Vec<String> {
+    let mut columns = vec!["t".to_string()];
+    columns.extend(crate::scenario::joint_columns(&justin::JOINT_NAMES));
+    columns.extend(crate::scenario::pose_error_columns(0));
+    columns.extend(crate::scenario::pose_error_columns(1));
+    columns.extend((0..MAX_LEVELS).map(|l| format!("S{l}")));
+    columns.extend((0..MAX_LEVELS).map(|l| format!("dS{l}")));
+    columns.extend(all_tasks().into_iter().map(|k| format!("a.{}", task_name(k))));
+    columns.extend(all_tasks().into_iter().map(|k| format!("tn.{}", task_name(k))));
+    columns.extend(
+        [
+            "vcmd.x", "vcmd.y", "vcmd.theta", "fvir.x", "fvir.y", "fvir.theta", "leg.0", "leg.1", "leg.2", "leg.3",
+            "min_distance", "collision_rows", "tau_ext_norm", "contact", "kinetic_j", "potential_j", "mode",
+            "saturated", "right_tcp.x", "right_tcp.y", "right_tcp.z", "left_tcp.x", "left_tcp.y", "left_tcp.z",
+        ]
+        .iter()
+        .map(|s| s.to_string()),
+    );
+    columns
+}
+
+impl Rig {
+    /// One control cycle: sense, step, actuate. Returns the output mode.
+    pub fn cycle(&mut self, info: &CycleInfo) -> Result<SafeOutput, SimError> {
+        let mut joints = JointTorqueInterface::read(&mut self.sim)?;
+        let mut platform = PlatformVelocityInterface::read(&mut self.sim)?;
+        joints.cycle = info.cycle + 1;
+        platform.cycle = info.cycle + 1;
+        let output = *self.controller.step(&SensorFrame { joints, platform });
+        self.sim.write_torque(&output.torque)?;
+        self.sim.write_velocity(&output.platform)?;
+        if output.mode != SafeOutput::Normal {
+            self.faulty_cycles += 1;
+        }
+        if let Some(d) = self.controller.telemetry().min_collision_distance {
+            self.min_distance_m = self.min_distance_m.min(d);
+        }
+        Ok(output.mode)
+    }
+
+    /// The row of [`columns`] for the cycle just run.
+    pub fn record(&mut self, info: &CycleInfo) -> Result<Vec<f64>, SimError> {
+        let t = self.controller.telemetry();
+        let output = self.controller.output();
+        let mut row = vec![info.time_s];
+        row.extend(self.sim.q().iter());
+        row.extend(self.sim.v().iter());
+        row.extend([0.0; 3]);
+        row.extend(output.torque.iter());
+        row.extend(t.tcp_error.iter().flat_map(|e| e.iter().copied()));
+        row.extend(t.level_storage.iter());
+        row.extend(t.level_storage_rate.iter());
+        let entry = |kind: TaskKind, values: &[f64]| {
+            t.tasks.iter().zip(values.iter()).take(t.task_count).find(|(k, _)| **k == Some(kind)).map_or(0.0, |(_, v)| *v)
+        };
+        row.extend(all_tasks().into_iter().map(|k| entry(k, &t.task_activation)));
+        row.extend(all_tasks().into_iter().map(|k| entry(k, &t.task_torque_norm)));
+        row.extend(output.platform.velocity.iter());
+        row.extend(t.virtual_force.iter());
+        row.extend(output.platform.leg_rates.iter());
+        row.push(t.min_collision_distance.unwrap_or(f64::NAN));
+        #[allow(clippy::cast_precision_loss, reason = "a few hundred rows")]
+        row.push(t.collision_rows as f64);
+        row.push(t.external_torque.norm());
+        row.push(f64::from(u8::from(t.contact)));
+        row.push(t.kinetic_energy);
+        row.push(t.potential_energy);
+        row.push(match output.mode {
+            SafeOutput::Normal => 0.0,
+            SafeOutput::Hold => 1.0,
+            SafeOutput::Brake => 2.0,
+        });
+        row.push(f64::from(u8::from(t.saturation.any())));
+        let right = self.sim.frame_placement(justin::RIGHT_TCP)?.translation.vector;
+        let left = self.sim.frame_placement(justin::LEFT_TCP)?.translation.vector;
+        row.extend(right.iter().chain(left.iter()));
+        Ok(row)
+    }
+
+    /// Runs `duration_s` of simulated time: per control cycle [`Rig::cycle`], [`Rig::record`]
+    /// into a new time series, then `each` (goals, pushes, progress, checks), then the physics
+    /// up to the next cycle. Stops at the first error.
+    pub fn run<E>(&mut self, duration_s: f64, mut each: E) -> Result<TimeSeries, String>
+    where
+        E: FnMut(&mut Rig, &CycleInfo) -> Result<(), String>,
+    {
+        let mut series = TimeSeries::new(columns());
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss, reason = "finite, positive, small")]
+        let cycles = (duration_s / CONTROL_PERIOD_S).round().max(0.0) as u64;
+        for cycle in 0..cycles {
+            let info = CycleInfo { cycle, time_s: self.sim.time_s() };
+            self.cycle(&info).map_err(|e| format!("cycle {cycle}: {e}"))?;
+            let row = self.record(&info).map_err(|e| format!("cycle {cycle}: {e}"))?;
+            series.push(row)?;
+            each(self, &info)?;
+            self.sim.advance(CONTROL_PERIOD_S).map_err(|e| format!("physics after cycle {cycle}: {e}"))?;
+        }
+        Ok(series)
+    }
+}

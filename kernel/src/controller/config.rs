@@ -1,0 +1,301 @@
+//! The controller's configuration: the robot layout, the task hierarchy as data and every gain,
+//! validated once by [`super::Controller::try_new`] and changed at run time only through
+//! validated planner commands ([`super::messages`]).
+
+use nalgebra::{RealField, SVector, Vector3, Vector6};
+
+use crate::hierarchy::{Recursion, Shaping};
+use crate::model::FrameId;
+use crate::platform::admittance::AdmittanceConfig;
+use crate::platform::avoidance::AvoidanceConfig;
+use crate::platform::coupling_compensation::CompensationSwitch;
+use crate::platform::PlatformLayout;
+use crate::tasks::cartesian_impedance::AxisMask;
+use crate::tasks::torso_workspace::TorsoWorkspaceConfig;
+
+/// Most task specifications in a hierarchy.
+pub const MAX_TASKS: usize = 16;
+/// Most priority levels.
+pub const MAX_LEVELS: usize = 8;
+/// Most rows on the stack in one cycle (all tasks, all levels).
+pub const MAX_ROWS: usize = 128;
+/// Most rows one task emits in one cycle (a collision field's closest pairs, the end stops,
+/// a joint impedance of every coordinate).
+pub const MAX_TASK_ROWS: usize = 32;
+
+/// One of the two hands (TCPs, arms).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[derive(serde::Serialize, serde::Deserialize)]
+pub enum Hand {
+    /// The right hand.
+    Right,
+    /// The left hand.
+    Left,
+}
+
+impl Hand {
+    /// Both hands, right first.
+    pub const BOTH: [Hand; 2] = [Hand::Right, Hand::Left];
+
+    /// `0` for the right hand, `1` for the left.
+    pub const fn index(self) -> usize {
+        match self {
+            Hand::Right => 0,
+            Hand::Left => 1,
+        }
+    }
+}
+
+/// The two collision-avoidance fields of Fig. 6.3.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[derive(serde::Serialize, serde::Deserialize)]
+pub enum Field {
+    /// Tight and very strong repulsion, on the level of the task execution.
+    Strong,
+    /// Weaker, largely extended repulsion, on a lower level.
+    Weak,
+}
+
+impl Field {
+    /// `0` for the strong field, `1` for the weak one.
+    pub const fn index(self) -> usize {
+        match self {
+            Field::Strong => 0,
+            Field::Weak => 1,
+        }
+    }
+}
+
+/// A group of coordinates a joint-space task acts on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[derive(serde::Serialize, serde::Deserialize)]
+pub enum JointGroup {
+    /// The admitted platform coordinates `(x, y, θ)`.
+    Platform,
+    /// The torso.
+    Torso,
+    /// One arm.
+    Arm(Hand),
+    /// Torso and both arms.
+    UpperBody,
+}
+
+/// The control tasks the controller knows (Ch. 3), as the planner names them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[derive(serde::Serialize, serde::Deserialize)]
+pub enum TaskKind {
+    /// Cartesian impedance of a TCP with force limits (Sec. 3.4.1, Table 7.1), six rows.
+    CartesianImpedance(Hand),
+    /// Self-collision and platform–environment collision avoidance (Sec. 3.1) with one field.
+    CollisionAvoidance(Field),
+    /// Arm singularity avoidance by the manipulability (Sec. 3.4.2), one row.
+    SingularityAvoidance(Hand),
+    /// Avoidance of the mechanical end stops of every limited joint (Sec. 3.4.3).
+    EndStops,
+    /// Torso workspace of the tendon-coupled torso (Sec. 3.3), twelve boundary rows.
+    TorsoWorkspace,
+    /// Joint impedance towards the joint goal (the torso impedance of Fig. 6.3, the joint
+    /// impedance of Table 7.1, a platform goal), one row per coordinate of the group.
+    JointImpedance(JointGroup),
+    /// Joint damping `−D q̇` on a group, one row per coordinate.
+    JointDamping(JointGroup),
+}
+
+/// One entry of the hierarchy: a task on a priority level (0 = highest).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[derive(serde::Serialize, serde::Deserialize)]
+pub struct TaskSpec {
+    /// The task.
+    pub kind: TaskKind,
+    /// Its priority level, `< MAX_LEVELS`.
+    pub level: u8,
+}
+
+/// Which frames and coordinates belong to which part of the robot.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RobotLayout<const N: usize> {
+    /// The TCP frames, right then left.
+    pub tcp: [FrameId; 2],
+    /// The platform coordinates; admitted axes are driven by the admittance.
+    pub platform: PlatformLayout,
+    /// Torso coordinates.
+    pub torso: [bool; N],
+    /// Arm coordinates, right then left.
+    pub arms: [[bool; N]; 2],
+}
+
+impl<const N: usize> RobotLayout<N> {
+    /// The coordinates of `group`.
+    pub fn coordinates(&self, group: JointGroup) -> [bool; N] {
+        let mut mask = [false; N];
+        for (i, m) in mask.iter_mut().enumerate() {
+            let torso = self.torso.get(i).copied().unwrap_or(false);
+            let right = self.arms[0].get(i).copied().unwrap_or(false);
+            let left = self.arms[1].get(i).copied().unwrap_or(false);
+            *m = match group {
+                JointGroup::Platform => self.platform.is_platform(i),
+                JointGroup::Torso => torso,
+                JointGroup::Arm(Hand::Right) => right,
+                JointGroup::Arm(Hand::Left) => left,
+                JointGroup::UpperBody => !self.platform.is_platform(i),
+            };
+        }
+        mask
+    }
+}
+
+/// Parameters of a TCP's Cartesian impedance as the planner sets them (Table 7.1): diagonal
+/// stiffnesses and force limits in the axes of the desired tool frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize)]
+pub struct CartesianParameters<T> {
+    /// `(k_x, k_y, k_z)` (N/m), `≥ 0`.
+    pub translational_stiffness: [T; 3],
+    /// `(k_rx, k_ry, k_rz)` (Nm/rad), `≥ 0`.
+    pub rotational_stiffness: [T; 3],
+    /// Damping ratio `ξ ≥ 0` of the double-diagonalisation damping (0.7 in Ch. 6).
+    pub damping_ratio: T,
+    /// Lower force limits `(x, y, z, rx, ry, rz)` (N, Nm), `≤ 0`, may be `−∞`.
+    pub force_lower: [T; 6],
+    /// Upper force limits (N, Nm), `≥ 0`, may be `+∞` (Table 7.1: wiper `+10 N` in x).
+    pub force_upper: [T; 6],
+}
+
+/// Parameters of one collision-avoidance field (Sec. 3.1, (3.8), (3.23), (4.68)).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(serde::Serialize, serde::Deserialize)]
+pub struct CollisionFieldParameters<T> {
+    /// Repulsive force at contact `F_max > 0` (N).
+    pub max_force: T,
+    /// Influence distance `d₀ > 0` (m).
+    pub influence_distance: T,
+    /// Damping ratio `ξ ≥ 0` of every pair.
+    pub damping_ratio: T,
+    /// Distance (m) at and below which a pair's row locks the lower levels completely.
+    pub activation_full: T,
+    /// Distance (m) at and above which a pair's row no longer locks the lower levels.
+    pub activation_zero: T,
+}
+
+/// Parameters of the arm singularity avoidance (3.55)–(3.57), shared by both arms.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SingularityParameters<T> {
+    /// Rows of the TCP Jacobian whose manipulability is kept (e.g. the translational ones).
+    pub rows: AxisMask,
+    /// Threshold `m_kin,0 > 0` below which the potential acts.
+    pub threshold: T,
+    /// Manipulability at which the row locks the lower levels completely, `< threshold`.
+    pub full_activation: T,
+    /// Gain `k_msa ≥ 0`.
+    pub stiffness: T,
+    /// Damping `≥ 0` along the row.
+    pub damping: T,
+}
+
+/// Parameters of the end stops (3.58)–(3.59), shared by every limited joint.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EndStopParameters<T> {
+    /// Distance from each stop at which the potential starts (rad, m), `> 0`.
+    pub margin: T,
+    /// `k_mes ≥ 0` of (3.58).
+    pub stiffness: T,
+    /// Damping `≥ 0` of (3.59).
+    pub damping: T,
+}
+
+/// The platform: admittance (5.1) and the ICR avoidance loop (Fig. 3.10).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlatformParameters<T> {
+    /// The admittance (5.1)–(5.5).
+    pub admittance: AdmittanceConfig<T>,
+    /// The ICR singularity avoidance with leg motion; its reference is the admittance output.
+    pub avoidance: AvoidanceConfig<T>,
+    /// Which parts of the coupling compensation (5.14) are applied.
+    pub compensation: CompensationSwitch,
+    /// Virtual force magnitude below which the platform is not driven (N, N, Nm), `≥ 0`: "the
+    /// mobile base is designed to move only if a force threshold is exceeded" (Sec. 6.2).
+    pub force_deadband: [T; 3],
+}
+
+/// Limits the output guards enforce ([`super::guard`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct OutputLimits<T, const N: usize> {
+    /// Joint torque rate limit (Nm/s) per coordinate (platform entries unused), `> 0`.
+    pub torque_rate: SVector<T, N>,
+    /// Platform velocity limit `(ẋ, ẏ, θ̇)` (m/s, m/s, rad/s), `> 0`.
+    pub base_velocity: Vector3<T>,
+    /// Platform acceleration limit (m/s², m/s², rad/s²), `> 0`.
+    pub base_acceleration: Vector3<T>,
+    /// Leg rate limit `|λ̇|` (m/s), `> 0`.
+    pub leg_rate: T,
+}
+
+/// Thresholds of the input validation ([`super::faults`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct InputLimits<T> {
+    /// How far a joint position may be beyond its model limit before it is a fault (rad, m),
+    /// `≥ 0` (sensor noise, elastic stops).
+    pub position_tolerance: T,
+    /// A joint velocity beyond `velocity_factor` times its model limit is a fault, `≥ 1`.
+    pub velocity_factor: T,
+    /// A sensor frame whose cycle counter advanced by more than this is a fault (missed
+    /// frames), `≥ 1`.
+    pub max_cycle_gap: u64,
+    /// Consecutive faulty cycles after which the safe output requests the brakes, `≥ 1`.
+    pub brake_after_cycles: u32,
+}
+
+/// The generalized-momentum observer that detects contacts ((2.1) with `Ṁ = C + Cᵀ`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ObserverParameters<T> {
+    /// Observer gain `K_O > 0` (1/s): the residual is `τ_ext` low-passed with this bandwidth.
+    pub gain: T,
+    /// Residual norm above which a contact is reported (Nm), `> 0`.
+    pub contact_threshold: T,
+}
+
+/// Everything [`super::Controller`] needs besides the model and the collision model.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ControllerConfig<T: RealField, const N: usize> {
+    /// Control period (s), `> 0` (1 ms on Rollin' Justin).
+    pub period_s: T,
+    /// Which frames and coordinates are which.
+    pub layout: RobotLayout<N>,
+    /// Successive or augmented projections (Sec. 4.1).
+    pub recursion: Recursion,
+    /// Continuous transition shaping of algorithmic singularities (Sec. 4.4).
+    pub shaping: Shaping<T>,
+    /// Duration of a task's move between levels, fade-in or fade-out (s), `> 0`.
+    pub transition_s: T,
+    /// Cartesian impedance of each TCP, right then left.
+    pub cartesian: [CartesianParameters<T>; 2],
+    /// Task-space damping used when the double diagonalisation is impossible (Ns/m, Nms/rad).
+    pub cartesian_fallback_damping: Vector6<T>,
+    /// The strong and the weak collision field.
+    pub collision: [CollisionFieldParameters<T>; 2],
+    /// Arm singularity avoidance.
+    pub singularity: SingularityParameters<T>,
+    /// End stops.
+    pub end_stops: EndStopParameters<T>,
+    /// Torso workspace (`None` if the robot has no coupled torso).
+    pub torso_workspace: Option<TorsoWorkspaceConfig<T>>,
+    /// Joint impedance stiffness per coordinate (Nm/rad, N/m), `≥ 0`.
+    pub joint_stiffness: SVector<T, N>,
+    /// Joint impedance damping per coordinate (Nms/rad, Ns/m), `≥ 0`.
+    pub joint_damping: SVector<T, N>,
+    /// Damping of the joint-damping task and of the safe output (Nms/rad), `≥ 0`.
+    pub safe_damping: SVector<T, N>,
+    /// The platform.
+    pub platform: PlatformParameters<T>,
+    /// Output guards.
+    pub output_limits: OutputLimits<T, N>,
+    /// Input validation.
+    pub input_limits: InputLimits<T>,
+    /// Contact detection.
+    pub observer: ObserverParameters<T>,
+}

@@ -1,0 +1,255 @@
+//! Output guards: joint torque and torque-rate limits that keep the hierarchy's priorities,
+//! platform velocity and acceleration limits, leg-rate limits.
+//!
+//! **Priority under saturation.** The joint torque is `τ = τ₀ + Σ_i τ_i^p`: the compensation
+//! `τ₀` (gravity and platform coupling (5.14)) and the projected torques `τ_i^p = N_i τ_i` of
+//! the levels (4.7). Each joint's admissible interval is the intersection of its effort limit
+//! `±τ_max` and its rate limit `τ_prev ± τ̇_max Δt`. If `τ` leaves the box, the levels are
+//! scaled from the lowest priority upwards: level `k` gets the largest `s_k ∈ [0, 1]` with
+//! `τ₀ + Σ_{i<k} τ_i^p + s_k τ_k^p` inside the box; if no `s_k ≥ 0` fits, `s_k = 0` and the next
+//! higher level is scaled. A higher level is therefore only reduced once every level below it is
+//! switched off, and a level's torque keeps its direction (it stays in the null space of the
+//! levels above). Only if `τ₀` alone does not fit is the torque clamped per joint (reported as
+//! [`Saturation::compensation_clamped`]).
+
+use nalgebra::{RealField, SVector, Vector3};
+
+use super::config::MAX_LEVELS;
+use crate::platform::LEGS;
+
+/// What the guards changed in one cycle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Saturation<T> {
+    /// Scale `s_i ∈ [0, 1]` applied to each level's projected torque (1 = untouched).
+    pub level_scale: [T; MAX_LEVELS],
+    /// `true` if the compensation alone exceeded the box and was clamped per joint.
+    pub compensation_clamped: bool,
+    /// `true` if the torque-rate limit was the binding side of some joint's interval.
+    pub torque_rate_limited: bool,
+    /// `true` where the platform velocity was limited (by the velocity or the acceleration
+    /// limit).
+    pub base_limited: [bool; 3],
+    /// `true` if some leg rate was limited.
+    pub leg_rate_limited: bool,
+}
+
+impl<T: RealField + Copy> Saturation<T> {
+    /// Nothing limited.
+    pub fn none() -> Self {
+        Self {
+            level_scale: [T::one(); MAX_LEVELS],
+            compensation_clamped: false,
+            torque_rate_limited: false,
+            base_limited: [false; 3],
+            leg_rate_limited: false,
+        }
+    }
+
+    /// `true` if any guard acted.
+    pub fn any(&self) -> bool {
+        self.compensation_clamped
+            || self.torque_rate_limited
+            || self.level_scale.iter().any(|s| *s < T::one())
+            || self.base_limited.iter().any(|b| *b)
+            || self.leg_rate_limited
+    }
+}
+
+/// The admissible interval of each coordinate: effort limit ∩ rate limit around `previous`.
+/// Coordinates outside `active` get an unbounded interval (the platform is velocity controlled).
+pub fn torque_box<T: RealField + Copy, const N: usize>(
+    effort: &SVector<T, N>,
+    rate: &SVector<T, N>,
+    previous: &SVector<T, N>,
+    dt: T,
+    active: &[bool; N],
+) -> (SVector<T, N>, SVector<T, N>) {
+    let mut lower = SVector::<T, N>::zeros();
+    let mut upper = SVector::<T, N>::zeros();
+    for (i, ((((lo, hi), e), r), p)) in
+        lower.iter_mut().zip(upper.iter_mut()).zip(effort.iter()).zip(rate.iter()).zip(previous.iter()).enumerate()
+    {
+        if !active.get(i).copied().unwrap_or(false) {
+            continue;
+        }
+        let step = *r * dt;
+        *lo = (-*e).max(*p - step);
+        *hi = (*e).min(*p + step);
+        if *lo > *hi {
+            // The previous torque is outside the effort box (limits changed): move towards it.
+            let towards = (-*e).max((*e).min(*p));
+            *lo = towards;
+            *hi = towards;
+        }
+    }
+    (lower, upper)
+}
+
+/// `true` if `desired` moves some active coordinate by more than `rate · dt` from `previous`.
+pub fn rate_exceeded<T: RealField + Copy, const N: usize>(
+    desired: &SVector<T, N>,
+    previous: &SVector<T, N>,
+    rate: &SVector<T, N>,
+    dt: T,
+    active: &[bool; N],
+) -> bool {
+    desired
+        .iter()
+        .zip(previous.iter())
+        .zip(rate.iter())
+        .zip(active.iter())
+        .any(|(((d, p), r), a)| *a && (*d - *p).abs() > *r * dt)
+}
+
+/// The largest `s ∈ [0, 1]` with `base + s · add` inside `[lower, upper]` on `active`
+/// coordinates, `None` if `base` itself is outside.
+fn largest_scale<T: RealField + Copy, const N: usize>(
+    base: &SVector<T, N>,
+    add: &SVector<T, N>,
+    lower: &SVector<T, N>,
+    upper: &SVector<T, N>,
+    active: &[bool; N],
+) -> Option<T> {
+    let mut scale = T::one();
+    for (i, (((b, a), lo), hi)) in base.iter().zip(add.iter()).zip(lower.iter()).zip(upper.iter()).enumerate() {
+        if !active.get(i).copied().unwrap_or(false) {
+            continue;
+        }
+        if *b < *lo || *b > *hi {
+            return None;
+        }
+        if *a > T::zero() {
+            scale = scale.min((*hi - *b) / *a);
+        } else if *a < T::zero() {
+            scale = scale.min((*lo - *b) / *a);
+        }
+    }
+    Some(scale.max(T::zero()).min(T::one()))
+}
+
+/// Priority-preserving saturation (module docs): returns the guarded torque and writes the
+/// level scales into `saturation`. `levels` are the projected level torques, highest priority
+/// first.
+pub fn saturate_with_priority<T: RealField + Copy, const N: usize>(
+    compensation: &SVector<T, N>,
+    levels: &[SVector<T, N>],
+    lower: &SVector<T, N>,
+    upper: &SVector<T, N>,
+    active: &[bool; N],
+    saturation: &mut Saturation<T>,
+) -> SVector<T, N> {
+    let total = levels.iter().fold(*compensation, |t, l| t + l);
+    if largest_scale(&total, &SVector::zeros(), lower, upper, active).is_some() {
+        return total;
+    }
+    // Scale from the lowest level upwards.
+    for k in (0..levels.len()).rev() {
+        let higher = levels.iter().take(k).fold(*compensation, |t, l| t + l);
+        let Some(level) = levels.get(k) else { continue };
+        let scale = largest_scale(&higher, level, lower, upper, active);
+        if let Some(slot) = saturation.level_scale.get_mut(k) {
+            *slot = scale.unwrap_or_else(T::zero);
+        }
+        if let Some(s) = scale {
+            return higher + level * s;
+        }
+    }
+    saturation.compensation_clamped = true;
+    let mut clamped = *compensation;
+    for (i, ((t, lo), hi)) in clamped.iter_mut().zip(lower.iter()).zip(upper.iter()).enumerate() {
+        if active.get(i).copied().unwrap_or(false) {
+            *t = (*t).max(*lo).min(*hi);
+        }
+    }
+    clamped
+}
+
+/// Limits the platform velocity command: `|ṙ| ≤ v_max` and `|ṙ − ṙ_prev| ≤ a_max Δt` per axis.
+pub fn limit_base_velocity<T: RealField + Copy>(
+    command: &Vector3<T>,
+    previous: &Vector3<T>,
+    velocity_limit: &Vector3<T>,
+    acceleration_limit: &Vector3<T>,
+    dt: T,
+    limited: &mut [bool; 3],
+) -> Vector3<T> {
+    let mut out = *command;
+    for ((((v, p), vmax), amax), flag) in out
+        .iter_mut()
+        .zip(previous.iter())
+        .zip(velocity_limit.iter())
+        .zip(acceleration_limit.iter())
+        .zip(limited.iter_mut())
+    {
+        let step = *amax * dt;
+        let bounded = (*v).max(*p - step).min(*p + step).max(-*vmax).min(*vmax);
+        *flag = bounded != *v;
+        *v = bounded;
+    }
+    out
+}
+
+/// Limits the leg rates to `±limit`; returns whether any was limited.
+pub fn limit_leg_rates<T: RealField + Copy>(rates: &mut [T; LEGS], limit: T) -> bool {
+    let mut limited = false;
+    for r in rates.iter_mut() {
+        let bounded = (*r).max(-limit).min(limit);
+        limited |= bounded != *r;
+        *r = bounded;
+    }
+    limited
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
+    use super::*;
+    use nalgebra::Vector2;
+
+    #[test]
+    fn lower_levels_are_scaled_before_higher_ones() {
+        let compensation = Vector2::new(1.0_f64, 0.0);
+        let levels = [Vector2::new(2.0, 0.0), Vector2::new(3.0, 1.0)];
+        let (lower, upper) = (Vector2::repeat(-4.0), Vector2::repeat(4.0));
+        let mut saturation = Saturation::none();
+        let tau = saturate_with_priority(&compensation, &levels, &lower, &upper, &[true; 2], &mut saturation);
+        // Level 0 fits (1 + 2 = 3); level 1 is scaled to (4 − 3)/3.
+        assert!((tau - Vector2::new(4.0, 1.0 / 3.0)).norm() < 1e-12);
+        assert_eq!(saturation.level_scale[0], 1.0);
+        assert!((saturation.level_scale[1] - 1.0 / 3.0).abs() < 1e-12);
+
+        // A box that level 0 alone overflows: level 1 off, level 0 scaled, direction kept.
+        let mut saturation = Saturation::none();
+        let (lower, upper) = (Vector2::repeat(-2.0), Vector2::repeat(2.0));
+        let tau = saturate_with_priority(&compensation, &levels, &lower, &upper, &[true; 2], &mut saturation);
+        assert!((tau - Vector2::new(2.0, 0.0)).norm() < 1e-12);
+        assert_eq!(saturation.level_scale[1], 0.0);
+        assert!((saturation.level_scale[0] - 0.5).abs() < 1e-12);
+        assert!(!saturation.compensation_clamped);
+    }
+
+    #[test]
+    fn compensation_outside_the_box_is_clamped_and_reported_in_f32() {
+        let mut saturation = Saturation::none();
+        let tau = saturate_with_priority(
+            &Vector2::new(5.0_f32, -5.0),
+            &[Vector2::new(1.0, 1.0)],
+            &Vector2::repeat(-3.0),
+            &Vector2::repeat(3.0),
+            &[true, true],
+            &mut saturation,
+        );
+        assert_eq!(tau, Vector2::new(3.0, -3.0));
+        assert!(saturation.compensation_clamped && saturation.level_scale[0] == 0.0);
+    }
+
+    #[test]
+    fn the_rate_limit_narrows_the_box_around_the_previous_torque() {
+        let (effort, rate, previous) = (Vector2::new(10.0_f64, 10.0), Vector2::new(1000.0, 1000.0), Vector2::new(9.5, 0.0));
+        let (lower, upper) = torque_box(&effort, &rate, &previous, 1e-3, &[true, false]);
+        assert_eq!((lower[0], upper[0]), (8.5, 10.0));
+        assert_eq!((lower[1], upper[1]), (0.0, 0.0));
+        assert!(rate_exceeded(&Vector2::new(8.0, 50.0), &previous, &rate, 1e-3, &[true, false]));
+        assert!(!rate_exceeded(&Vector2::new(9.0, 50.0), &previous, &rate, 1e-3, &[true, false]));
+    }
+}
