@@ -7,7 +7,8 @@
 # Each variant runs twice; the script fails if any count differs between the runs.
 # With --callgrind, also counts the same stages on the host (x86-64, valgrind callgrind, one
 # process per case and precision; the bench in wcet/host shares wcet/stages.rs with the image).
-# Usage: bash firmware/wcet/measure.sh [--callgrind]   (raw outputs in firmware/target/wcet/)
+# With --time (implied by --callgrind), also host wall-clock percentiles of the full step.
+# Usage: bash firmware/wcet/measure.sh [--callgrind|--time]   (raw outputs in firmware/target/wcet/)
 # Recipe: /work/shared/wcet/RECIPE.md (sections 3.3 and 5.1).
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
@@ -41,13 +42,22 @@ for v in "${variants[@]}"; do
     echo "==> build $v (target-cpu=${cpu[$v]} ${features[$v]})" >&2
     # shellcheck disable=SC2086
     CARGO_TARGET_DIR="$fw/target/wcet-$v" RUSTFLAGS="-C link-arg=-Tlink.x -C target-cpu=${cpu[$v]}" \
-        cargo build --locked --release --bin wcet ${features[$v]} >&2
+        cargo build --locked --release --bin wcet --bin wcet-step ${features[$v]} >&2
     elf="$fw/target/wcet-$v/thumbv7em-none-eabihf/release/wcet"
     cp "$elf" "$out/wcet-$v.elf"
+    cp "$elf-step" "$out/wcet-step-$v.elf"
     for run in 1 2; do
         echo "==> run $v on ${machine[$v]} ($run/2)" >&2
         QEMU_MACHINE=${machine[$v]} QEMU_TIMEOUT=600 ./run-qemu.sh "$elf" \
             -plugin "$plugin,out=$out/$v.counts.$run" > "$out/$v.log.$run"
+        QEMU_MACHINE=${machine[$v]} QEMU_TIMEOUT=600 ./run-qemu.sh "$elf-step" \
+            -plugin "$plugin,out=$out/$v.step-counts.$run" > "$out/$v.step-log.$run"
+    done
+    for f in counts log step-counts step-log; do
+        if ! cmp -s "$out/$v.$f.1" "$out/$v.$f.2"; then
+            echo "error: $v $f differ between two runs" >&2
+            exit 1
+        fi
     done
     if ! cmp -s "$out/$v.counts.1" "$out/$v.counts.2" || ! cmp -s "$out/$v.log.1" "$out/$v.log.2"; then
         echo "error: $v counts or outputs differ between two runs" >&2
@@ -74,8 +84,21 @@ for v in "${variants[@]}"; do
     done
 done
 echo
+echo "Full Controller::step per input class (wcet-step image; insns min / median / max; frames of stages.rs)"
+printf '%-8s %-12s %6s %12s %12s %12s\n' variant class frames min median max
+for v in "${variants[@]}"; do
+    # per-sample counts (plugin: 'wcet region=3 sample=K insns=X') joined with the classes of the log
+    paste -d' ' <(sed -n 's/^wcet region=0 sample=[0-9]* insns=\([0-9]*\).*/\1/p' "$out/$v.step-counts.1") \
+                <(sed -n 's/^step [0-9]* class=\([a-z]*\).*/\1/p' "$out/$v.step-log.1") > "$out/$v.step"
+    for class in nominal adversarial fault recovery all; do
+        awk -v cl="$class" '$2 == cl || cl == "all" { print $1 }' "$out/$v.step" | sort -n \
+            | awk -v v="$v" -v cl="$class" '{ a[NR] = $1 } END { if (NR) printf "%-8s %-12s %6d %12d %12d %12d\n", v, cl, NR, a[1], a[int((NR + 1) / 2)], a[NR] }'
+    done
+    sed -n 's/^wcet-stack \(step=[0-9]*\).*/  stack: \1/p; s/^wcet-stack \(whole-run.*\)/  stack: \1/p' "$out/$v.step-log.1"
+done
+echo
 echo "Image sizes (size: text = flash code+rodata, data = flash+RAM, bss = RAM; stack not included)"
-size "$out"/wcet-*.elf
+size "$out"/wcet-*.elf   # wcet-step-*: the full-step image (controller in .bss)
 echo "smoke image (default bin, f32, generic thumbv7em):"
 (cargo build --locked --release --bin firmware >/dev/null 2>&1 && size target/thumbv7em-none-eabihf/release/firmware) || true
 
@@ -110,5 +133,33 @@ if [ "${1:-}" = "--callgrind" ]; then
             awk -v st="$st" -v v="x86-$prec" '$1 == st { if (min == "" || $3 < min) min = $3; if ($3 > max) max = $3 }
                 END { printf "%-8s %-15s %12s %12s\n", v, st, min, max }' "$out/host-$prec.callgrind"
         done
+        # The full step: one process per frame K; frames 0..K-1 run through `warm_step`.
+        frames=$("$bin" frames)
+        : > "$out/host-$prec.step"
+        for ((k = 0; k < frames; k++)); do
+            class=$(valgrind --tool=callgrind --collect-atstart=no --toggle-collect=wcet_step \
+                --callgrind-out-file="$out/cg.out" "$bin" step "$k" 2>/dev/null | sed -n 's/^frame [0-9]* class=\([a-z]*\).*/\1/p')
+            n=$(callgrind_annotate --inclusive=yes "$out/cg.out" 2>/dev/null \
+                | grep -E "stages\.rs:wcet_step( |\$)" | head -n1 | awk '{ gsub(",", "", $1); print $1 }')
+            echo "$n $class" >> "$out/host-$prec.step"
+        done
+        for class in nominal adversarial fault recovery all; do
+            awk -v cl="$class" '$2 == cl || cl == "all" { print $1 }' "$out/host-$prec.step" | sort -n \
+                | awk -v v="x86-$prec" -v cl="$class" '{ a[NR] = $1 } END { if (NR) printf "%-8s step %-12s %4d frames  min %9d  median %9d  max %9d\n", v, cl, NR, a[1], a[int((NR + 1) / 2)], a[NR] }'
+        done
+    done
+fi
+
+# --- host wall clock (optional) ---------------------------------------------------------------
+# rdtsc per step, pinned to CPU 1, no ASLR (RECIPE §4.2); numbers, not assertions.
+if [ "${1:-}" = "--callgrind" ] || [ "${1:-}" = "--time" ]; then
+    for prec in f32 f64; do
+        feat=""; [ "$prec" = f64 ] && feat="--features wcet-f64"
+        # shellcheck disable=SC2086
+        (cd "$here/host" && CARGO_TARGET_DIR="$fw/target/wcet-host-$prec" cargo build --locked --release $feat >&2)
+        bin="$fw/target/wcet-host-$prec/x86_64-unknown-linux-gnu/release/wcet-host"
+        echo
+        echo "Host x86-64 $prec wall clock per Controller::step (rdtsc; setarch -R taskset -c 1; 300 passes)"
+        setarch x86_64 -R taskset -c 1 "$bin" time 300
     done
 fi

@@ -4,6 +4,10 @@
 
 use fixtures::justin;
 use fixtures::justin::collision::JustinCollisionModel;
+use fixtures::justin::whole_body;
+use hal::{JointSample, PlatformSample};
+use kernel::controller::config::Hand;
+use kernel::controller::{Controller, SensorFrame};
 use fixtures::justin::JustinModel;
 use kernel::dynamics::{coriolis_matrix, crba, forward_kinematics, frame_jacobian, gravity, mass_matrix_cholesky};
 use kernel::hierarchy::{project, HierarchyConfig, HierarchyData, Stack};
@@ -127,4 +131,121 @@ pub fn case_input(case: u32) -> (SVector<S, N>, SVector<S, N>) {
     let q = justin::home_configuration::<S>() + SVector::<S, N>::from_fn(|_, _| c(0.3 * scale * rng.next()));
     let v = SVector::<S, N>::from_fn(|_, _| c(0.3 + 0.5 * scale * rng.next()));
     (q, v)
+}
+
+// --- the full controller step (issue 8) -----------------------------------------------------
+
+/// Upper-body joints of the Justin-like robot.
+pub const U: usize = justin::UPPER_DOF;
+/// The whole-body controller of Fig. 6.3 for the right hand, every one of the 214 pairs enabled.
+pub type JustinController = Controller<S, N, { justin::BODIES }, { justin::FRAMES }, U, { justin::collision::VOLUMES }, { justin::collision::PAIRS }>;
+/// One sensor frame.
+pub type Frame = SensorFrame<S, U>;
+
+/// The controller with `whole_body::controller_config` and `fig_6_3_hierarchy(Hand::Right)`.
+pub fn new_controller() -> Option<JustinController> {
+    let model = justin::model::<S>().ok()?;
+    let collision = justin::collision::collision_model(&model).ok()?;
+    let config = whole_body::controller_config::<S>().ok()?;
+    JustinController::try_new(model, collision, config, &whole_body::fig_6_3_hierarchy(Hand::Right)).ok()
+}
+
+/// One full control cycle; returns the sum of the output torques (a checksum).
+#[no_mangle]
+#[inline(never)]
+pub fn wcet_step(controller: &mut JustinController, frame: &Frame) -> S {
+    let out = controller.step(frame);
+    out.torque.iter().fold(c(0.0), |a, t| a + *t)
+}
+
+/// Frames of the nominal sequence: the home pose with a small sinusoidal motion.
+pub const NOMINAL_FRAMES: u32 = 24;
+/// Adversarial configurations (see [`ADVERSARIAL`]).
+pub const ADVERSARIAL_FRAMES: u32 = ADVERSARIAL.len() as u32;
+/// All frames: nominal, adversarial, one faulty (NaN) frame, one valid frame after it.
+pub const STEP_FRAMES: u32 = NOMINAL_FRAMES + ADVERSARIAL_FRAMES + 2;
+
+/// Which input class frame `k` belongs to.
+pub fn frame_class(k: u32) -> &'static str {
+    if k < NOMINAL_FRAMES {
+        "nominal"
+    } else if k < NOMINAL_FRAMES + ADVERSARIAL_FRAMES {
+        "adversarial"
+    } else if k == NOMINAL_FRAMES + ADVERSARIAL_FRAMES {
+        "fault"
+    } else {
+        "recovery"
+    }
+}
+
+/// Adversarial upper-body configurations (q of coordinates 3..20, rad) and the velocity scale
+/// (fraction of the joint speed limit, signs alternate): found by a seeded random search
+/// (`wcet-host search`) maximising the pairs inside the strong (5 cm) and weak (15 cm) collision
+/// fields, with joints at their end stops, the torso bent to its workspace boundary and an arm
+/// stretched near its singularity; see BENCHMARKS.md.
+pub const ADVERSARIAL: &[[f64; U]] = &[
+    // Found by `wcet-host search 3000` (score = 3·strong + weak + joints near a stop):
+    // strong 29, weak 44, joints near a stop 6
+    [3.424, 0.326, 1.018, -0.505, 1.618, -1.034, 1.376, 0.960, -0.532, -2.084, 1.289, 0.706, 2.957, -2.084, -2.914, -1.335, 1.949],
+    // strong 27, weak 46, 5
+    [-2.419, 0.336, 1.649, 1.737, -0.668, 2.702, 1.892, -0.391, 1.910, 2.018, -0.839, 2.013, 2.604, -2.058, -1.073, 0.114, -0.004],
+    // strong 26, weak 59, 7
+    [3.439, 0.896, 2.306, -0.505, 1.355, 0.199, -2.084, 2.957, -1.165, -2.012, 0.881, 1.279, -2.896, -1.886, 2.679, -2.055, 1.788],
+    // strong 26, weak 57, 6
+    [-1.233, 1.053, 1.735, 2.954, 1.957, -1.644, -1.189, -2.066, 1.965, 2.084, 2.957, 1.988, -2.311, -0.016, -1.553, -1.784, -0.018],
+    // strong 26, weak 36, 5
+    [3.481, -1.561, 0.838, 2.782, -2.084, 0.500, 1.239, -2.267, -2.084, 1.532, -2.626, -0.775, -2.666, 1.332, -1.527, 0.768, -1.232],
+    // strong 24, weak 39, 7
+    [-2.334, -1.272, 1.715, -2.863, 1.972, -1.185, -2.084, -1.285, -0.468, -1.553, 2.600, -2.084, -0.872, -2.084, -2.789, 0.406, -1.134],
+    // Hand-made: torso bent to its workspace boundary (q_t2, q_t3 at their stops), right arm
+    // stretched (elbow at 0.02 rad: near-singular), left arm at home.
+    [0.0, 1.55, 2.33, 0.0, 1.0, 0.0, 0.02, 0.0, 0.0, 0.0, 0.5, 0.5, 0.5, 1.5, -0.5, -0.5, -0.2],
+    // Hand-made: torso at the other stops, both arms stretched down (near-singular), wrists at stops.
+    [-2.42, -1.55, 0.02, 0.0, 0.02, 0.0, 0.02, 0.0, 2.07, 2.07, 0.0, 0.02, 0.0, 0.02, 0.0, -2.07, -2.07],
+];
+
+fn frame(cycle: u64, q: &SVector<S, N>, v: &SVector<S, N>) -> Frame {
+    let upper = |x: &SVector<S, N>| core::array::from_fn(|i| x[i + justin::BASE_DOF]);
+    Frame {
+        joints: JointSample { position: upper(q), velocity: upper(v), torque: [c(0.0); U], cycle },
+        platform: PlatformSample {
+            pose: [q[0], q[1], q[2]],
+            velocity: [v[0], v[1], v[2]],
+            leg_lengths: [c(justin::LEG_LENGTH_NOMINAL); 4],
+            cycle,
+        },
+    }
+}
+
+/// Frame `k` of the measured sequence (cycle counter `k + 1`), for `k < STEP_FRAMES`.
+pub fn step_frame(k: u32, speed: &SVector<S, N>) -> Frame {
+    let cycle = u64::from(k) + 1;
+    let home = justin::home_configuration::<S>();
+    if k < NOMINAL_FRAMES {
+        // 0.05 rad amplitude, 0.5 Hz, a phase per joint; the platform drifts at 0.1 m/s.
+        let t = c(f64::from(k) * 1e-3);
+        let w = c(core::f64::consts::PI);
+        let q = home + SVector::<S, N>::from_fn(|i, _| c(0.05) * ComplexField::sin(w * t + c(i as f64)));
+        let mut v = SVector::<S, N>::from_fn(|i, _| c(0.05) * w * ComplexField::cos(w * t + c(i as f64)));
+        v[0] = c(0.1);
+        return frame(cycle, &q, &v);
+    }
+    let a = k - NOMINAL_FRAMES;
+    let Some(upper) = ADVERSARIAL.get(a as usize) else {
+        let mut f = frame(cycle, &home, &SVector::zeros());
+        if a == ADVERSARIAL_FRAMES {
+            f.joints.position[4] = S::NAN;
+        }
+        return f;
+    };
+    let mut q = home;
+    for (i, x) in upper.iter().enumerate() {
+        q[i + justin::BASE_DOF] = c(*x);
+    }
+    // Nonzero velocities: 60 % of the joint speed limit, alternating signs; platform moving.
+    let v = SVector::<S, N>::from_fn(|i, _| {
+        let sign = if (i + a as usize) % 2 == 0 { c(1.0) } else { c(-1.0) };
+        if i < justin::BASE_DOF { sign * c(0.3) } else { sign * c(0.6) * speed[i] }
+    });
+    frame(cycle, &q, &v)
 }

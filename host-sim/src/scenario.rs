@@ -43,6 +43,20 @@ pub mod mobile_impedance_critical;
 pub mod stability_map;
 #[path = "scenarios/icr_avoidance.rs"]
 pub mod icr_avoidance;
+#[path = "scenarios/wbc_step.rs"]
+pub mod wbc_step;
+#[path = "scenarios/wbc_trajectory.rs"]
+pub mod wbc_trajectory;
+#[path = "scenarios/wbc_phri.rs"]
+pub mod wbc_phri;
+#[path = "scenarios/wbc_grasp.rs"]
+pub mod wbc_grasp;
+#[path = "scenarios/wipe_window.rs"]
+pub mod wipe_window;
+#[path = "scenarios/sweep_floor.rs"]
+pub mod sweep_floor;
+#[path = "scenarios/clean_mug.rs"]
+pub mod clean_mug;
 
 /// What a scenario produced.
 #[derive(Clone, Debug)]
@@ -183,6 +197,48 @@ const SCENARIOS: &[Entry] = &[
         description: icr_avoidance::DESCRIPTION,
         simulate: icr_avoidance::simulate,
         extra_files: Some(icr_avoidance::write_files),
+    },
+    Entry {
+        name: wbc_step::NAME,
+        description: wbc_step::DESCRIPTION,
+        simulate: wbc_step::simulate,
+        extra_files: None,
+    },
+    Entry {
+        name: wbc_trajectory::NAME,
+        description: wbc_trajectory::DESCRIPTION,
+        simulate: wbc_trajectory::simulate,
+        extra_files: None,
+    },
+    Entry {
+        name: wbc_phri::NAME,
+        description: wbc_phri::DESCRIPTION,
+        simulate: wbc_phri::simulate,
+        extra_files: None,
+    },
+    Entry {
+        name: wbc_grasp::NAME,
+        description: wbc_grasp::DESCRIPTION,
+        simulate: wbc_grasp::simulate,
+        extra_files: None,
+    },
+    Entry {
+        name: wipe_window::NAME,
+        description: wipe_window::DESCRIPTION,
+        simulate: wipe_window::simulate,
+        extra_files: None,
+    },
+    Entry {
+        name: sweep_floor::NAME,
+        description: sweep_floor::DESCRIPTION,
+        simulate: sweep_floor::simulate,
+        extra_files: None,
+    },
+    Entry {
+        name: clean_mug::NAME,
+        description: clean_mug::DESCRIPTION,
+        simulate: clean_mug::simulate,
+        extra_files: None,
     },
 ];
 

@@ -30,6 +30,14 @@
 //! - **Disturbances**: [`Simulator::push`] adds a world-frame force at a frame's origin for a
 //!   time window, applied as `τ_ext = J_pᵀ F` with the frame's positional Jacobian
 //!   ([`frame_jacobian`]).
+//! - **Contact surfaces** (optional, [`Simulator::add_surface`]): compliant half-spaces (a
+//!   window, a floor, a table top) touched by a frame's origin. With the surface's outward unit
+//!   normal `n` through `point`, the penetration is `δ = max(0, (point − p)·n)` and the normal
+//!   force `F_n = max(0, k δ + d δ̇)` pushes along `n` only (Hunt–Crossley-like: no pulling, no
+//!   force without penetration), optionally with a regularised Coulomb friction
+//!   `F_t = −μ F_n v_t / √(|v_t|² + v_ε²)` against the tangential velocity `v_t`. Applied like a
+//!   push (`τ_ext = J_pᵀ F`) at every Runge–Kutta stage; [`Simulator::surface_force`] reads the
+//!   force at the current state.
 //! - **Passive joint elements** (optional, [`Simulator::set_passive_joints`]): a linear spring
 //!   and a viscous damper per upper-body coordinate, `τ_passive = −K (q_u − q_rest) − D q̇_u`,
 //!   evaluated at every Runge–Kutta stage like the dynamics (the parallel springs of Fig. 4.3,
@@ -55,7 +63,7 @@ use kernel::dynamics::{
     crba, forward_kinematics, frame_jacobian, kinetic_energy, potential_energy, rnea, DynamicsError,
 };
 use kernel::model::{Data, FrameId, Model, Placement};
-use nalgebra::{Cholesky, SMatrix, SVector, Vector3};
+use nalgebra::{Cholesky, SMatrix, SVector, Unit, Vector3};
 
 /// Default physics step (s): 1/6000 s, twice the rate of Rollin' Justin's 3 kHz torque loop.
 pub const DEFAULT_PHYSICS_STEP_S: f64 = 1.0 / 6000.0;
@@ -208,6 +216,56 @@ impl Push {
     }
 }
 
+/// Tangential speed (m/s) below which the regularised friction of a [`Surface`] grows
+/// linearly with the sliding velocity (viscous regularisation `v_ε` of the Coulomb law).
+pub const FRICTION_REGULARISATION_M_S: f64 = 0.01;
+
+/// A compliant contact surface: the half-space `{x : (x − point)·normal ≤ 0}` that the origin of
+/// `frame` may penetrate (see the module docs for the force law).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Surface {
+    /// Frame whose origin touches the surface (a TCP).
+    pub frame: FrameId,
+    /// A point on the surface (m), world frame.
+    pub point: Vector3<f64>,
+    /// Outward unit normal (pointing out of the solid, into free space), world frame.
+    pub normal: Unit<Vector3<f64>>,
+    /// Normal stiffness `k` (N/m), `> 0`.
+    pub stiffness_n_m: f64,
+    /// Normal damping `d` (Ns/m), `≥ 0`, acting only while penetrating.
+    pub damping_ns_m: f64,
+    /// Coulomb friction coefficient `μ`, `≥ 0` (`0`: frictionless).
+    pub friction: f64,
+}
+
+/// Contact state of one [`Surface`] at one instant.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfaceContact {
+    /// Penetration depth `δ ≥ 0` (m).
+    pub penetration_m: f64,
+    /// Normal force `F_n ≥ 0` (N) along the outward normal.
+    pub normal_force_n: f64,
+    /// Total force on the frame (N, world frame): normal plus friction.
+    pub force_world: Vector3<f64>,
+}
+
+impl Surface {
+    /// The contact of a frame origin at `position` moving with `velocity` (world frame).
+    pub fn contact(&self, position: &Vector3<f64>, velocity: &Vector3<f64>) -> SurfaceContact {
+        let n = self.normal.into_inner();
+        let depth = (self.point - position).dot(&n);
+        if depth <= 0.0 {
+            return SurfaceContact { penetration_m: 0.0, normal_force_n: 0.0, force_world: Vector3::zeros() };
+        }
+        let depth_rate = -velocity.dot(&n);
+        let normal_force = (self.stiffness_n_m * depth + self.damping_ns_m * depth_rate).max(0.0);
+        let tangential = velocity - n * velocity.dot(&n);
+        let regularised = (tangential.norm_squared() + FRICTION_REGULARISATION_M_S * FRICTION_REGULARISATION_M_S).sqrt();
+        let friction = tangential * (-self.friction * normal_force / regularised);
+        SurfaceContact { penetration_m: depth, normal_force_n: normal_force, force_world: n * normal_force + friction }
+    }
+}
+
 /// What happened during one physics step.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StepReport {
@@ -284,6 +342,7 @@ pub struct Simulator<const N: usize, const B: usize, const F: usize, const U: us
     base_command: PlatformCommand<f64>,
     legs: [f64; LEGS],
     pushes: Vec<Push>,
+    surfaces: Vec<Surface>,
     passive: PassiveJoints<U>,
 }
 
@@ -322,6 +381,7 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N
             },
             legs: [config.initial_leg_length_m; LEGS],
             pushes: Vec::new(),
+            surfaces: Vec::new(),
             passive: PassiveJoints::none(),
         })
     }
@@ -434,6 +494,55 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N
         Ok(())
     }
 
+    /// Adds a contact surface (see the module docs); it acts from the next physics step on.
+    /// Returns its index for [`Simulator::surface_force`].
+    ///
+    /// Errors: unknown frame, a non-finite value, a non-positive stiffness, a negative damping
+    /// or friction coefficient.
+    pub fn add_surface(&mut self, surface: Surface) -> Result<usize, SimError> {
+        self.model.frame(surface.frame).ok_or(SimError::UnknownFrame)?;
+        let values = [surface.stiffness_n_m, surface.damping_ns_m, surface.friction];
+        if !surface.point.iter().chain(surface.normal.iter()).chain(values.iter()).all(|x| x.is_finite()) {
+            return Err(SimError::NonFinite { what: "surface" });
+        }
+        if surface.stiffness_n_m <= 0.0 {
+            return Err(SimError::InvalidConfig { field: "stiffness_n_m" });
+        }
+        if surface.damping_ns_m < 0.0 || surface.friction < 0.0 {
+            return Err(SimError::InvalidConfig { field: "damping_ns_m/friction" });
+        }
+        self.surfaces.push(surface);
+        Ok(self.surfaces.len() - 1)
+    }
+
+    /// The installed contact surfaces, in the order of [`Simulator::add_surface`].
+    pub fn surfaces(&self) -> &[Surface] {
+        &self.surfaces
+    }
+
+    /// The contact of surface `index` at the current state (`None` for an unknown index).
+    ///
+    /// Errors: the kinematics failed (non-finite state).
+    pub fn surface_force(&mut self, index: usize) -> Result<Option<SurfaceContact>, SimError> {
+        let Some(surface) = self.surfaces.get(index).copied() else {
+            return Ok(None);
+        };
+        forward_kinematics(&self.model, &mut self.data, &self.q, &self.v)?;
+        let v = self.v;
+        let (position, velocity) = self.frame_motion(surface.frame, &v)?;
+        Ok(Some(surface.contact(&position, &velocity)))
+    }
+
+    /// Position and linear velocity (world frame) of `frame`'s origin; needs the forward
+    /// kinematics of the state whose velocity is `v`.
+    fn frame_motion(&mut self, frame: FrameId, v: &SVector<f64, N>) -> Result<(Vector3<f64>, Vector3<f64>), SimError> {
+        let position = self.data.frame_placements.get(frame.0).ok_or(SimError::UnknownFrame)?.translation.vector;
+        let mut jacobian = SMatrix::<f64, 6, N>::zeros();
+        frame_jacobian(&self.model, &self.data, frame, &mut jacobian)?;
+        let velocity: Vector3<f64> = jacobian.fixed_rows::<3>(0) * v;
+        Ok((position, velocity))
+    }
+
     /// Installs passive joint springs and dampers on the upper body (see the module docs);
     /// they act from the next physics step on.
     ///
@@ -510,6 +619,16 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N
             frame_jacobian(&self.model, &self.data, p.frame, &mut jacobian)?;
             let generalized: SVector<f64, N> = jacobian.fixed_rows::<3>(0).transpose() * p.force_world;
             rhs += upper(&generalized, b);
+        }
+        for i in 0..self.surfaces.len() {
+            let Some(surface) = self.surfaces.get(i).copied() else { continue };
+            let (position, velocity) = self.frame_motion(surface.frame, v)?;
+            let contact = surface.contact(&position, &velocity);
+            if contact.normal_force_n > 0.0 {
+                frame_jacobian(&self.model, &self.data, surface.frame, &mut jacobian)?;
+                let generalized: SVector<f64, N> = jacobian.fixed_rows::<3>(0).transpose() * contact.force_world;
+                rhs += upper(&generalized, b);
+            }
         }
         crba(&self.model, &mut self.data);
         let m_uu = self.data.mass_matrix.fixed_view::<U, U>(b, b).into_owned();
@@ -839,3 +958,82 @@ where
     Ok(report)
 }
 
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::indexing_slicing, clippy::panic, reason = "test code: failures should panic")]
+mod tests {
+    use super::*;
+    use nalgebra::Vector3;
+
+    fn floor() -> Surface {
+        Surface {
+            frame: fixtures::justin::RIGHT_TCP,
+            point: Vector3::new(0.0, 0.0, 0.5),
+            normal: Unit::new_normalize(Vector3::z()),
+            stiffness_n_m: 1.0e4,
+            damping_ns_m: 100.0,
+            friction: 0.5,
+        }
+    }
+
+    #[test]
+    fn surface_force_is_spring_plus_damper_and_only_pushes() {
+        let s = floor();
+        // Above the surface: no force.
+        let free = s.contact(&Vector3::new(0.0, 0.0, 0.6), &Vector3::new(0.0, 0.0, -1.0));
+        assert_eq!(free.normal_force_n, 0.0);
+        assert_eq!(free.force_world, Vector3::zeros());
+        // 1 mm deep, moving down at 0.02 m/s: 10 N + 2 N along the normal.
+        let c = s.contact(&Vector3::new(0.0, 0.0, 0.499), &Vector3::new(0.0, 0.0, -0.02));
+        assert!((c.penetration_m - 1e-3).abs() < 1e-12);
+        assert!((c.normal_force_n - 12.0).abs() < 1e-9);
+        assert!((c.force_world - Vector3::new(0.0, 0.0, 12.0)).norm() < 1e-9);
+        // Leaving fast: the damper would pull, the force is clipped to zero.
+        let leaving = s.contact(&Vector3::new(0.0, 0.0, 0.499), &Vector3::new(0.0, 0.0, 1.0));
+        assert_eq!(leaving.normal_force_n, 0.0);
+        // Sliding along x at 1 m/s (≫ v_ε): friction ≈ μ F_n against the motion.
+        let sliding = s.contact(&Vector3::new(0.0, 0.0, 0.499), &Vector3::new(1.0, 0.0, 0.0));
+        assert!((sliding.normal_force_n - 10.0).abs() < 1e-9);
+        assert!((sliding.force_world.x + 5.0).abs() < 1e-3 && sliding.force_world.x < 0.0);
+    }
+
+    #[test]
+    fn simulator_reads_and_applies_the_surface_force() {
+        let model = fixtures::justin::model::<f64>().unwrap();
+        let mut sim: Simulator<
+            { fixtures::justin::N },
+            { fixtures::justin::BODIES },
+            { fixtures::justin::FRAMES },
+            { fixtures::justin::UPPER_DOF },
+        > = Simulator::new(model, SimConfig::default()).unwrap();
+        sim.set_state(fixtures::justin::home_configuration(), SVector::zeros()).unwrap();
+        let tcp = sim.frame_placement(fixtures::justin::RIGHT_TCP).unwrap().translation.vector;
+        // A floor 2 mm above the TCP: 20 N upwards at rest.
+        let mut surface = floor();
+        surface.point = tcp + Vector3::new(0.0, 0.0, 0.002);
+        surface.friction = 0.0;
+        let index = sim.add_surface(surface).unwrap();
+        assert_eq!(sim.surfaces().len(), 1);
+        let contact = sim.surface_force(index).unwrap().unwrap();
+        assert!((contact.normal_force_n - 20.0).abs() < 1e-9, "{contact:?}");
+        assert!(sim.surface_force(7).unwrap().is_none());
+        // Over one step it acts like a push of 20 N upwards (up to the motion within the step).
+        let mut free = sim.clone();
+        free.surfaces.clear();
+        let mut pushed = free.clone();
+        pushed.push(fixtures::justin::RIGHT_TCP, Vector3::new(0.0, 0.0, 20.0), 0.0, 1.0).unwrap();
+        sim.step().unwrap();
+        pushed.step().unwrap();
+        free.step().unwrap();
+        let by_push = pushed.upper_v() - free.upper_v();
+        let by_surface = sim.upper_v() - free.upper_v();
+        assert!(by_push.norm() > 1e-4);
+        assert!((by_surface - by_push).norm() < 0.01 * by_push.norm(), "{by_surface} vs {by_push}");
+        // Invalid surfaces are refused.
+        let mut bad = floor();
+        bad.stiffness_n_m = 0.0;
+        assert!(sim.add_surface(bad).is_err());
+        bad = floor();
+        bad.damping_ns_m = f64::NAN;
+        assert!(sim.add_surface(bad).is_err());
+    }
+}

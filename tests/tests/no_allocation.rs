@@ -297,3 +297,69 @@ fn multilevel_control_does_not_allocate() {
     assert_eq!(allocations() - before, 0, "multi-level control allocated");
     assert!(torque.iter().all(|t| t.is_finite()));
 }
+
+/// The whole-body controller's `step` and the planner channel (`apply`, encode/decode) on the
+/// Justin-like model with every collision pair: zero allocations per cycle.
+fn run_controller<T: kernel::controller::messages::WireScalar>() -> usize {
+    use hal::{JointSample, PlatformSample};
+    use kernel::controller::config::Hand;
+    use kernel::controller::messages::{decode_command, encode_command, Command, Pose};
+    use kernel::controller::{Controller, SensorFrame};
+    use justin::whole_body;
+
+    let model = justin::model::<T>().unwrap();
+    let collision = justin::collision::collision_model(&model).unwrap();
+    let config = whole_body::controller_config::<T>().unwrap();
+    let mut controller = Box::new(
+        Controller::<T, { justin::N }, { justin::BODIES }, { justin::FRAMES }, { justin::UPPER_DOF }, { justin::collision::VOLUMES }, { justin::collision::PAIRS }>::try_new(
+            model,
+            collision,
+            config,
+            &whole_body::fig_6_3_hierarchy(Hand::Right),
+        )
+        .unwrap(),
+    );
+    let q = justin::home_configuration::<T>();
+    let frame = |cycle: u64, velocity: T| SensorFrame {
+        joints: JointSample {
+            position: core::array::from_fn(|i| q[i + 3]),
+            velocity: [velocity; justin::UPPER_DOF],
+            torque: [T::zero(); justin::UPPER_DOF],
+            cycle,
+        },
+        platform: PlatformSample {
+            pose: [T::zero(); 3],
+            velocity: [T::zero(); 3],
+            leg_lengths: [nalgebra::convert(justin::LEG_LENGTH_NOMINAL); 4],
+            cycle,
+        },
+    };
+    controller.step(&frame(1, T::zero()));
+    let goal = Command::TcpGoal {
+        hand: Hand::Right,
+        pose: Pose {
+            position: [nalgebra::convert(0.6), nalgebra::convert(-0.2), nalgebra::convert(0.9)],
+            orientation: [T::one(), T::zero(), T::zero(), T::zero()],
+        },
+        duration_s: nalgebra::convert(1.0),
+    };
+    let mut buffer = [0u8; 256];
+
+    let before = allocations();
+    let bytes = encode_command(&goal, &mut buffer).unwrap();
+    let decoded: Command<T> = decode_command(bytes).unwrap();
+    controller.apply(&decoded).unwrap();
+    for cycle in 2..20 {
+        let out = controller.step(&frame(cycle, nalgebra::convert(0.01)));
+        assert!(out.torque.iter().all(|t| t.is_finite()));
+    }
+    // A faulty frame takes the safe-output path.
+    controller.step(&frame(20, nalgebra::convert(f64::NAN)));
+    allocations() - before
+}
+
+#[test]
+fn controller_step_and_planner_channel_do_not_allocate() {
+    assert_eq!(run_controller::<f64>(), 0);
+    assert_eq!(run_controller::<f32>(), 0);
+}

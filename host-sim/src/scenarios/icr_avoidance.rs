@@ -48,6 +48,8 @@
 
 use std::f64::consts::PI;
 
+use fixtures::justin::whole_body;
+
 use hal::{JointTorqueInterface, PlatformCommand, PlatformVelocityInterface, LEGS};
 use kernel::model::{Inertia, JointDrive, JointKind, Model, ModelBuilder, Placement};
 use kernel::platform::avoidance::{AvoidanceConfig, AvoidanceOutput, PlatformAvoidance, PlatformReference};
@@ -75,21 +77,21 @@ pub const NOMINAL_LEG_M: f64 = fixtures::justin::WHEEL_SPIN_RATE_MAX * fixtures:
 /// Largest field extension `d₀,max` (m). Invented: "They [the position errors] can be reduced
 /// by using weaker potential fields. A trade-off between low steering rate and high tracking
 /// performance has to be found."
-pub const MAX_EXTENSION_M: f64 = 0.12;
+pub const MAX_EXTENSION_M: f64 = whole_body::ICR_MAX_EXTENSION_M;
 /// `d₀ ≤ κ λ` (Fig. 3.9). Invented.
-pub const EXTENSION_RATIO: f64 = 0.4;
+pub const EXTENSION_RATIO: f64 = whole_body::ICR_EXTENSION_RATIO;
 /// `F_max` (N): with `1 m/(N s)` the ICR speed at contact (m/s). Invented.
-pub const MAX_FORCE_N: f64 = 0.8;
+pub const MAX_FORCE_N: f64 = whole_body::ICR_MAX_FORCE;
 /// Virtual leg mass `m_w` (kg). Invented.
-pub const LEG_MASS_KG: f64 = 0.2;
+pub const LEG_MASS_KG: f64 = whole_body::LEG_MASS_KG;
 /// Virtual leg damping `d_w` (kg/s). Invented.
-pub const LEG_DAMPING_KG_S: f64 = 1.0;
+pub const LEG_DAMPING_KG_S: f64 = whole_body::LEG_DAMPING_KG_S;
 /// Cubic leg stiffness `c₁` (N/m³). Invented: a third of `F_max` balances it at 6.4 cm.
-pub const LEG_CUBIC_STIFFNESS_N_M3: f64 = 1.0e3;
+pub const LEG_CUBIC_STIFFNESS_N_M3: f64 = whole_body::LEG_CUBIC_STIFFNESS_N_M3;
 /// Double pole of the return loop (rad/s): `k₁ = ω²`, `k₂ = 2ω`. Invented.
-pub const RETURN_POLE_RAD_S: f64 = 2.0;
+pub const RETURN_POLE_RAD_S: f64 = whole_body::RETURN_POLE_RAD_S;
 /// Width over which the return gains fade in outside a field (m). Invented.
-pub const RETURN_BLEND_M: f64 = 0.05;
+pub const RETURN_BLEND_M: f64 = whole_body::RETURN_BLEND_M;
 /// Time window of the tangential pass of wheel 2, the manoeuvre of Fig. 3.13 (s).
 pub const LEG_WINDOW_S: (f64, f64) = (13.5, 17.0);
 /// Thesis bound on the translational position error (m), Sec. 3.2.6.

@@ -116,6 +116,20 @@ pub struct TaskSpec {
     pub level: u8,
 }
 
+/// The consistency of the null space projections (Sec. 4.2, Table 4.3), i.e. the weighting
+/// `W` of the generalized inverse.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[derive(serde::Serialize, serde::Deserialize)]
+pub enum Consistency {
+    /// `W = I` (Def. 4.1): lower levels cause no task force in a static equilibrium — the choice
+    /// for contact tasks whose force limits must bound the contact force (Table 7.1).
+    Static,
+    /// `W` = the closed-loop inertia (Def. 4.2): lower levels cause no task acceleration — the
+    /// choice for free motion (Fig. 6.3).
+    Dynamic,
+}
+
 /// Which frames and coordinates belong to which part of the robot.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RobotLayout<const N: usize> {
@@ -268,6 +282,8 @@ pub struct ControllerConfig<T: RealField, const N: usize> {
     pub layout: RobotLayout<N>,
     /// Successive or augmented projections (Sec. 4.1).
     pub recursion: Recursion,
+    /// Static or dynamic consistency of the projections.
+    pub consistency: Consistency,
     /// Continuous transition shaping of algorithmic singularities (Sec. 4.4).
     pub shaping: Shaping<T>,
     /// Duration of a task's move between levels, fade-in or fade-out (s), `> 0`.

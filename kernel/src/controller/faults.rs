@@ -8,7 +8,7 @@
 //! | --- | --- | --- |
 //! | [`Fault::NonFiniteSensor`] | any NaN/inf in positions, velocities, torques, platform pose, velocity or leg lengths | hold |
 //! | [`Fault::PositionOutOfRange`] | `q_i` beyond its model limit by more than `position_tolerance` | hold |
-//! | [`Fault::VelocityOutOfRange`] | `|q̇_i|` beyond `velocity_factor` × its model limit | hold |
+//! | [`Fault::VelocityOutOfRange`] | `|q̇_i|` of a joint or `|ṙ_i|` of the platform beyond `velocity_factor` × its model limit | hold |
 //! | [`Fault::StaleFrame`] | cycle counter not advanced (repeated or old frame) | hold |
 //! | [`Fault::CycleGap`] | cycle counter advanced by more than `max_cycle_gap` | hold |
 //! | [`Fault::InconsistentFrame`] | joint and platform cycle counters differ | hold |
@@ -153,6 +153,15 @@ pub fn validate_frame<T: RealField + Copy, const N: usize, const B: usize, const
         }
         if v.abs() > speed * limits.velocity_factor {
             return Err(Fault::VelocityOutOfRange { coordinate });
+        }
+    }
+    // The measured platform velocity enters the dynamics (C ṙ) and the platform loop: an absurd
+    // finite value would otherwise pass unchecked.
+    for (coordinate, v) in platform.velocity.iter().enumerate().take(upper_offset) {
+        if let Some(&speed) = limits_of.velocity.get(coordinate) {
+            if v.abs() > speed * limits.velocity_factor {
+                return Err(Fault::VelocityOutOfRange { coordinate });
+            }
         }
     }
     if joints.cycle != platform.cycle {

@@ -12,12 +12,17 @@ use heapless::Vec;
 use nalgebra::{RealField, Rotation3, SVector, Translation3, UnitQuaternion, Quaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
-use super::config::{CartesianParameters, CollisionFieldParameters, Field, Hand, JointGroup, TaskKind, TaskSpec, MAX_LEVELS, MAX_TASKS};
+use super::config::{CartesianParameters, CollisionFieldParameters, Consistency, Field, Hand, JointGroup, TaskKind, TaskSpec, MAX_LEVELS, MAX_TASKS};
 use super::faults::SafeOutput;
 use super::trajectory::{JointTrajectory, PoseTrajectory};
 use super::{cartesian_task, collision_parameters, ActiveTask, Controller, Telemetry, MAX_ACTIVE};
 use crate::math::Placement;
 use crate::tasks::cartesian_impedance::CartesianTarget;
+
+/// A scalar that crosses the planner channel: `f32` or `f64` (any real field with serde).
+pub trait WireScalar: RealField + Copy + Serialize + for<'de> Deserialize<'de> {}
+
+impl<T: RealField + Copy + Serialize + for<'de> Deserialize<'de>> WireScalar for T {}
 
 /// Most values in one joint goal (a group's coordinates).
 pub const MAX_GOAL_VALUES: usize = 32;
@@ -53,6 +58,9 @@ pub enum Command<T> {
         /// Its parameters.
         parameters: CollisionFieldParameters<T>,
     },
+    /// The consistency of the projections: static for contact tasks with force limits, dynamic
+    /// for free motion. Takes effect in the next cycle.
+    SetConsistency(Consistency),
     /// Move a TCP to a goal along the cubic of [`super::trajectory`] in `duration_s`.
     TcpGoal {
         /// Which TCP.
@@ -229,6 +237,10 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
                     *slot = validated;
                     *config = *p;
                 }
+                Ok(())
+            }
+            Command::SetConsistency(consistency) => {
+                self.config.consistency = *consistency;
                 Ok(())
             }
             Command::TcpGoal { hand, pose, duration_s } => {

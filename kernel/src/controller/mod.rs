@@ -13,7 +13,8 @@
 //!    command, is blended with the cubic (4.68) over `transition_s`
 //!    ([`crate::hierarchy::push_transitioning`], [`crate::hierarchy::push_scaled`]).
 //! 4. **Projection** ([`crate::hierarchy::project`]): dynamically consistent (`W` = the
-//!    closed-loop inertia), continuous shaping; `τ = Σ_i N_i τ_i` (4.7).
+//!    closed-loop inertia) for free motion or statically consistent (`W = I`) for contact tasks
+//!    ([`config::Consistency`]), continuous shaping; `τ = Σ_i N_i τ_i` (4.7).
 //! 5. **Platform** (Sec. 5.1): the platform rows of `τ` are the virtual force of the admittance
 //!    (5.1), (5.12) (with a force deadband, Sec. 6.2); its velocity is the reference of the ICR
 //!    singularity avoidance with leg motion (Fig. 3.10), which commands `ṙ_des` and `λ̇`.
@@ -67,7 +68,7 @@ use crate::tasks::torso_workspace::{torso_workspace, TorsoWorkspace};
 use crate::tasks::{TaskError, TaskRows};
 
 use config::{
-    CartesianParameters, CollisionFieldParameters, ControllerConfig, Hand, JointGroup, TaskKind, TaskSpec,
+    CartesianParameters, CollisionFieldParameters, Consistency, ControllerConfig, Hand, JointGroup, TaskKind, TaskSpec,
     MAX_LEVELS, MAX_ROWS, MAX_TASKS, MAX_TASK_ROWS,
 };
 use faults::{validate_frame, Fault, SafeOutput};
@@ -497,11 +498,11 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
         self.advance_targets(dt);
         self.build_stack(&factor)?;
 
-        let config = HierarchyConfig {
-            recursion: self.config.recursion,
-            weighting: Weighting::Inertia(&factor),
-            shaping: self.config.shaping,
+        let weighting = match self.config.consistency {
+            Consistency::Static => Weighting::Identity,
+            Consistency::Dynamic => Weighting::Inertia(&factor),
         };
+        let config = HierarchyConfig { recursion: self.config.recursion, weighting, shaping: self.config.shaping };
         project(&config, &self.stack, &mut self.projection).map_err(Fault::Hierarchy)?;
 
         let platform = self.platform_command(frame, dt)?;
@@ -804,8 +805,24 @@ fn evaluate<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
         }
         TaskKind::CollisionAvoidance(field) => {
             let Some(parameters) = cx.tasks.collision.get(field.index()) else { return Ok(()) };
-            let report = self_collision_rows(cx.collision_model, collision, cx.model, data, cx.factor, parameters, rows)
-                .map_err(Fault::Task)?;
+            // The geometry (volumes in the world, 214 pair distances for Justin) depends only on
+            // this cycle's forward kinematics: the first collision entry of the cycle updates it
+            // (`build_stack` clears `min_collision_distance`, and an update with at least one pair
+            // sets it), the later ones (the other field) reuse it. Same rows as updating twice.
+            let report = if telemetry.min_collision_distance.is_none() {
+                self_collision_rows(cx.collision_model, collision, cx.model, data, cx.factor, parameters, rows)
+            } else {
+                crate::tasks::collision::collision_rows_from_geometry(
+                    cx.collision_model,
+                    collision,
+                    cx.model,
+                    data,
+                    cx.factor,
+                    parameters,
+                    rows,
+                )
+            }
+            .map_err(Fault::Task)?;
             telemetry.min_collision_distance = report.min_distance;
             telemetry.collision_rows += report.rows;
         }

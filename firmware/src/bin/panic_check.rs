@@ -1,0 +1,56 @@
+//! Panic-freedom check of `Controller::step` (issue 8): this image is only linked, never run.
+//!
+//! `main` calls `wcet_step` (the full `Controller::step` of the Justin controller, f32 or f64
+//! with `wcet-f64`) on a controller and a frame the optimiser cannot see (`black_box`ed
+//! pointers), so the image contains `step` and everything it can reach, and nothing else of
+//! the kernel. The panic handler calls a function that does not exist: if any panic path
+//! survives optimisation, the link fails with `undefined symbol: step_has_a_panic_path`.
+//! With the `panic-check-report` feature the handler is an ordinary loop instead, so that
+//! `wcet/panic_check.sh` can list the call sites of the remaining panic functions.
+//! Built by `wcet/panic_check.sh` (feature `panic-check`).
+#![no_std]
+#![no_main]
+
+use core::mem::MaybeUninit;
+use core::panic::PanicInfo;
+
+use cortex_m_rt::entry;
+
+#[path = "../../wcet/stages.rs"]
+#[allow(dead_code)]
+mod stages;
+use stages::*;
+
+static mut CONTROLLER: MaybeUninit<JustinController> = MaybeUninit::uninit();
+static mut FRAME: MaybeUninit<Frame> = MaybeUninit::uninit();
+
+#[entry]
+fn main() -> ! {
+    // Never executed (the check only links); the pointers are opaque to the optimiser.
+    let controller = core::hint::black_box(core::ptr::addr_of_mut!(CONTROLLER)).cast::<JustinController>();
+    let frame = core::hint::black_box(core::ptr::addr_of!(FRAME)).cast::<Frame>();
+    loop {
+        // SAFETY: not run; see the module docs.
+        let sum = unsafe { wcet_step(&mut *controller, &*frame) };
+        core::hint::black_box(sum);
+    }
+}
+
+#[cfg(not(feature = "panic-check-report"))]
+#[panic_handler]
+fn panic(_: &PanicInfo) -> ! {
+    extern "C" {
+        /// Deliberately undefined: referenced only if a panic path survives.
+        fn step_has_a_panic_path() -> !;
+    }
+    // SAFETY: never linked successfully if reachable.
+    unsafe { step_has_a_panic_path() }
+}
+
+#[cfg(feature = "panic-check-report")]
+#[panic_handler]
+fn panic(_: &PanicInfo) -> ! {
+    loop {
+        core::hint::black_box(());
+    }
+}

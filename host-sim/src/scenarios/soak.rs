@@ -1,0 +1,312 @@
+//! `soak`: the Justin-like robot under the whole-body controller of Ch. 6 (Fig. 6.3 hierarchy,
+//! right hand, [`crate::wbc::chapter_6_rig`]) for a long simulated time with seeded random
+//! disturbances (issue 9, "fuzzing and soak"):
+//!
+//! - **goals**: every [`GOAL_INTERVAL_S`] a new right-TCP goal, uniform in a box of half-widths
+//!   [`GOAL_BOX_M`] around the home TCP position (reachable: the platform and the torso help),
+//!   turned by up to [`GOAL_YAW_RAD`] about the vertical, reached along the cubic in
+//!   [`GOAL_DURATION_S`];
+//! - **pushes**: every [`PUSH_INTERVAL_S`] a world-frame force of [`PUSH_FORCE_N`] in a random
+//!   direction on a random one of the right TCP, the left TCP and the torso, for
+//!   [`PUSH_DURATION_S`].
+//!
+//! All intervals are uniform in their ranges, drawn from a xorshift generator seeded with
+//! [`SEED`]. The simulated duration is `SOAK_SECONDS` (environment, default
+//! [`DEFAULT_SECONDS`]); `SOAK_SECONDS=3600` is the one-hour soak.
+//!
+//! Reported: the largest torque rate (absolute and relative to its limit), the largest
+//! `|τ_i|/τ_max,i`, the largest controller energy (kinetic energy with the closed-loop inertia
+//! plus the task potentials), the smallest collision distance (a collision is a pair at
+//! distance ≤ 0), the number of cycles with a non-finite state or command, and the number of
+//! faulty cycles. Claims: no NaN, no collision, torques within their effort and rate limits,
+//! energy below [`ENERGY_BOUND_J`].
+//!
+//! The time series is downsampled: one row every [`RECORD_EVERY`] cycles with the columns of
+//! [`crate::wbc::columns`] plus the window maxima `tau_ratio_max`, `rate_ratio_max` and
+//! `energy_j`.
+
+use fixtures::justin;
+use kernel::controller::messages::{Command, Pose};
+use kernel::controller::config::Hand;
+use nalgebra::{UnitQuaternion, Vector3};
+
+use super::{Outcome, Progress};
+use crate::output::{Figure, Line, Panel, Summary, TimeSeries};
+use crate::sim::{CycleInfo, CONTROL_PERIOD_S};
+use crate::wbc;
+
+/// Registry name.
+pub const NAME: &str = "soak";
+/// One-line description.
+pub const DESCRIPTION: &str =
+    "Justin-like robot, whole-body controller: seeded random TCP goals and pushes for SOAK_SECONDS (default 60 s); no NaN, no collision, torques within limits, energy bounded";
+/// Simulated time without `SOAK_SECONDS` (s).
+pub const DEFAULT_SECONDS: f64 = 60.0;
+/// Seed of the disturbance generator.
+pub const SEED: u64 = 0x5eed_0f50_a6a6;
+/// Half-widths of the goal box around the home TCP position (m). Chosen: inside the arm's
+/// reach with some platform and torso motion.
+pub const GOAL_BOX_M: [f64; 3] = [0.2, 0.2, 0.15];
+/// Largest goal rotation about the vertical (rad). Chosen.
+pub const GOAL_YAW_RAD: f64 = 0.3;
+/// Time between goals (s), uniform. Chosen.
+pub const GOAL_INTERVAL_S: (f64, f64) = (1.5, 4.0);
+/// Duration of a goal motion (s), uniform. Chosen.
+pub const GOAL_DURATION_S: (f64, f64) = (0.3, 2.0);
+/// Time between pushes (s), uniform. Chosen.
+pub const PUSH_INTERVAL_S: (f64, f64) = (0.5, 3.0);
+/// Push force magnitude (N), uniform. Chosen: a firm hand.
+pub const PUSH_FORCE_N: (f64, f64) = (10.0, 50.0);
+/// Push duration (s), uniform. Chosen.
+pub const PUSH_DURATION_S: (f64, f64) = (0.05, 0.4);
+/// Bound of the controller energy (J). Chosen: the springs of a goal at the far corner of the
+/// box (½ · 500 N/m · 0.33² m² + ½ · 100 Nm/rad · 0.3² ≈ 32 J) plus the work of the largest push
+/// and the other tasks' potentials, with margin.
+pub const ENERGY_BOUND_J: f64 = 150.0;
+/// Record one time-series row every this many control cycles.
+pub const RECORD_EVERY: u64 = 50;
+
+/// The simulated duration: `SOAK_SECONDS` or [`DEFAULT_SECONDS`].
+pub fn duration_s() -> Result<f64, String> {
+    match std::env::var("SOAK_SECONDS") {
+        Ok(s) => {
+            let value: f64 = s.trim().parse().map_err(|e| format!("SOAK_SECONDS={s}: {e}"))?;
+            if value.is_finite() && value > 0.0 {
+                Ok(value)
+            } else {
+                Err(format!("SOAK_SECONDS={s}: must be a positive number of seconds"))
+            }
+        }
+        Err(_) => Ok(DEFAULT_SECONDS),
+    }
+}
+
+/// xorshift64*, uniform in [0, 1).
+#[derive(Clone, Debug)]
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> f64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        #[allow(clippy::cast_precision_loss, reason = "53 random bits")]
+        let unit = (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1_u64 << 53) as f64;
+        unit
+    }
+
+    fn uniform(&mut self, (lower, upper): (f64, f64)) -> f64 {
+        lower + (upper - lower) * self.next()
+    }
+}
+
+/// What a soak run found.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SoakMetrics {
+    /// Simulated time (s).
+    pub duration_s: f64,
+    /// Largest `|τ_i(k) − τ_i(k−1)| / Δt` (Nm/s).
+    pub max_torque_rate: f64,
+    /// Largest torque step relative to its rate limit `τ̇_max,i Δt`.
+    pub max_torque_rate_ratio: f64,
+    /// Largest `|τ_i| / τ_max,i`.
+    pub max_torque_ratio: f64,
+    /// Largest controller energy (J).
+    pub max_energy_j: f64,
+    /// Smallest collision distance (m).
+    pub min_distance_m: f64,
+    /// Cycles with a non-finite state or command.
+    pub nan_count: u64,
+    /// Cycles with a fault (safe output).
+    pub fault_count: u64,
+    /// Goals and pushes issued.
+    pub goals: u64,
+    /// Pushes issued.
+    pub pushes: u64,
+    /// Cycles in which some output guard acted.
+    pub saturated_cycles: u64,
+}
+
+/// Runs the soak for [`duration_s`] (see the module docs).
+pub fn simulate(progress: Progress) -> Result<Outcome, String> {
+    let duration = duration_s()?;
+    let (metrics, series) = run(duration, SEED, progress)?;
+    evaluate(&metrics, series)
+}
+
+/// The soak of `duration` simulated seconds with disturbances from `seed`.
+pub fn run(duration: f64, seed: u64, progress: Progress) -> Result<(SoakMetrics, TimeSeries), String> {
+    let mut rig = wbc::chapter_6_rig(Hand::Right, &[])?;
+    let mut rng = Rng(seed.max(1));
+    let mut columns = wbc::columns();
+    columns.extend(["tau_ratio_max", "rate_ratio_max", "energy_j"].iter().map(|s| (*s).to_string()));
+    let mut series = TimeSeries::new(columns);
+    let effort = rig.controller.model().limits.effort;
+    let rate = rig.controller.config().output_limits.torque_rate;
+    let dt = rig.controller.config().period_s;
+    let home_tcp = rig.sim.frame_placement(justin::RIGHT_TCP).map_err(|e| e.to_string())?;
+    let home_rotation = UnitQuaternion::from_rotation_matrix(&home_tcp.rotation);
+    let push_frames = [justin::RIGHT_TCP, justin::LEFT_TCP, justin::TORSO_CENTER];
+
+    let mut m = SoakMetrics {
+        duration_s: duration,
+        max_torque_rate: 0.0,
+        max_torque_rate_ratio: 0.0,
+        max_torque_ratio: 0.0,
+        max_energy_j: 0.0,
+        min_distance_m: f64::INFINITY,
+        nan_count: 0,
+        fault_count: 0,
+        goals: 0,
+        pushes: 0,
+        saturated_cycles: 0,
+    };
+    let mut next_goal = rng.uniform(GOAL_INTERVAL_S);
+    let mut next_push = rng.uniform(PUSH_INTERVAL_S);
+    let mut previous = [0.0; justin::UPPER_DOF];
+    let mut window = [0.0_f64; 3];
+    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss, reason = "finite, positive")]
+    let cycles = (duration / CONTROL_PERIOD_S).round().max(0.0) as u64;
+    for cycle in 0..cycles {
+        let info = CycleInfo { cycle, time_s: rig.sim.time_s() };
+        let t = info.time_s;
+        rig.cycle(&info).map_err(|e| format!("cycle {cycle}: {e}"))?;
+        let output = *rig.controller.output();
+        let telemetry = rig.controller.telemetry();
+        let finite = output.torque.iter().chain(output.platform.velocity.iter()).chain(output.platform.leg_rates.iter()).all(|x| x.is_finite())
+            && rig.sim.q().iter().chain(rig.sim.v().iter()).all(|x| x.is_finite());
+        if !finite {
+            m.nan_count += 1;
+        }
+        if telemetry.fault.is_some() {
+            m.fault_count += 1;
+        }
+        m.saturated_cycles += u64::from(telemetry.saturation.any());
+        let energy = telemetry.kinetic_energy + telemetry.potential_energy;
+        m.max_energy_j = m.max_energy_j.max(energy);
+        window[2] = window[2].max(energy);
+        for (i, (tau, prev)) in output.torque.iter().zip(previous.iter()).enumerate() {
+            let (Some(e), Some(r)) = (effort.get(i + kernel::controller::PLATFORM_DOF), rate.get(i + kernel::controller::PLATFORM_DOF)) else {
+                continue;
+            };
+            let ratio = tau.abs() / e;
+            m.max_torque_ratio = m.max_torque_ratio.max(ratio);
+            window[0] = window[0].max(ratio);
+            if cycle > 0 {
+                let step = (tau - prev).abs();
+                m.max_torque_rate = m.max_torque_rate.max(step / dt);
+                m.max_torque_rate_ratio = m.max_torque_rate_ratio.max(step / (r * dt));
+                window[1] = window[1].max(step / (r * dt));
+            }
+        }
+        previous = output.torque;
+        if cycle % RECORD_EVERY == 0 {
+            let mut row = rig.record(&info).map_err(|e| format!("cycle {cycle}: {e}"))?;
+            row.extend(window);
+            series.push(row)?;
+            window = [0.0; 3];
+        }
+        if t >= next_goal {
+            let offset = Vector3::from(GOAL_BOX_M.map(|h| rng.uniform((-h, h))));
+            let position = home_tcp.translation.vector + offset;
+            let yaw = rng.uniform((-GOAL_YAW_RAD, GOAL_YAW_RAD));
+            let q = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw) * home_rotation;
+            let pose = Pose { position: [position.x, position.y, position.z], orientation: [q.w, q.i, q.j, q.k] };
+            let duration_s = rng.uniform(GOAL_DURATION_S);
+            rig.controller
+                .apply(&Command::TcpGoal { hand: Hand::Right, pose, duration_s })
+                .map_err(|e| format!("goal at {t:.3} s: {e}"))?;
+            m.goals += 1;
+            next_goal = t + rng.uniform(GOAL_INTERVAL_S);
+        }
+        if t >= next_push {
+            let frame = push_frames.get((rng.next() * 3.0) as usize % 3).copied().unwrap_or(justin::RIGHT_TCP);
+            let direction = Vector3::new(rng.uniform((-1.0, 1.0)), rng.uniform((-1.0, 1.0)), rng.uniform((-1.0, 1.0)));
+            let direction = direction.try_normalize(1e-6).unwrap_or_else(Vector3::x);
+            let force = direction * rng.uniform(PUSH_FORCE_N);
+            rig.sim.push(frame, force, t, rng.uniform(PUSH_DURATION_S)).map_err(|e| format!("push at {t:.3} s: {e}"))?;
+            m.pushes += 1;
+            next_push = t + rng.uniform(PUSH_INTERVAL_S);
+        }
+        if cycle % 1000 == 0 {
+            progress.report(NAME, t, duration);
+        }
+        rig.sim.advance(CONTROL_PERIOD_S).map_err(|e| format!("physics after cycle {cycle}: {e}"))?;
+    }
+    progress.finish();
+    m.min_distance_m = rig.min_distance_m;
+    Ok((m, series))
+}
+
+/// Summary, claims and figure of a soak run.
+pub fn evaluate(m: &SoakMetrics, series: TimeSeries) -> Result<Outcome, String> {
+    let mut summary = Summary::new(NAME);
+    #[allow(clippy::cast_precision_loss, reason = "counts")]
+    {
+        summary
+            .metric("duration_s", m.duration_s)
+            .metric("max_torque_rate_nm_s", m.max_torque_rate)
+            .metric("max_torque_rate_ratio", m.max_torque_rate_ratio)
+            .metric("max_torque_ratio", m.max_torque_ratio)
+            .metric("max_energy_j", m.max_energy_j)
+            .metric("min_collision_distance_m", m.min_distance_m)
+            .metric("nan_count", m.nan_count as f64)
+            .metric("fault_count", m.fault_count as f64)
+            .metric("goal_count", m.goals as f64)
+            .metric("push_count", m.pushes as f64)
+            .metric("saturated_cycles", m.saturated_cycles as f64)
+            .metric("energy_bound_j", ENERGY_BOUND_J);
+    }
+    summary.claim("no NaN or infinite value in the state or the commands", m.nan_count == 0);
+    summary.claim("no collision (every pair's distance > 0)", m.min_distance_m > 0.0);
+    summary.claim(
+        "torques within their effort and rate limits",
+        m.max_torque_ratio <= 1.0 + 1e-9 && m.max_torque_rate_ratio <= 1.0 + 1e-6,
+    );
+    summary.claim(&format!("controller energy bounded (≤ {ENERGY_BOUND_J} J)"), m.max_energy_j <= ENERGY_BOUND_J);
+    let column = |name: &str| -> Result<Vec<(f64, f64)>, String> {
+        let t = series.column("t").ok_or("no column t")?;
+        let y = series.column(name).ok_or_else(|| format!("no column {name}"))?;
+        Ok(t.into_iter().zip(y).collect())
+    };
+    let figure = Figure {
+        title: format!("{NAME}: random goals and pushes"),
+        x_label: "time (s)".into(),
+        panels: vec![
+            Panel {
+                title: "guards (window maxima)".into(),
+                y_label: "ratio to limit".into(),
+                lines: vec![Line::new("|τ|/τ_max", column("tau_ratio_max")?), Line::new("|Δτ|/(τ̇_max Δt)", column("rate_ratio_max")?)],
+                spans: vec![],
+            },
+            Panel {
+                title: "controller energy".into(),
+                y_label: "energy (J)".into(),
+                lines: vec![Line::new("kinetic + potential", column("energy_j")?)],
+                spans: vec![],
+            },
+            Panel {
+                title: "smallest collision distance".into(),
+                y_label: "distance (m)".into(),
+                lines: vec![Line::new("min distance", column("min_distance")?)],
+                spans: vec![],
+            },
+        ],
+    };
+    Ok(Outcome { summary, series, figures: vec![("soak.svg", figure)] })
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, reason = "tests")]
+    use super::*;
+
+    #[test]
+    fn a_short_soak_holds_its_claims() {
+        let (metrics, series) = run(4.0, SEED, Progress::Silent).unwrap();
+        let outcome = evaluate(&metrics, series).unwrap();
+        assert!(outcome.summary.failed_claims().is_empty(), "{:?} {metrics:?}", outcome.summary.failed_claims());
+        assert!(metrics.goals >= 1 && metrics.pushes >= 1, "{metrics:?}");
+        assert_eq!(metrics.fault_count, 0, "{metrics:?}");
+    }
+}

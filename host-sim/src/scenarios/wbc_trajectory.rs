@@ -1,0 +1,194 @@
+//! `wbc_trajectory`: the right TCP of Rollin' Justin follows a 1 m forward-and-back trajectory
+//! under the whole-body impedance controller (Sec. 6.2, Fig. 6.5 and 6.6).
+//!
+//! Setup: the rig of [`crate::wbc::chapter_6_rig`] (Fig. 6.3 hierarchy for the right TCP);
+//! `k_tra = 500 N/m`, `k_rot = 100 Nm/rad`, `ξ = 0.7` (**thesis**). The TCP goal moves
+//! [`DISTANCE_M`] forward along world `x` on the controller's cubic in [`SEGMENT_S`] and back in
+//! the same time (`TcpGoal` commands, orientation held). The arm alone cannot reach 1 m further:
+//! the platform admittance takes the rest.
+//!
+//! Claims: the tracking error (TCP − desired position) stays bounded (< [`MAX_TRACKING_M`]; its
+//! maximum is reported); the TCP returns to its start within 1 cm; no self-collision; the joint
+//! configuration at the end differs from the start (the redundancy is not restored: the
+//! thesis' Fig. 6.6 remark on the null space), its norm reported; no fault.
+
+use kernel::controller::config::{Hand, MAX_LEVELS};
+use kernel::controller::messages::Command;
+use nalgebra::Vector3;
+
+use super::wbc_step::{col, common_claims, distance_to, line, points, pose_of, subtask_lines, tcp_columns};
+use super::{Outcome, Progress};
+use crate::output::{Figure, Line, Panel, Span, Summary};
+use crate::wbc;
+
+/// Registry name.
+pub const NAME: &str = "wbc_trajectory";
+/// One-line description.
+pub const DESCRIPTION: &str =
+    "Justin whole-body impedance: right TCP 1 m forward and back (cubic, 8 s each), subtask torques (Fig. 6.5/6.6)";
+/// Start of the forward segment (s).
+pub const FORWARD_AT_S: f64 = 0.5;
+/// Duration of each segment (s), as in Fig. 6.5.
+pub const SEGMENT_S: f64 = 8.0;
+/// Start of the backward segment (s).
+pub const BACKWARD_AT_S: f64 = FORWARD_AT_S + SEGMENT_S + 0.5;
+/// Simulated time (s).
+pub const DURATION_S: f64 = BACKWARD_AT_S + SEGMENT_S + 1.5;
+/// Length of the motion (m).
+pub const DISTANCE_M: f64 = 1.0;
+/// Bound of the tracking error (m): a fifth of the path. Chosen.
+pub const MAX_TRACKING_M: f64 = 0.2;
+/// Return tolerance (m).
+pub const RETURN_TOLERANCE_M: f64 = 0.01;
+
+/// Runs the scenario.
+pub fn simulate(progress: Progress) -> Result<Outcome, String> {
+    let mut rig = wbc::chapter_6_rig(Hand::Right, &[])?;
+    let mut start = None;
+    let mut desired: Vec<Vector3<f64>> = Vec::new();
+    let mut levels: Vec<[f64; MAX_LEVELS]> = Vec::new();
+    let mut q0 = None;
+    let series = rig.run(DURATION_S, |rig, info| {
+        if info.cycle % 100 == 0 {
+            progress.report(NAME, info.time_s, DURATION_S);
+        }
+        let target = rig.controller.tcp_target(Hand::Right).pose;
+        let begin = *start.get_or_insert(target);
+        q0.get_or_insert(*rig.sim.q());
+        let near = |t: f64| (info.time_s - t).abs() < 0.5 * crate::sim::CONTROL_PERIOD_S;
+        for (at, offset) in [(FORWARD_AT_S, DISTANCE_M), (BACKWARD_AT_S, 0.0)] {
+            if near(at) {
+                let mut goal = begin;
+                goal.translation.vector.x += offset;
+                let command = Command::TcpGoal { hand: Hand::Right, pose: pose_of(&goal), duration_s: SEGMENT_S };
+                rig.controller.apply(&command).map_err(|e| format!("goal: {e}"))?;
+            }
+        }
+        desired.push(rig.controller.tcp_target(Hand::Right).pose.translation.vector);
+        levels.push(rig.controller.telemetry().level_torque_norm);
+        Ok(())
+    })?;
+    progress.finish();
+    let start = start.ok_or("no cycle ran")?.translation.vector;
+    let q0 = q0.ok_or("no cycle ran")?;
+    let t = col(&series, "t")?;
+    let tcp = tcp_columns(&series, Hand::Right)?;
+    // The desired pose recorded after cycle k is the one cycle k + 1 uses; compare with the
+    // next row's TCP (one period of lag is 0.2 mm at the peak speed).
+    let [px, py, pz] = &tcp;
+    let tracking: Vec<f64> = px
+        .iter()
+        .zip(py.iter())
+        .zip(pz.iter())
+        .enumerate()
+        .map(|(k, ((x, y), z))| {
+            let d = desired.get(k.saturating_sub(1)).copied().unwrap_or(start);
+            (Vector3::new(*x, *y, *z) - d).norm()
+        })
+        .collect();
+    let max_tracking = tracking.iter().copied().fold(0.0, f64::max);
+    let final_error = distance_to(&tcp, &start).last().copied().unwrap_or(f64::NAN);
+    let q_end = *rig.sim.q();
+    let upper = (q_end - q0).rows(3, fixtures::justin::UPPER_DOF).norm();
+    let base_dx = col(&series, "q.base_x")?;
+    let base_peak = base_dx.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+
+    let mut summary = Summary::new(NAME);
+    summary
+        .metric("max_tracking_error_m", max_tracking)
+        .metric("final_error_m", final_error)
+        .metric("joint_configuration_change_rad", upper)
+        .metric("base_peak_x_m", base_peak)
+        .metric("base_final_x_m", base_dx.last().copied().unwrap_or(f64::NAN));
+    summary.claim(
+        &format!("tracking error bounded: max {:.1} mm < {:.0} mm", max_tracking * 1e3, MAX_TRACKING_M * 1e3),
+        max_tracking < MAX_TRACKING_M,
+    );
+    summary.claim(
+        &format!("the TCP returns to its start: {:.1} mm < {:.0} mm", final_error * 1e3, RETURN_TOLERANCE_M * 1e3),
+        final_error < RETURN_TOLERANCE_M,
+    );
+    summary.claim(
+        &format!("the upper-body configuration at the end differs from the start: ‖Δq‖ = {upper:.3} rad > 0.01 rad (null space not restored)"),
+        upper > 0.01,
+    );
+    common_claims(&mut summary, &rig, &series)?;
+
+    let spans = || {
+        vec![
+            Span { label: "forward".into(), from: FORWARD_AT_S, to: FORWARD_AT_S + SEGMENT_S },
+            Span { label: "backward".into(), from: BACKWARD_AT_S, to: BACKWARD_AT_S + SEGMENT_S },
+        ]
+    };
+    let rel: Vec<f64> = tcp[0].iter().map(|x| x - start.x).collect();
+    let des: Vec<f64> = desired.iter().map(|d| d.x - start.x).collect();
+    let level_line = |l: usize| Line::new(format!("level {l}"), points(&t, &levels.iter().map(|v| v.get(l).copied().unwrap_or(f64::NAN)).collect::<Vec<_>>(), 10, 1.0));
+    let main = Figure {
+        title: "wbc_trajectory: right TCP 1 m forward and back, k_tra = 500 N/m, k_rot = 100 Nm/rad (cf. Fig. 6.5)".into(),
+        x_label: "time (s)".into(),
+        panels: vec![
+            Panel {
+                title: "TCP x relative to the start (world) and platform x".into(),
+                y_label: "x (m)".into(),
+                lines: vec![
+                    Line::new("TCP", points(&t, &rel, 10, 1.0)),
+                    Line::dashed("desired", points(&t, &des, 10, 1.0)),
+                    line(&series, "platform", "q.base_x", 1.0)?,
+                ],
+                spans: spans(),
+            },
+            Panel {
+                title: "tracking error ‖p − p_des‖".into(),
+                y_label: "error (mm)".into(),
+                lines: vec![Line::new("tracking error", points(&t, &tracking, 10, 1e3))],
+                spans: spans(),
+            },
+            Panel {
+                title: "platform velocity command".into(),
+                y_label: "m/s, rad/s".into(),
+                lines: vec![
+                    line(&series, "v_x", "vcmd.x", 1.0)?,
+                    line(&series, "v_y", "vcmd.y", 1.0)?,
+                    line(&series, "ω", "vcmd.theta", 1.0)?,
+                ],
+                spans: spans(),
+            },
+        ],
+    };
+    let torques = Figure {
+        title: "wbc_trajectory: subtask and level torque norms (cf. Fig. 6.5/6.6)".into(),
+        x_label: "time (s)".into(),
+        panels: vec![
+            Panel { title: "subtask torque norms ‖τ_i‖ before projection".into(), y_label: "‖τ‖ (Nm)".into(), lines: subtask_lines(&series)?, spans: spans() },
+            Panel {
+                title: "level torque norms ‖N_i τ_i‖".into(),
+                y_label: "‖τ‖ (Nm)".into(),
+                lines: vec![level_line(0), level_line(1)],
+                spans: spans(),
+            },
+            Panel {
+                title: "smallest collision distance".into(),
+                y_label: "distance (mm)".into(),
+                lines: vec![line(&series, "min pair distance", "min_distance", 1e3)?],
+                spans: spans(),
+            },
+        ],
+    };
+    Ok(Outcome { summary, series, figures: vec![("tcp_trajectory.svg", main), ("torques.svg", torques)] })
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, reason = "tests")]
+    use super::*;
+
+    #[test]
+    fn wbc_trajectory_tracks_and_returns() {
+        let outcome = simulate(Progress::Silent).unwrap();
+        let s = &outcome.summary;
+        assert!(s.failed_claims().is_empty(), "failed: {:?}", s.failed_claims());
+        assert!(s.get("max_tracking_error_m").unwrap() < MAX_TRACKING_M);
+        assert!(s.get("final_error_m").unwrap() < RETURN_TOLERANCE_M);
+        assert!(s.get("joint_configuration_change_rad").unwrap() > 0.01);
+    }
+}
