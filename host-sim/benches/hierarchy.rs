@@ -102,7 +102,7 @@ fn projections(c: &mut Criterion) {
     ];
     let mut group = c.benchmark_group("hierarchy_20dof_40rows");
     for (name, recursion, weighting) in variants {
-        let config = HierarchyConfig { recursion, weighting, shaping };
+        let config = HierarchyConfig { recursion, weighting, shaping, diagnose_last_level: true };
         let mut data = HierarchyData::<f64, N, ROWS, LEVELS>::default();
         group.bench_function(name, |b| {
             b.iter(|| project(black_box(&config), black_box(&stack), &mut data).map(|t| t.sum()));

@@ -57,6 +57,8 @@ pub mod wipe_window;
 pub mod sweep_floor;
 #[path = "scenarios/clean_mug.rs"]
 pub mod clean_mug;
+#[path = "scenarios/soak.rs"]
+pub mod soak;
 
 /// What a scenario produced.
 #[derive(Clone, Debug)]
@@ -238,6 +240,12 @@ const SCENARIOS: &[Entry] = &[
         name: clean_mug::NAME,
         description: clean_mug::DESCRIPTION,
         simulate: clean_mug::simulate,
+        extra_files: None,
+    },
+    Entry {
+        name: soak::NAME,
+        description: soak::DESCRIPTION,
+        simulate: soak::simulate,
         extra_files: None,
     },
 ];

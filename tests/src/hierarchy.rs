@@ -211,7 +211,7 @@ impl<const N: usize> Problem<N> {
             Variant::AugStiffness => (Recursion::Augmented, Weighting::Stiffness(&self.stiffness_factor)),
             Variant::Unprojected => (Recursion::Unprojected, Weighting::Identity),
         };
-        HierarchyConfig { recursion, weighting, shaping: SHAPING }
+        HierarchyConfig { recursion, weighting, shaping: SHAPING, diagnose_last_level: true }
     }
 
     /// The stack of levels `0..upto`.
@@ -713,7 +713,7 @@ fn torque_along_path(s: f64, split: bool, recursion: Recursion, shaping: Shaping
         stack.push(low, row(RowSVector::from_fn(|_, c| if c == k { 1.0 } else { 0.0 }), f)).unwrap();
     }
     let mut hierarchy = HierarchyData::<f64, 4, 8, 4>::default();
-    let config = HierarchyConfig { recursion, weighting: Weighting::Identity, shaping };
+    let config = HierarchyConfig { recursion, weighting: Weighting::Identity, shaping, diagnose_last_level: true };
     *project(&config, &stack, &mut hierarchy).unwrap()
 }
 

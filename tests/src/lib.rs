@@ -22,3 +22,5 @@ mod platform;
 mod multilevel;
 #[cfg(test)]
 mod support;
+#[cfg(test)]
+mod robustness;

@@ -136,6 +136,7 @@ fn check_properties<const N: usize>(s: &State<N>) -> Result<(), TestCaseError> {
             recursion: Recursion::Augmented,
             weighting: Weighting::Inertia(&s.factor),
             shaping: Shaping::Continuous { singular_full: 1e-7, singular_start: 2e-7 },
+            diagnose_last_level: true,
         };
         let mut data = HierarchyData::<f64, N, 48, 8>::default();
         project(&config, &above, &mut data).unwrap();

@@ -856,13 +856,10 @@ fn a_hierarchy_change_blends_continuously() {
     assert!(step <= baseline + 0.02 * change, "largest step {step} Nm (baseline {baseline}, slope {slope}, change {change})");
 }
 
-/// Kernel bug (reported, `kernel/src/controller/mod.rs`, `safe_output`): the safe output sets
-/// the platform reference pose to the measured pose even when that is not finite; the NaN
-/// reference then makes every later cycle fail with `Platform(NonFinite)`, the controller never
-/// returns to `Normal`. Un-ignore once `safe_output` keeps the old reference for a non-finite
-/// pose.
+/// Regression: the safe output used to set the platform reference pose to the measured pose
+/// even when that was not finite; the NaN reference then made every later cycle fail with
+/// `Platform(NonFinite)`, and the controller never returned to `Normal`.
 #[test]
-#[ignore = "kernel bug: safe_output copies a non-finite platform pose into the reference pose"]
 fn recovers_after_a_non_finite_platform_pose() {
     let mut row = case::<f64>("NaN platform pose", |f| f.platform.pose[0] = f64::NAN, |fault| {
         *fault == Fault::NonFiniteSensor { field: "platform pose" }
@@ -871,12 +868,10 @@ fn recovers_after_a_non_finite_platform_pose() {
     check_fault(&row);
 }
 
-/// Kernel bug (reported, `kernel/src/controller/trajectory.rs`): a TCP goal whose orientation
-/// equals the current one up to rounding gives `Rotation3::angle() = acos(> 1) = NaN` in f32, a
-/// NaN target and a `Task(NonFinite)` fault on every following cycle. Un-ignore once
-/// `PoseTrajectory::towards` takes the angle from a quaternion (or clamps the cosine).
+/// Regression: a TCP goal whose orientation equals the current one up to rounding used to give
+/// `Rotation3::angle() = acos(> 1) = NaN` in f32, a NaN target and a `Task(NonFinite)` fault on
+/// every following cycle (`PoseTrajectory::towards` now goes through a quaternion).
 #[test]
-#[ignore = "kernel bug: PoseTrajectory::towards gives a NaN angle for a near-identity rotation in f32"]
 fn an_f32_goal_with_the_current_orientation_is_finite() {
     let mut controller = controller::<f32>();
     let mut stream = Stream::<f32>::new();

@@ -116,7 +116,7 @@ fn run() -> Result<(), &'static str> {
         let report = report.ok_or("self-collision")?;
 
         build_stack(stack, data, &model).ok_or("stack")?;
-        let config = HierarchyConfig { recursion: Recursion::Augmented, weighting: Weighting::Inertia(&factor), shaping };
+        let config = HierarchyConfig { recursion: Recursion::Augmented, weighting: Weighting::Inertia(&factor), shaping, diagnose_last_level: true };
         let sp = paint_stack();
         mark_begin::<2>();
         let torque = wcet_projection(&config, stack, hierarchy);

@@ -19,9 +19,9 @@
 //! the base is held at rest (`ṙ_des = 0`) like a braked platform. A joint impedance of the
 //! platform would still let the contact forces move the base by `F/k`.
 //!
-//! Claims: contact forces within 20 N (with the tolerance of [`FORCE_TOLERANCE_N`] for what the
-//! lower-priority tasks add); contact kept during the scrubbing; the brush circles are
-//! executed; the base does not move; no fault.
+//! Claims: static and mean contact forces within 20 N (the peak during the scrubbing is
+//! reported, see [`super::wipe_window::force_claims`]); contact kept during the scrubbing; the
+//! brush circles are executed; the base does not move; no fault.
 
 use fixtures::justin::{self, whole_body};
 use fixtures::justin::whole_body::CLEAN_MUG;
@@ -29,7 +29,7 @@ use kernel::controller::config::Hand;
 use kernel::model::Placement;
 use nalgebra::{Unit, Vector3};
 
-use super::wipe_window::{force_claims, HOLD_S, STATIC_TOLERANCE_N, 
+use super::wipe_window::{force_claims, HOLD_S, 
     base_travel, contact_metrics, limited_share, measured_range, run_tool, tool_figures, tool_orientation, Contact,
     ToolPlan, ToolReference, Waypoints,
 };
@@ -60,10 +60,6 @@ pub const CIRCLES: usize = 3;
 pub const CIRCLE_RADIUS_M: f64 = 0.04;
 /// Window of the scrubbing (s).
 pub const SCRUB_S: (f64, f64) = (5.0, 11.0);
-/// Tolerance on the 20 N limit for the contact force during the scrubbing (N); chosen from
-/// the measured 27.4 N peak of the brush face (the left face stays at ≈ 20 N): the excess is
-/// not bounded by the Cartesian force limit (see `wipe_window`).
-pub const FORCE_TOLERANCE_N: f64 = 8.0;
 /// Largest base travel the claim allows (m).
 pub const MAX_BASE_TRAVEL_M: f64 = 1e-6;
 
@@ -146,7 +142,7 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         .metric("brush_range_z_m", circle_z)
         .metric("base_travel_m", travel)
         .value("faulty_cycles", run.faulty_cycles);
-    force_claims(&mut summary, &all, limit, STATIC_TOLERANCE_N, FORCE_TOLERANCE_N);
+    force_claims(&mut summary, &all, limit);
     summary.claim(&format!("contact kept while scrubbing: both faces touched in ≥ {:.1} % of the cycles", share * 100.0), share > 0.95);
     summary.claim(
         &format!("brush circles done: measured range {circle_x:.3} m (x), {circle_z:.3} m (z) of the commanded {:.3} m", 2.0 * CIRCLE_RADIUS_M),
@@ -171,7 +167,7 @@ mod tests {
         let s = &outcome.summary;
         assert!(s.failed_claims().is_empty(), "{:?}", s.failed_claims());
         assert!(s.get("base_travel_m").unwrap() <= MAX_BASE_TRAVEL_M);
-        assert!(s.get("motion_peak_force_n").unwrap() <= 20.0 + FORCE_TOLERANCE_N);
-        assert!(s.get("static_force_n").unwrap() <= 20.0 + STATIC_TOLERANCE_N);
+        assert!(s.get("static_force_n").unwrap() <= 20.0);
+        assert!(s.get("motion_mean_force_n").unwrap() <= 20.0);
     }
 }

@@ -253,7 +253,7 @@ impl Controller {
             Consistency::Dynamic => Weighting::Inertia(&factor),
             Consistency::Acceleration => Weighting::AccelerationBased(&factor),
         };
-        let config = HierarchyConfig { recursion: self.variant.recursion, weighting, shaping: SHAPING };
+        let config = HierarchyConfig { recursion: self.variant.recursion, weighting, shaping: SHAPING, diagnose_last_level: true };
         let projected = *project(&config, &stack, &mut self.hierarchy).map_err(|e| err(&e))?;
         for diagnostics in self.hierarchy.rows.iter().filter(|r| r.level < 3) {
             self.min_ratio = self.min_ratio.min(diagnostics.projected_norm_ratio);

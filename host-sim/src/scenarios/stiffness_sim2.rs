@@ -178,7 +178,7 @@ impl Controller {
             Projection::Acceleration => (Recursion::Augmented, Weighting::AccelerationBased(&mass)),
             Projection::None => (Recursion::Unprojected, Weighting::Identity),
         };
-        let config = HierarchyConfig { recursion, weighting, shaping: SHAPING };
+        let config = HierarchyConfig { recursion, weighting, shaping: SHAPING, diagnose_last_level: true };
         let tau = *project(&config, &stack, &mut self.hierarchy).map_err(|e| err(&e))?;
         Ok((tau, [tcp_error.x, tcp_error.y, e2, reference]))
     }

@@ -20,8 +20,8 @@
 //! floor), stiffness [`SURFACE_STIFFNESS_N_M`], damping [`SURFACE_DAMPING_NS_M`], friction
 //! [`SURFACE_FRICTION`] (all chosen).
 //!
-//! Claims: the contact forces stay within the −10 N limit (reported with the tolerance the
-//! lower-priority tasks add, see [`FORCE_TOLERANCE_N`]); the contact is kept while sweeping; the
+//! Claims: the static and mean contact forces stay within the −10 N limit (the peak during the
+//! sweep is reported, see [`super::wipe_window::force_claims`]); the contact is kept while sweeping; the
 //! sweeping motion is executed; the base moves; no fault; no self-collision.
 
 use fixtures::justin::{self, whole_body};
@@ -30,7 +30,7 @@ use kernel::controller::config::Hand;
 use kernel::model::Placement;
 use nalgebra::{Unit, Vector3};
 
-use super::wipe_window::{force_claims, HOLD_S, STATIC_TOLERANCE_N, 
+use super::wipe_window::{force_claims, HOLD_S, 
     base_travel, contact_metrics, limited_share, measured_range, run_tool, tool_figures, tool_orientation, Contact,
     ToolPlan, ToolReference, Waypoints,
 };
@@ -63,10 +63,6 @@ pub const STROKE_M: f64 = 0.20;
 pub const ADVANCE_M: f64 = 0.40;
 /// Window of the sweep (s).
 pub const SWEEP_S: (f64, f64) = (6.0, 13.0);
-/// Tolerance on the −10 N limit for the measured contact force (N): the lower-priority tasks'
-/// torques and the base motion are not bounded by the Cartesian force limit (see the report of
-/// `wipe_window`); chosen from the measured excess.
-pub const FORCE_TOLERANCE_N: f64 = 5.0;
 /// Base travel the claim requires (m).
 pub const MIN_BASE_TRAVEL_M: f64 = 0.10;
 
@@ -152,7 +148,7 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         .metric("base_travel_m", travel)
         .metric("min_self_collision_distance_m", run.min_distance_m)
         .value("faulty_cycles", run.faulty_cycles);
-    force_claims(&mut summary, &all, limit, STATIC_TOLERANCE_N, FORCE_TOLERANCE_N);
+    force_claims(&mut summary, &all, limit);
     summary.claim(&format!("contact kept while sweeping: both ends touched in ≥ {:.1} % of the cycles", share * 100.0), share > 0.95);
     summary.claim(
         &format!("sweeping motion done: measured forward range {range:.3} m of the commanded {:.3} m", STROKE_M + ADVANCE_M * 2.0 / 3.0),
@@ -180,7 +176,7 @@ mod tests {
         let s = &outcome.summary;
         assert!(s.failed_claims().is_empty(), "{:?}", s.failed_claims());
         assert!(s.get("base_travel_m").unwrap() >= MIN_BASE_TRAVEL_M);
-        assert!(s.get("motion_peak_force_n").unwrap() <= 10.0 + FORCE_TOLERANCE_N);
-        assert!(s.get("static_force_n").unwrap() <= 10.0 + STATIC_TOLERANCE_N);
+        assert!(s.get("static_force_n").unwrap() <= 10.0);
+        assert!(s.get("motion_mean_force_n").unwrap() <= 10.0);
     }
 }

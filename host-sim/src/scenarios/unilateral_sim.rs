@@ -223,6 +223,7 @@ impl Controller {
             recursion: Recursion::Augmented,
             weighting: Weighting::Identity,
             shaping: self.projection.shaping(),
+            diagnose_last_level: true,
         };
         let tau = *project(&config, &stack, &mut self.hierarchy).map_err(|e| err(&e))?;
         let tau1 = top.torque();

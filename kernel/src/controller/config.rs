@@ -314,4 +314,6 @@ pub struct ControllerConfig<T: RealField, const N: usize> {
     pub input_limits: InputLimits<T>,
     /// Contact detection.
     pub observer: ObserverParameters<T>,
+    /// Contact-force limiter on the observer's estimate ([`super::force_limit`]).
+    pub force_limit: super::force_limit::ForceLimitParameters<T>,
 }

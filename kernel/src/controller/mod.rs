@@ -8,7 +8,10 @@
 //! 2. **Dynamics** at `y = (r, q)` (5.7): kinematics, `M`, `C`, `g`, and the Cholesky factor of
 //!    the closed-loop inertia (the platform block replaced by the admittance mass,
 //!    [`crate::platform::storage::closed_loop_inertia`]): the inertia the controller shapes.
-//! 3. **Stack**: every task of the hierarchy ([`config::TaskSpec`], data, not code) emits its
+//! 3. **Contact-force limiter** ([`force_limit`]), then the **stack**: the limiter estimates the
+//!    contact wrench of each TCP from the momentum residual, tightens the Table 7.1 force bounds
+//!    per axis where the estimate exceeds them and adds the reaction along the limited axes to
+//!    the platform's virtual force; every task of the hierarchy ([`config::TaskSpec`], data, not code) emits its
 //!    rows on its level; a task moving between levels, or fading in or out after a planner
 //!    command, is blended with the cubic (4.68) over `transition_s`
 //!    ([`crate::hierarchy::push_transitioning`], [`crate::hierarchy::push_scaled`]).
@@ -36,6 +39,7 @@
 
 pub mod config;
 pub mod faults;
+pub mod force_limit;
 pub mod guard;
 pub mod messages;
 pub mod observer;
@@ -65,13 +69,14 @@ use crate::tasks::end_stops::{end_stops, EndStop, EndStopConfig};
 use crate::tasks::joint_impedance::{joint_impedance, JointImpedance, JointImpedanceConfig, JointTarget};
 use crate::tasks::manipulability::{manipulability_avoidance, Manipulability, ManipulabilityConfig};
 use crate::tasks::torso_workspace::{torso_workspace, TorsoWorkspace};
-use crate::tasks::{TaskError, TaskRows};
+use crate::tasks::{TaskError, TaskRow, TaskRows};
 
 use config::{
     CartesianParameters, CollisionFieldParameters, Consistency, ControllerConfig, Hand, JointGroup, TaskKind, TaskSpec,
     MAX_LEVELS, MAX_ROWS, MAX_TASKS, MAX_TASK_ROWS,
 };
 use faults::{validate_frame, Fault, SafeOutput};
+use force_limit::{ForceLimiter, HandLimits};
 use guard::{limit_base_velocity, limit_leg_rates, rate_exceeded, saturate_with_priority, torque_box, Saturation};
 use observer::MomentumObserver;
 use trajectory::{JointTrajectory, PoseTrajectory};
@@ -118,8 +123,15 @@ pub struct Telemetry<T: RealField, const N: usize> {
     /// TCP error `(p − p_des, 2ε)` in the desired frame's axes (m, rad-like), right then left;
     /// zero for a TCP without Cartesian task.
     pub tcp_error: [Vector6<T>; 2],
-    /// Where the Cartesian force limits (Table 7.1) clamped the force.
+    /// Where the Cartesian force limits (Table 7.1), as the contact-force governor tightened
+    /// them, clamped the force.
     pub tcp_force_limited: [[bool; 6]; 2],
+    /// Estimated wrench each TCP applies on its environment (N, Nm), desired-frame axes, right
+    /// then left: `−(J_u J_uᵀ + μ I)⁻¹ J_u τ̂_ext` ([`force_limit`]).
+    pub contact_wrench: [Vector6<T>; 2],
+    /// Contact-force governor correction per hand and axis (N, Nm): positive lowers the
+    /// upper force bound, negative raises the lower one ([`force_limit`]).
+    pub force_limit_correction: [Vector6<T>; 2],
     /// Number of levels in the last projection.
     pub level_count: usize,
     /// Potential energy of each level's springs (J): the level's storage function.
@@ -332,6 +344,7 @@ pub struct Controller<T: RealField, const N: usize, const B: usize, const F: usi
     avoidance: PlatformAvoidance<T>,
     reference_pose: Vector3<T>,
     observer: MomentumObserver<T, N>,
+    force_limiter: ForceLimiter<T, N>,
     data: Data<T, N, B, F>,
     collision_data: CollisionData<T, V, P>,
     stack: Stack<T, N, MAX_ROWS>,
@@ -369,6 +382,7 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
         let collision_data = CollisionData::new(&collision_model);
         Ok(Self {
             observer: MomentumObserver::new(config.observer.gain),
+            force_limiter: ForceLimiter::new(),
             hands: [PoseTrajectory::hold(Placement::identity()); 2],
             joint_goal: JointTrajectory::hold(SVector::zeros()),
             model,
@@ -496,13 +510,14 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
             self.start(&q, frame)?;
         }
         self.advance_targets(dt);
+        self.limit_contact_forces(dt)?;
         self.build_stack(&factor)?;
 
         let weighting = match self.config.consistency {
             Consistency::Static => Weighting::Identity,
             Consistency::Dynamic => Weighting::Inertia(&factor),
         };
-        let config = HierarchyConfig { recursion: self.config.recursion, weighting, shaping: self.config.shaping };
+        let config = HierarchyConfig { recursion: self.config.recursion, weighting, shaping: self.config.shaping, diagnose_last_level: false };
         project(&config, &self.stack, &mut self.projection).map_err(Fault::Hierarchy)?;
 
         let platform = self.platform_command(frame, dt)?;
@@ -544,6 +559,26 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
         self.telemetry.time_s += dt;
     }
 
+    /// The contact-force limiter ([`force_limit`]) on the last cycle's observer estimate, for the
+    /// hands whose Cartesian task is in the hierarchy with at least one finite force bound.
+    fn limit_contact_forces(&mut self, dt: T) -> Result<(), Fault> {
+        let hands = Hand::BOTH.map(|hand| {
+            let running = self.hierarchy.iter().any(|a| a.kind == TaskKind::CartesianImpedance(hand));
+            let parameters = self.config.cartesian.get(hand.index())?;
+            let (lower, upper) = (Vector6::from(parameters.force_lower), Vector6::from(parameters.force_upper));
+            let limited = lower.iter().chain(upper.iter()).any(|x| x.is_finite());
+            let axes = *self.hands.get(hand.index())?.sample().pose.rotation.matrix();
+            (running && limited).then_some(HandLimits { axes, lower, upper })
+        });
+        let residual = *self.observer.residual();
+        self.force_limiter
+            .update(&self.config.force_limit, &self.model, &self.data, &self.config.layout, &residual, &hands, dt)
+            .map_err(Fault::Dynamics)?;
+        self.telemetry.contact_wrench = self.force_limiter.applied();
+        self.telemetry.force_limit_correction = self.force_limiter.correction();
+        Ok(())
+    }
+
     /// Evaluates every hierarchy entry onto the stack; fills the per-task telemetry.
     fn build_stack(&mut self, factor: &Cholesky<T, Const<N>>) -> Result<(), Fault> {
         self.stack.clear();
@@ -567,6 +602,7 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
                     hands: &self.hands,
                     joint_goal: &self.joint_goal,
                     factor,
+                    limiter: &self.force_limiter,
                 },
                 &mut self.data,
                 &mut self.collision_data,
@@ -603,7 +639,10 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
         let mut force = Vector3::zeros();
         for ((axis, f), deadband) in self.config.layout.platform.axes().iter().zip(force.iter_mut()).zip(platform.force_deadband.iter()) {
             if let Some(c) = axis.coordinate().filter(|_| axis.is_admitted()) {
-                let raw = self.projection.torque.get(c).copied().unwrap_or_else(T::zero);
+                // The contact-force limiter's platform relief: the estimated reaction along the
+                // limited axes ([`force_limit`]).
+                let relief = self.force_limiter.platform_relief().get(c).copied().unwrap_or_else(T::zero);
+                let raw = self.projection.torque.get(c).copied().unwrap_or_else(T::zero) + relief;
                 // Deadband with a continuous output: F − sign(F) F₀ outside, 0 inside.
                 *f = if raw > *deadband {
                     raw - *deadband
@@ -744,8 +783,12 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
         // The platform loop restarts from the commanded (decaying) velocity.
         let _ = self.admittance.reset(&Vector3::zeros());
         let _ = self.avoidance.reset(&base, &frame.platform.leg_lengths.map(|l| if l.is_finite() { l } else { T::zero() }));
-        self.reference_pose = Vector3::from(frame.platform.pose);
+        let pose = Vector3::from(frame.platform.pose);
+        if crate::math::all_finite(&pose) {
+            self.reference_pose = pose;
+        }
         self.observer.reset();
+        self.force_limiter.reset();
         for (i, t) in torque.iter_mut().enumerate() {
             if !active.get(i).copied().unwrap_or(false) {
                 *t = T::zero();
@@ -772,6 +815,7 @@ struct EvaluationContext<'a, T: RealField, const N: usize, const B: usize, const
     hands: &'a [PoseTrajectory<T>; 2],
     joint_goal: &'a JointTrajectory<T, N>,
     factor: &'a Cholesky<T, Const<N>>,
+    limiter: &'a ForceLimiter<T, N>,
 }
 
 /// Appends the rows of one task to `rows` and records its telemetry.
@@ -795,12 +839,27 @@ fn evaluate<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
                     *x = T::zero();
                 }
             }
-            let report = cartesian_impedance(cx.model, data, task, &trajectory.sample(), rows);
+            let mut own = TaskRows::<T, N, 6>::new();
+            let report = cartesian_impedance(cx.model, data, task, &trajectory.sample(), &mut own);
             data.v = velocity;
             let report = report.map_err(Fault::Task)?;
+            // The contact-force governor's effective bounds ([`force_limit`]), inside the
+            // configured ones: the rows' forces are clamped once more.
+            let config = task.config();
+            let (lower, upper) = cx.limiter.bounds(hand.index(), &config.force_lower, &config.force_upper);
+            let mut saturated = report.saturated;
+            let axes = (0..6).filter(|a| config.axes.contains(*a));
+            for (row, axis) in own.rows().iter().zip(axes) {
+                let entry = |v: &Vector6<T>| v.get(axis).copied().unwrap_or_else(T::zero);
+                let (raw, low, high) = (entry(&report.unsaturated_force), entry(&lower), entry(&upper));
+                if let Some(s) = saturated.get_mut(axis) {
+                    *s = raw < low || raw > high;
+                }
+                rows.push(TaskRow { force: row.force.max(low).min(high), ..*row }).map_err(Fault::Task)?;
+            }
             if let (Some(e), Some(s)) = (telemetry.tcp_error.get_mut(hand.index()), telemetry.tcp_force_limited.get_mut(hand.index())) {
                 *e = report.error;
-                *s = report.saturated;
+                *s = saturated;
             }
         }
         TaskKind::CollisionAvoidance(field) => {
@@ -856,7 +915,8 @@ fn validate_config<T: RealField + Copy, const N: usize>(config: &ControllerConfi
     let positive = |x: T| x.is_finite() && x > T::zero();
     let non_negative = |v: &SVector<T, N>| v.iter().all(|x| x.is_finite() && *x >= T::zero());
     let limits = &config.output_limits;
-    let checks: [(bool, &'static str); 12] = [
+    let force_limit = &config.force_limit;
+    let checks: [(bool, &'static str); 13] = [
         (positive(config.period_s), "period_s"),
         (positive(config.transition_s), "transition_s"),
         (non_negative(&config.joint_stiffness), "joint_stiffness"),
@@ -877,6 +937,13 @@ fn validate_config<T: RealField + Copy, const N: usize>(config: &ControllerConfi
         ),
         (positive(config.observer.gain) && positive(config.observer.contact_threshold), "observer"),
         (config.platform.force_deadband.iter().all(|x| x.is_finite() && *x >= T::zero()), "force_deadband"),
+        (
+            positive(force_limit.gain)
+                && positive(force_limit.regularisation)
+                && force_limit.max_correction.is_finite()
+                && force_limit.max_correction >= T::zero(),
+            "force_limit",
+        ),
     ];
     match checks.iter().find(|(ok, _)| !ok) {
         Some((_, name)) => Err(ConfigError::InvalidParameter { name }),
@@ -892,6 +959,8 @@ fn empty_telemetry<T: RealField + Copy, const N: usize>() -> Telemetry<T, N> {
         fault_cycles: 0,
         tcp_error: [Vector6::zeros(); 2],
         tcp_force_limited: [[false; 6]; 2],
+        contact_wrench: [Vector6::zeros(); 2],
+        force_limit_correction: [Vector6::zeros(); 2],
         level_count: 0,
         level_storage: [T::zero(); MAX_LEVELS],
         level_storage_rate: [T::zero(); MAX_LEVELS],

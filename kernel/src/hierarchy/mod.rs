@@ -88,6 +88,12 @@ pub struct HierarchyConfig<'a, T: nalgebra::RealField, const N: usize> {
     pub weighting: Weighting<'a, T, N>,
     /// Continuous or classical activation.
     pub shaping: Shaping<T>,
+    /// `true`: the rows of the last level also update the projector and get full diagnostics
+    /// ([`HierarchyData::projector`] then covers every row). `false`: they are skipped — nothing
+    /// lies below them, so the torque is identical — which saves about `6 N²` operations per
+    /// last-level row (the controller's choice; its low-priority level holds most rows).
+    /// Skipped rows report their task activation, `ρ = 0` and their transmission.
+    pub diagnose_last_level: bool,
 }
 
 /// Why a projection was refused. The torque output is left unchanged.

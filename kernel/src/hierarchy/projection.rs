@@ -111,7 +111,21 @@ pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS
         if config.recursion == Recursion::Successive {
             data.level_projector = SMatrix::identity();
         }
+        let last = level + 1 == level_count;
         for stack_row in on_level() {
+            if last && !config.diagnose_last_level {
+                // Nothing lies below the last level: its rows lock nothing. Only the cheap
+                // transmission diagnostic is kept.
+                if let Some(slot) = diagnostics.next() {
+                    *slot = RowDiagnostics {
+                        level,
+                        activation: stack_row.row.activation,
+                        projected_norm_ratio: T::zero(),
+                        transmission: transmission(&config.weighting, &input, &stack_row.row.jacobian.transpose()),
+                    };
+                }
+                continue;
+            }
             let working = match config.recursion {
                 Recursion::Successive => &mut data.level_projector,
                 Recursion::Augmented | Recursion::Unprojected => &mut data.projector,
@@ -137,12 +151,7 @@ fn update_row<T: RealField + Copy, const N: usize>(
     row: SVector<T, N>,
     task_activation: T,
 ) -> RowDiagnostics<T> {
-    let row_norm = row.norm();
-    let transmission = if row_norm > T::zero() {
-        apply_projector(&config.weighting, input, &row).norm() / row_norm
-    } else {
-        T::one()
-    };
+    let transmission = transmission(&config.weighting, input, &row);
     let reference = row.dot(&metric_solve(&config.weighting, &row));
     let projected = *working * row;
     let w = metric_solve(&config.weighting, &projected);
@@ -169,6 +178,20 @@ fn update_row<T: RealField + Copy, const N: usize>(
         *working -= u * (w.transpose() * (activation / s));
     }
     RowDiagnostics { level: 0, activation, projected_norm_ratio: ratio, transmission }
+}
+
+/// `‖N_in jᵀ‖ / ‖jᵀ‖`, 1 for a zero row.
+fn transmission<T: RealField + Copy, const N: usize>(
+    weighting: &Weighting<'_, T, N>,
+    input: &SMatrix<T, N, N>,
+    row: &SVector<T, N>,
+) -> T {
+    let row_norm = row.norm();
+    if row_norm > T::zero() {
+        apply_projector(weighting, input, row).norm() / row_norm
+    } else {
+        T::one()
+    }
 }
 
 /// `W⁻¹ x` (identity for the static and the acceleration-based recursion).
@@ -283,7 +306,7 @@ mod tests {
     }
 
     fn config<'a>(recursion: Recursion, weighting: Weighting<'a, f64, N>) -> HierarchyConfig<'a, f64, N> {
-        HierarchyConfig { recursion, weighting, shaping: CONTINUOUS }
+        HierarchyConfig { recursion, weighting, shaping: CONTINUOUS, diagnose_last_level: true }
     }
 
     #[test]
@@ -376,7 +399,7 @@ mod tests {
         stack.push(1, row(b, 1.0)).unwrap();
         stack.push(2, row(RowSVector::from_fn(|_, c| [0.3, 1.0, 0.2, 0.0, 0.0, 0.0][c]), 5.0)).unwrap();
         let mut data = HierarchyData::<f64, N, 8, 4>::default();
-        let cfg = HierarchyConfig { recursion: Recursion::Augmented, weighting: Weighting::Identity, shaping };
+        let cfg = HierarchyConfig { recursion: Recursion::Augmented, weighting: Weighting::Identity, shaping, diagnose_last_level: true };
         *project(&cfg, &stack, &mut data).unwrap()
     }
 
@@ -448,7 +471,7 @@ mod tests {
         let mut d64 = HierarchyData::<f64, N, 8, 4>::default();
         let mut d32 = HierarchyData::<f32, N, 8, 4>::default();
         let t64 = *project(&config(Recursion::Augmented, Weighting::Identity), &stack, &mut d64).unwrap();
-        let cfg32 = HierarchyConfig { recursion: Recursion::Augmented, weighting: Weighting::Identity, shaping: Shaping::Continuous { singular_full: 0.05_f32, singular_start: 0.15 } };
+        let cfg32 = HierarchyConfig { recursion: Recursion::Augmented, weighting: Weighting::Identity, shaping: Shaping::Continuous { singular_full: 0.05_f32, singular_start: 0.15 }, diagnose_last_level: true };
         let t32 = project(&cfg32, &stack32, &mut d32).unwrap().cast::<f64>();
         assert!((t64 - t32).amax() < 1e-4 * (1.0 + t64.amax()));
     }

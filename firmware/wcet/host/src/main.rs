@@ -52,7 +52,7 @@ fn stages_once(case: u32) {
     let report = wcet_self_collision(&collision, &mut collision_data, &model, &data, &factor, &parameters, &mut rows)
         .expect("self-collision");
     build_stack(&mut stack, &data, &model).expect("stack");
-    let config = HierarchyConfig { recursion: Recursion::Augmented, weighting: Weighting::Inertia(&factor), shaping };
+    let config = HierarchyConfig { recursion: Recursion::Augmented, weighting: Weighting::Inertia(&factor), shaping, diagnose_last_level: true };
     let torque = wcet_projection(&config, &stack, &mut hierarchy);
     println!("case {case} candidates={} rows={} torque_sum={torque}", report.candidates, report.rows);
 }

@@ -120,6 +120,7 @@ mod tests {
                 recursion: Recursion::Augmented,
                 weighting: Weighting::Inertia(&fixture.factor),
                 shaping: Shaping::Continuous { singular_full: 1e-6, singular_start: 2e-6 },
+                diagnose_last_level: true,
             };
             let mut projection = HierarchyData::<f64, N, 16, 4>::default();
             let expected = project(&config, &stack, &mut projection).unwrap() + fixture.gravity;

@@ -382,6 +382,7 @@ mod tests {
                     recursion: ProjectionKind::Augmented,
                     weighting: Weighting::Inertia(&fixture.factor),
                     shaping: Shaping::Continuous { singular_full: 1e-6, singular_start: 2e-6 },
+                    diagnose_last_level: true,
                 };
                 let mut data = HierarchyData::<f64, N, 16, 4>::default();
                 project(&config, &above, &mut data).unwrap();

@@ -1,0 +1,353 @@
+//! Contact-force limiter: keeps the force a TCP applies on its environment within the Cartesian
+//! force limits of Table 7.1 (Sec. 7.3: "window wiper: +10 N"), using only what the robot
+//! measures.
+//!
+//! ## Why the task's own clamp is not enough
+//! The Cartesian impedance clamps its *task* force `f` to `[f_lower, f_upper]`
+//! ([`crate::tasks::cartesian_impedance`]). The contact force is the sum of everything that
+//! reaches the TCP: the lower levels through the projection (4.7) (exactly zero in a static
+//! equilibrium only for static consistency, Def. 4.1), the other arm's task through the shared
+//! torso, and the velocity-controlled base, whose admittance (5.1) is driven by the platform
+//! rows of `τ` and so keeps pushing the arm into the surface. The limiter closes the loop on
+//! the measured contact force instead.
+//!
+//! ## Estimate of the contact wrench
+//! The momentum observer ([`super::observer`]) gives `τ̂_ext`, the external torque low-passed
+//! with the gain `K_O`, on the upper-body coordinates. With the TCP Jacobians in the axes of
+//! the desired frames (those of the limits), `J_h = blockdiag(A_hᵀ, A_hᵀ) J_h,world`
+//! (`A_h = R_des,h`), restricted to the upper-body columns (`J_u`, the platform columns zero)
+//! and stacked for both hands (12 × N), the contact wrenches (on the robot) are the regularised
+//! least-squares estimate
+//!
+//! `F̂_ext = (J_u J_uᵀ + μ I)⁻¹ J_u τ̂_ext`,
+//!
+//! one 12 × 12 Cholesky solve (`μ > 0` keeps it positive definite, also with one hand's rows
+//! zero). Both hands are always estimated together, so that a contact of one hand seen through
+//! the torso is not attributed to the other. It is an *estimate*: contacts away from the TCPs
+//! and model errors end up in it, and it lags the true force by the observer's time constant
+//! `1/K_O`. The force the hand applies on the environment is `a = −F̂_ext`.
+//!
+//! ## Governor
+//! Per hand with a running Cartesian task and per axis with a finite bound, a correction
+//! `c_i ∈ [−c_max, c_max]` shifts the effective bounds the task force is clamped to:
+//! `f_upper,eff = f_upper − max(c_i, 0)`, `f_lower,eff = f_lower − min(c_i, 0)`. It integrates
+//! the excess of the applied force over the limit,
+//!
+//! `ċ_i = k_F (a_i − f_upper,i)` on the upper side (`c_i ≥ 0`),
+//! `ċ_i = k_F (a_i − f_lower,i)` on the lower side (`c_i ≤ 0`),
+//!
+//! starting on a side only when `a_i` crosses that limit, and relaxing back towards zero at the
+//! same gain once `a_i` is inside again. At rest `c_i` settles where `a_i` equals the limit
+//! (integral action: whatever the other torques add, the task force gives it back). With the
+//! observer as a first-order lag and a quasi-static contact, the loop is `s² + K_O s + k_F K_O`:
+//! `k_F = K_O/4` would be critically damped. That is an upper bound only: the contact force does
+//! not follow the bound quasi-statically (arm and surface dynamics), and on the simulated Justin
+//! `K_O/4` oscillated in the two-handed tasks; the fixture's gain is lower (see there).
+//! Unlimited axes (`±∞`) are never governed.
+//!
+//! ## Platform relief
+//! The admittance of the velocity-controlled base only sees the controller's torque, not the
+//! environment's reaction. Along the limited axes the estimated reaction is added to the
+//! platform's virtual force, `F_v += J_r,hᵀ P_h F̂_ext,h` (`J_r,h` the platform columns of `J_h`,
+//! `P_h` keeps the components of limited axes in the direction of their finite bound): in a
+//! steady contact it cancels the task force that would otherwise drive the base into the
+//! surface; out of contact it is zero and the base follows the task as before.
+//!
+//! Everything is reset on a fault (with the observer) and per hand when its task is not in the
+//! hierarchy.
+
+use nalgebra::{Cholesky, Matrix3, RealField, SMatrix, SVector, Vector6};
+
+use super::config::RobotLayout;
+use crate::dynamics::{frame_jacobian, DynamicsError};
+use crate::model::{Data, Model};
+
+/// Parameters of the contact-force limiter.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ForceLimitParameters<T> {
+    /// `true` enables the governor and the platform relief (the estimate is always reported).
+    pub enabled: bool,
+    /// Governor gain `k_F > 0` (1/s): N of correction per N·s of excess.
+    pub gain: T,
+    /// Largest correction `c_max ≥ 0` per axis (N, Nm).
+    pub max_correction: T,
+    /// Regularisation `μ > 0` of the wrench estimate (m², in the units of `J Jᵀ`).
+    pub regularisation: T,
+}
+
+/// What one hand's limiter needs this cycle: its TCP frame, the orientation of the desired
+/// frame and the task's configured bounds (desired-frame axes).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HandLimits<T> {
+    /// Orientation `A = R_des` of the desired TCP frame (world).
+    pub axes: Matrix3<T>,
+    /// Configured lower bounds (N, Nm), `≤ 0`, may be `−∞`.
+    pub lower: Vector6<T>,
+    /// Configured upper bounds (N, Nm), `≥ 0`, may be `+∞`.
+    pub upper: Vector6<T>,
+}
+
+/// State of the limiter: per hand the estimated applied wrench and the governor corrections.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ForceLimiter<T, const N: usize> {
+    applied: [Vector6<T>; 2],
+    correction: [Vector6<T>; 2],
+    relief: SVector<T, N>,
+}
+
+impl<T: RealField + Copy, const N: usize> Default for ForceLimiter<T, N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
+    /// A limiter at rest (no correction).
+    pub fn new() -> Self {
+        Self { applied: [Vector6::zeros(); 2], correction: [Vector6::zeros(); 2], relief: SVector::zeros() }
+    }
+
+    /// Forgets every correction and estimate (after a fault).
+    pub fn reset(&mut self) {
+        *self = Self::new();
+    }
+
+    /// Estimated wrench the TCP of hand `index` applies on its environment, `a = −F̂_ext`
+    /// (N, Nm, desired-frame axes).
+    pub fn applied(&self) -> [Vector6<T>; 2] {
+        self.applied
+    }
+
+    /// Governor corrections `c` per hand and axis (N, Nm): positive lowers the upper bound,
+    /// negative raises the lower bound.
+    pub fn correction(&self) -> [Vector6<T>; 2] {
+        self.correction
+    }
+
+    /// Torque to add to the platform rows of `τ` (the estimated reaction along the limited
+    /// axes; zero on the upper body).
+    pub fn platform_relief(&self) -> &SVector<T, N> {
+        &self.relief
+    }
+
+    /// The effective bounds `(lower, upper)` of hand `index` for the configured ones.
+    pub fn bounds(&self, index: usize, lower: &Vector6<T>, upper: &Vector6<T>) -> (Vector6<T>, Vector6<T>) {
+        let c = self.correction.get(index).copied().unwrap_or_else(Vector6::zeros);
+        (lower - c.map(|x| x.min(T::zero())), upper - c.map(|x| x.max(T::zero())))
+    }
+
+    /// One period `dt`: estimates the wrenches from `residual` (`τ̂_ext`, [`super::observer`]) at
+    /// the kinematics of `data` (after `forward_kinematics`), then advances the governor of each
+    /// hand with `Some` limits (a hand with `None` is reset). If the 12 × 12 solve fails (a
+    /// non-finite input), the estimate is zero and the corrections are held. Cost O(N) frame
+    /// Jacobians plus one 12 × 12 Cholesky.
+    /// Errors: [`DynamicsError::UnknownFrame`] for a TCP frame outside the model.
+    #[allow(clippy::too_many_arguments, reason = "the controller's pieces, each used once")]
+    pub fn update<const B: usize, const F: usize>(
+        &mut self,
+        parameters: &ForceLimitParameters<T>,
+        model: &Model<T, N, B, F>,
+        data: &Data<T, N, B, F>,
+        layout: &RobotLayout<N>,
+        residual: &SVector<T, N>,
+        hands: &[Option<HandLimits<T>>; 2],
+        dt: T,
+    ) -> Result<(), DynamicsError> {
+        let mut stacked = SMatrix::<T, 12, N>::zeros();
+        let mut full = [SMatrix::<T, 6, N>::zeros(); 2];
+        for ((tcp, limits), (jacobian, rows)) in
+            layout.tcp.iter().zip(hands.iter()).zip(full.iter_mut().zip([0_usize, 6]))
+        {
+            let axes = limits.map_or_else(Matrix3::identity, |l| l.axes);
+            let mut world = SMatrix::<T, 6, N>::zeros();
+            frame_jacobian(model, data, *tcp, &mut world)?;
+            let at = axes.transpose();
+            jacobian.fixed_rows_mut::<3>(0).copy_from(&(at * world.fixed_rows::<3>(0)));
+            jacobian.fixed_rows_mut::<3>(3).copy_from(&(at * world.fixed_rows::<3>(3)));
+            let mut upper_body = *jacobian;
+            for (k, mut column) in upper_body.column_iter_mut().enumerate() {
+                if layout.platform.is_platform(k) {
+                    column.fill(T::zero());
+                }
+            }
+            stacked.fixed_rows_mut::<6>(rows).copy_from(&upper_body);
+        }
+        let gram = stacked * stacked.transpose() + SMatrix::<T, 12, 12>::identity() * parameters.regularisation;
+        let Some(factor) = Cholesky::new(gram) else {
+            self.applied = [Vector6::zeros(); 2];
+            self.relief = SVector::zeros();
+            return Ok(());
+        };
+        let external = factor.solve(&(stacked * residual));
+        if !crate::math::all_finite(&external) {
+            self.applied = [Vector6::zeros(); 2];
+            self.relief = SVector::zeros();
+            return Ok(());
+        }
+        self.relief = SVector::zeros();
+        let step = parameters.gain * dt;
+        for (h, ((limits, jacobian), rows)) in hands.iter().zip(full.iter()).zip([0_usize, 6]).enumerate() {
+            let wrench: Vector6<T> = external.fixed_rows::<6>(rows).into_owned();
+            let applied = -wrench;
+            if let Some(a) = self.applied.get_mut(h) {
+                *a = applied;
+            }
+            let Some(correction) = self.correction.get_mut(h) else { continue };
+            let Some(limits) = limits.filter(|_| parameters.enabled) else {
+                *correction = Vector6::zeros();
+                continue;
+            };
+            let mut reaction = Vector6::zeros();
+            for axis in 0..6 {
+                let get = |v: &Vector6<T>| v.get(axis).copied().unwrap_or_else(T::zero);
+                let (a, lower, upper) = (get(&applied), get(&limits.lower), get(&limits.upper));
+                let lower = Some(lower).filter(|x| x.is_finite());
+                let upper = Some(upper).filter(|x| x.is_finite());
+                if let Some(c) = correction.get_mut(axis) {
+                    *c = governor_step(*c, a, lower, upper, step, parameters.max_correction);
+                }
+                let pressing = (upper.is_some() && a > T::zero()) || (lower.is_some() && a < T::zero());
+                if let (true, Some(r)) = (pressing, reaction.get_mut(axis)) {
+                    *r = get(&wrench);
+                }
+            }
+            let torque = jacobian.transpose() * reaction;
+            for (k, (r, t)) in self.relief.iter_mut().zip(torque.iter()).enumerate() {
+                if layout.platform.is_platform(k) {
+                    *r += *t;
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// One step of the governor of one axis: correction `c`, applied force `a`, the finite bounds,
+/// `step = k_F dt`, `|c| ≤ max` (module docs).
+pub fn governor_step<T: RealField + Copy>(c: T, a: T, lower: Option<T>, upper: Option<T>, step: T, max: T) -> T {
+    let zero = T::zero();
+    match (upper, lower) {
+        (Some(u), _) if c > zero || (c == zero && a > u) => (c + step * (a - u)).max(zero).min(max),
+        (_, Some(l)) if c < zero || (c == zero && a < l) => (c + step * (a - l)).min(zero).max(-max),
+        _ => zero,
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::indexing_slicing, clippy::panic, reason = "test code: failures should panic")]
+mod tests {
+    use super::*;
+
+    macro_rules! for_scalars {
+        ($name:ident, $body:ident) => {
+            mod $name {
+                #[test]
+                fn f64() {
+                    super::$body::<f64>();
+                }
+                #[test]
+                fn f32() {
+                    super::$body::<f32>();
+                }
+            }
+        };
+    }
+
+    fn c<T: RealField + Copy>(x: f64) -> T {
+        nalgebra::convert(x)
+    }
+
+    /// A quasi-static contact: the applied force is the (effective) bound plus a disturbance
+    /// `d` the task cannot see, seen through the observer's first-order lag `K_O`.
+    fn governor_settles_at_the_limit<T: RealField + Copy>() {
+        let (k_o, dt, limit, d) = (c::<T>(50.0), c::<T>(1e-3), c::<T>(10.0), c::<T>(3.0));
+        let (mut correction, mut estimate) = (T::zero(), T::zero());
+        let mut peak = T::zero();
+        for _ in 0..2000 {
+            let applied = limit - correction.max(T::zero()) + d;
+            estimate += k_o * dt * (applied - estimate);
+            correction = governor_step(correction, estimate, None, Some(limit), k_o / c(4.0) * dt, c(20.0));
+            peak = peak.max(applied);
+        }
+        let applied = limit - correction + d;
+        assert!((applied - limit).abs() < c(1e-2), "settles at the limit");
+        assert!((correction - d).abs() < c(1e-2));
+        assert!(peak <= limit + d + c(1e-3), "no overshoot beyond the first excess");
+        // Disturbance gone: relaxes back to zero.
+        for _ in 0..2000 {
+            let applied = limit - correction.max(T::zero());
+            estimate += k_o * dt * (applied - estimate);
+            correction = governor_step(correction, estimate, None, Some(limit), k_o / c(4.0) * dt, c(20.0));
+        }
+        assert!(correction.abs() < c(1e-2));
+    }
+    for_scalars!(settles, governor_settles_at_the_limit);
+
+    fn governor_sides_and_bounds<T: RealField + Copy>() {
+        let step = c::<T>(0.1);
+        // Inside both bounds at zero: stays zero; unlimited axes are never governed.
+        assert_eq!(governor_step(T::zero(), c(5.0), Some(c(-20.0)), Some(c(20.0)), step, c(10.0)), T::zero());
+        assert_eq!(governor_step(c(3.0), c(50.0), None, None, step, c(10.0)), T::zero());
+        // Above the upper bound: positive, clamped to the maximum.
+        assert_eq!(governor_step(T::zero(), c(30.0), None, Some(c(20.0)), step, c(10.0)), c(1.0));
+        assert_eq!(governor_step(c(9.5), c(30.0), None, Some(c(20.0)), step, c(10.0)), c(10.0));
+        // Below the lower bound: negative.
+        assert_eq!(governor_step(T::zero(), c(-30.0), Some(c(-20.0)), None, step, c(10.0)), c(-1.0));
+        // Relaxation stops at zero, never crosses to the other side.
+        assert_eq!(governor_step(c(0.5), c(0.0), Some(c(-20.0)), Some(c(20.0)), step, c(10.0)), T::zero());
+        let limiter = ForceLimiter::<T, 3> { correction: [Vector6::new(c(2.0), c(-1.0), T::zero(), T::zero(), T::zero(), T::zero()), Vector6::zeros()], ..ForceLimiter::new() };
+        let (lower, upper) = limiter.bounds(0, &Vector6::repeat(c(-20.0)), &Vector6::repeat(c(20.0)));
+        assert_eq!((lower[0], upper[0]), (c(-20.0), c(18.0)));
+        assert_eq!((lower[1], upper[1]), (c(-19.0), c(20.0)));
+        assert_eq!(limiter.bounds(7, &lower, &upper), (lower, upper));
+    }
+    for_scalars!(sides, governor_sides_and_bounds);
+
+    /// The estimate on a 3-DOF model: platform slider x, an upper-body slider x and one along z,
+    /// TCP on the last body. A wrench on the TCP gives `τ_ext = Jᵀ F`; the platform column is
+    /// not observed; the estimate recovers the observable forces and the relief is their
+    /// reaction on the platform along the limited axis.
+    fn estimate_recovers_the_contact<T: RealField + Copy>() {
+        use crate::dynamics::forward_kinematics;
+        use crate::math::Placement;
+        use crate::model::{Inertia, JointDrive, JointKind, ModelBuilder};
+        use crate::platform::{PlatformAxis, PlatformLayout};
+        use nalgebra::{Unit, Vector3};
+        let mut b = ModelBuilder::<T, 3, 3, 1>::new(Vector3::zeros());
+        let mut parent = None;
+        for (i, axis) in [Vector3::x(), Vector3::x(), Vector3::z()].into_iter().enumerate() {
+            parent = Some(
+                b.add_body(parent, Placement::identity(), JointKind::Prismatic { axis: Unit::new_normalize(axis) }, JointDrive::actuated(i), Inertia::point_mass(c(1.0), Vector3::zeros()))
+                    .unwrap(),
+            );
+        }
+        let tcp = b.add_frame(parent, Placement::identity()).unwrap();
+        let model = b.try_build().unwrap();
+        let mut data = Data::new(&model);
+        forward_kinematics(&model, &mut data, &SVector::zeros(), &SVector::zeros()).unwrap();
+        let platform = PlatformLayout::try_new::<3>([PlatformAxis::Admitted(0), PlatformAxis::Absent, PlatformAxis::Absent]).unwrap();
+        let layout = RobotLayout { tcp: [tcp, tcp], platform, torso: [false; 3], arms: [[false, true, true], [false; 3]] };
+        // The window pushes back with 30 N along −x on a TCP pressing along +x.
+        let residual = SVector::<T, 3>::new(T::zero(), c(-30.0), c(0.0));
+        let limits = HandLimits { axes: Matrix3::identity(), lower: Vector6::repeat(c(f64::NEG_INFINITY)), upper: Vector6::new(c(10.0), c(f64::INFINITY), c(f64::INFINITY), c(f64::INFINITY), c(f64::INFINITY), c(f64::INFINITY)) };
+        let parameters = ForceLimitParameters { enabled: true, gain: c(12.5), max_correction: c(10.0), regularisation: c(1e-6) };
+        let mut limiter = ForceLimiter::<T, 3>::new();
+        limiter.update(&parameters, &model, &data, &layout, &residual, &[Some(limits), None], c(1e-3)).unwrap();
+        // Both hands share the frame here: the estimate splits the 30 N between them (15 N each, over the 10 N limit).
+        let total = limiter.applied()[0][0] + limiter.applied()[1][0];
+        assert!((total - c(30.0)).abs() < c(1e-3), "{total}");
+        assert!(limiter.correction()[0][0] > T::zero());
+        assert_eq!(limiter.correction()[1], Vector6::zeros());
+        // Relief: the reaction of the right hand's share on the platform x, zero elsewhere.
+        assert!((limiter.platform_relief()[0] + limiter.applied()[0][0]).abs() < c(1e-3));
+        assert_eq!(limiter.platform_relief()[1], T::zero());
+        // Disabled: estimate only, no correction, no relief.
+        let disabled = ForceLimitParameters { enabled: false, ..parameters };
+        limiter.update(&disabled, &model, &data, &layout, &residual, &[Some(limits), None], c(1e-3)).unwrap();
+        assert_eq!(limiter.correction()[0], Vector6::zeros());
+        assert_eq!(limiter.platform_relief()[0], T::zero());
+        limiter.reset();
+        assert_eq!(limiter, ForceLimiter::new());
+    }
+    for_scalars!(estimate, estimate_recovers_the_contact);
+}
