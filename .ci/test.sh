@@ -5,6 +5,7 @@
 #   3. the firmware image for thumbv7em-none-eabihf, linked WITHOUT a global allocator:
 #      the link fails if anything in the kernel's dependency graph pulls in `alloc`
 #   4. a QEMU smoke run of that image on Cortex-M7 (mps2-an500) and Cortex-M4F (mps2-an386)
+#   5. the link-time panic check: Controller::step linked with an undefined panic handler
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -38,6 +39,9 @@ step "QEMU smoke run (Cortex-M7, then Cortex-M4F)"
 for machine in mps2-an500 mps2-an386; do
     (cd firmware && QEMU_MACHINE=$machine QEMU_TIMEOUT=120 cargo run --locked --release)
 done
+
+step "no panic path from Controller::step in the release image (link fails on any)"
+bash firmware/wcet/panic_check.sh m7-f32 m7-f64 m4-f32
 
 step "clippy (panic-freedom lints are errors)"
 cargo clippy --locked --workspace --all-targets -- -D warnings

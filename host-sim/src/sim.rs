@@ -197,6 +197,36 @@ impl<const U: usize> PassiveJoints<U> {
     }
 }
 
+/// Mechanical end stops of the upper-body joints at the model's position limits: beyond a
+/// limit a stiff unilateral spring–damper pushes the joint back, `τ = k δ − d q̇` towards the
+/// range (never pulling), `δ` the penetration. Real joints have them; without them a simulated
+/// joint driven past its limit (by pushes, by a low-priority end-stop task overpowered by the
+/// levels above) would move on freely.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct JointStops {
+    /// Stop stiffness `k` (Nm/rad or N/m), `≥ 0`.
+    pub stiffness: f64,
+    /// Stop damping `d` (Nms/rad or Ns/m), `≥ 0`.
+    pub damping: f64,
+}
+
+impl JointStops {
+    /// Stops of the Justin-like joints: 20 kNm/rad and 200 Nms/rad (chosen: a 200 Nm torque
+    /// penetrates 10 mrad; the damping is close to critical for a link inertia of ≈ 0.5 kg m²).
+    pub const JUSTIN: Self = Self { stiffness: 2.0e4, damping: 200.0 };
+
+    /// The stop torque of one joint at `(q, q̇)` with limits `[lower, upper]`.
+    pub fn torque(&self, q: f64, v: f64, lower: f64, upper: f64) -> f64 {
+        if q < lower {
+            (self.stiffness * (lower - q) - self.damping * v).max(0.0)
+        } else if q > upper {
+            (self.stiffness * (upper - q) - self.damping * v).min(0.0)
+        } else {
+            0.0
+        }
+    }
+}
+
 /// A world-frame force applied at the origin of a frame during `[start_s, start_s + duration_s)`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Push {
@@ -344,6 +374,7 @@ pub struct Simulator<const N: usize, const B: usize, const F: usize, const U: us
     pushes: Vec<Push>,
     surfaces: Vec<Surface>,
     passive: PassiveJoints<U>,
+    stops: Option<JointStops>,
 }
 
 impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N, B, F, U> {
@@ -383,6 +414,7 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N
             pushes: Vec::new(),
             surfaces: Vec::new(),
             passive: PassiveJoints::none(),
+            stops: None,
         })
     }
 
@@ -559,6 +591,20 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N
         Ok(())
     }
 
+    /// Installs (or, with `None`, removes) mechanical end stops at the model's upper-body
+    /// position limits; they act from the next physics step on.
+    ///
+    /// Errors: a non-finite or negative stiffness or damping.
+    pub fn set_joint_stops(&mut self, stops: Option<JointStops>) -> Result<(), SimError> {
+        if let Some(s) = stops {
+            if !(s.stiffness.is_finite() && s.damping.is_finite() && s.stiffness >= 0.0 && s.damping >= 0.0) {
+                return Err(SimError::InvalidConfig { field: "joint stops" });
+            }
+        }
+        self.stops = stops;
+        Ok(())
+    }
+
     /// The installed passive joint elements.
     pub fn passive_joints(&self) -> &PassiveJoints<U> {
         &self.passive
@@ -612,8 +658,15 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N
         }
         // h + M_·r r̈ in one RNEA pass.
         let bias = *rnea(&self.model, &mut self.data, &qdd)?;
-        let mut rhs: SVector<f64, U> =
-            self.torque - upper(&bias, b) + self.passive.torque(&upper(q, b), &upper(v, b));
+        let (qu, vu) = (upper(q, b), upper(v, b));
+        let mut rhs: SVector<f64, U> = self.torque - upper(&bias, b) + self.passive.torque(&qu, &vu);
+        if let Some(stops) = self.stops {
+            let (lower, high): (SVector<f64, U>, SVector<f64, U>) =
+                (upper(&self.model.limits.position_lower, b), upper(&self.model.limits.position_upper, b));
+            for ((((r, qi), vi), lo), hi) in rhs.iter_mut().zip(qu.iter()).zip(vu.iter()).zip(lower.iter()).zip(high.iter()) {
+                *r += stops.torque(*qi, *vi, *lo, *hi);
+            }
+        }
         let mut jacobian = SMatrix::<f64, 6, N>::zeros();
         for p in self.pushes.iter().filter(|p| p.active(t)) {
             frame_jacobian(&self.model, &self.data, p.frame, &mut jacobian)?;

@@ -17,7 +17,7 @@ use kernel::tasks::collision::SweptSphere;
 use nalgebra::SVector;
 
 use crate::output::TimeSeries;
-use crate::sim::{CycleInfo, SimConfig, SimError, Simulator, CONTROL_PERIOD_S};
+use crate::sim::{CycleInfo, JointStops, SimConfig, SimError, Simulator, CONTROL_PERIOD_S};
 
 /// Collision volumes: the robot's 28 plus up to four environment volumes (table, wall, …).
 pub const VOLUMES: usize = collision::VOLUMES + MAX_ENVIRONMENT;
@@ -67,6 +67,7 @@ pub fn rig(
     let mut sim = Simulator::new(model, SimConfig { base_lag_s: BASE_LAG_S, ..SimConfig::default() })
         .map_err(|e| format!("simulator: {e}"))?;
     sim.set_state(*q0, SVector::zeros()).map_err(|e| format!("initial state: {e}"))?;
+    sim.set_joint_stops(Some(JointStops::JUSTIN)).map_err(|e| format!("joint stops: {e}"))?;
     Ok(Rig { sim, controller, faulty_cycles: 0, min_distance_m: f64::INFINITY })
 }
 

@@ -119,6 +119,8 @@ pub struct SoakMetrics {
     pub nan_count: u64,
     /// Cycles with a fault (safe output).
     pub fault_count: u64,
+    /// The first fault and its time (s).
+    pub first_fault: Option<(f64, String)>,
     /// Goals and pushes issued.
     pub goals: u64,
     /// Pushes issued.
@@ -157,6 +159,7 @@ pub fn run(duration: f64, seed: u64, progress: Progress) -> Result<(SoakMetrics,
         min_distance_m: f64::INFINITY,
         nan_count: 0,
         fault_count: 0,
+        first_fault: None,
         goals: 0,
         pushes: 0,
         saturated_cycles: 0,
@@ -178,8 +181,11 @@ pub fn run(duration: f64, seed: u64, progress: Progress) -> Result<(SoakMetrics,
         if !finite {
             m.nan_count += 1;
         }
-        if telemetry.fault.is_some() {
+        if let Some(fault) = telemetry.fault {
             m.fault_count += 1;
+            if m.first_fault.is_none() {
+                m.first_fault = Some((t, format!("{fault:?}")));
+            }
         }
         m.saturated_cycles += u64::from(telemetry.saturation.any());
         let energy = telemetry.kinetic_energy + telemetry.potential_energy;
@@ -252,6 +258,7 @@ pub fn evaluate(m: &SoakMetrics, series: TimeSeries) -> Result<Outcome, String> 
             .metric("min_collision_distance_m", m.min_distance_m)
             .metric("nan_count", m.nan_count as f64)
             .metric("fault_count", m.fault_count as f64)
+            .value("first_fault", m.first_fault.as_ref().map_or_else(|| "none".to_string(), |(t, f)| format!("{f} at t = {t:.3} s")))
             .metric("goal_count", m.goals as f64)
             .metric("push_count", m.pushes as f64)
             .metric("saturated_cycles", m.saturated_cycles as f64)

@@ -153,10 +153,10 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
         hands: &[Option<HandLimits<T>>; 2],
         dt: T,
     ) -> Result<(), DynamicsError> {
-        let mut stacked = SMatrix::<T, 12, N>::zeros();
         let mut full = [SMatrix::<T, 6, N>::zeros(); 2];
-        for ((tcp, limits), (jacobian, rows)) in
-            layout.tcp.iter().zip(hands.iter()).zip(full.iter_mut().zip([0_usize, 6]))
+        let mut upper = [SMatrix::<T, 6, N>::zeros(); 2];
+        for ((tcp, limits), (jacobian, upper_body)) in
+            layout.tcp.iter().zip(hands.iter()).zip(full.iter_mut().zip(upper.iter_mut()))
         {
             let axes = limits.map_or_else(Matrix3::identity, |l| l.axes);
             let mut world = SMatrix::<T, 6, N>::zeros();
@@ -164,14 +164,19 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
             let at = axes.transpose();
             jacobian.fixed_rows_mut::<3>(0).copy_from(&(at * world.fixed_rows::<3>(0)));
             jacobian.fixed_rows_mut::<3>(3).copy_from(&(at * world.fixed_rows::<3>(3)));
-            let mut upper_body = *jacobian;
+            *upper_body = *jacobian;
             for (k, mut column) in upper_body.column_iter_mut().enumerate() {
                 if layout.platform.is_platform(k) {
                     column.fill(T::zero());
                 }
             }
-            stacked.fixed_rows_mut::<6>(rows).copy_from(&upper_body);
         }
+        // Constant offsets only: a run-time offset into `fixed_rows` keeps nalgebra's bounds
+        // assertion (a panic path) in the image.
+        let [right, left] = &upper;
+        let mut stacked = SMatrix::<T, 12, N>::zeros();
+        stacked.fixed_rows_mut::<6>(0).copy_from(right);
+        stacked.fixed_rows_mut::<6>(6).copy_from(left);
         let gram = stacked * stacked.transpose() + SMatrix::<T, 12, 12>::identity() * parameters.regularisation;
         let Some(factor) = Cholesky::new(gram) else {
             self.applied = [Vector6::zeros(); 2];
@@ -186,8 +191,8 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
         }
         self.relief = SVector::zeros();
         let step = parameters.gain * dt;
-        for (h, ((limits, jacobian), rows)) in hands.iter().zip(full.iter()).zip([0_usize, 6]).enumerate() {
-            let wrench: Vector6<T> = external.fixed_rows::<6>(rows).into_owned();
+        let wrenches: [Vector6<T>; 2] = [external.fixed_rows::<6>(0).into_owned(), external.fixed_rows::<6>(6).into_owned()];
+        for (h, ((limits, jacobian), wrench)) in hands.iter().zip(full.iter()).zip(wrenches).enumerate() {
             let applied = -wrench;
             if let Some(a) = self.applied.get_mut(h) {
                 *a = applied;

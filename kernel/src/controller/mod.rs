@@ -64,7 +64,9 @@ use crate::platform::PlatformError;
 use crate::tasks::cartesian_impedance::{
     cartesian_impedance, AxisMask, CartesianImpedance, CartesianImpedanceConfig, CartesianTarget, StiffnessFrame,
 };
-use crate::tasks::collision::{self_collision_rows, CollisionData, CollisionModel, CollisionParameters};
+use crate::tasks::collision::{
+    collision_rows_from_geometry, self_collision_rows, CollisionData, CollisionModel, CollisionParameters,
+};
 use crate::tasks::end_stops::{end_stops, EndStop, EndStopConfig};
 use crate::tasks::joint_impedance::{joint_impedance, JointImpedance, JointImpedanceConfig, JointTarget};
 use crate::tasks::manipulability::{manipulability_avoidance, Manipulability, ManipulabilityConfig};
@@ -590,6 +592,7 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
         t.manipulability = [T::zero(); 2];
         t.tasks = [None; MAX_ACTIVE];
         t.task_count = self.hierarchy.len();
+        let mut geometry = Geometry { data: &mut self.collision_data, current: false };
         for (index, entry) in self.hierarchy.iter().enumerate() {
             self.rows.clear();
             evaluate(
@@ -605,7 +608,7 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
                     limiter: &self.force_limiter,
                 },
                 &mut self.data,
-                &mut self.collision_data,
+                &mut geometry,
                 &mut self.rows,
                 &mut self.telemetry,
             )?;
@@ -806,6 +809,12 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
     }
 }
 
+/// The collision geometry of the cycle and whether it is current (updated this cycle).
+struct Geometry<'a, T: RealField, const V: usize, const P: usize> {
+    data: &'a mut CollisionData<T, V, P>,
+    current: bool,
+}
+
 /// Read-only inputs of a task evaluation.
 struct EvaluationContext<'a, T: RealField, const N: usize, const B: usize, const F: usize, const V: usize, const P: usize> {
     model: &'a Model<T, N, B, F>,
@@ -823,7 +832,7 @@ fn evaluate<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
     kind: TaskKind,
     cx: &EvaluationContext<'_, T, N, B, F, V, P>,
     data: &mut Data<T, N, B, F>,
-    collision: &mut CollisionData<T, V, P>,
+    geometry: &mut Geometry<'_, T, V, P>,
     rows: &mut TaskRows<T, N, MAX_TASK_ROWS>,
     telemetry: &mut Telemetry<T, N>,
 ) -> Result<(), Fault> {
@@ -864,24 +873,17 @@ fn evaluate<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
         }
         TaskKind::CollisionAvoidance(field) => {
             let Some(parameters) = cx.tasks.collision.get(field.index()) else { return Ok(()) };
-            // The geometry (volumes in the world, 214 pair distances for Justin) depends only on
-            // this cycle's forward kinematics: the first collision entry of the cycle updates it
-            // (`build_stack` clears `min_collision_distance`, and an update with at least one pair
-            // sets it), the later ones (the other field) reuse it. Same rows as updating twice.
-            let report = if telemetry.min_collision_distance.is_none() {
-                self_collision_rows(cx.collision_model, collision, cx.model, data, cx.factor, parameters, rows)
+            // The geometry (volumes in the world, all pair distances) depends only on this cycle's
+            // kinematics: the first collision entry of the cycle updates it, the later ones (the
+            // other field) reuse it. Same rows as updating twice.
+            let (model, data_ref, factor, collision_model) = (cx.model, &*data, cx.factor, cx.collision_model);
+            let report = if geometry.current {
+                collision_rows_from_geometry(collision_model, geometry.data, model, data_ref, factor, parameters, rows)
             } else {
-                crate::tasks::collision::collision_rows_from_geometry(
-                    cx.collision_model,
-                    collision,
-                    cx.model,
-                    data,
-                    cx.factor,
-                    parameters,
-                    rows,
-                )
-            }
-            .map_err(Fault::Task)?;
+                self_collision_rows(collision_model, geometry.data, model, data_ref, factor, parameters, rows)
+            };
+            geometry.current = true;
+            let report = report.map_err(Fault::Task)?;
             telemetry.min_collision_distance = report.min_distance;
             telemetry.collision_rows += report.rows;
         }

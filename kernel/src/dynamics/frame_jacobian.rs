@@ -32,8 +32,12 @@ pub fn point_jacobian<T: RealField + Copy, const N: usize, const B: usize, const
         let w = angular(s);
         let column = Vector6::new(v.x, v.y, v.z, w.x, w.y, w.z);
         for term in joint.drive.terms() {
-            if let Some(mut c) = jacobian.column_iter_mut().nth(term.coordinate) {
-                c += column * term.coefficient;
+            // Column-major storage: column `k` is entries `6k..6k + 6` (O(1), no panic path).
+            let start = term.coordinate.saturating_mul(6);
+            if let Some(c) = jacobian.as_mut_slice().get_mut(start..start.saturating_add(6)) {
+                for (x, v) in c.iter_mut().zip(column.iter()) {
+                    *x += *v * term.coefficient;
+                }
             }
         }
     }

@@ -390,8 +390,9 @@ pub fn cartesian_impedance<
             return Err(TaskError::NonFinite);
         }
     }
-    for row in pending {
-        rows.push(row)?;
+    // By reference: consuming a heapless vector drops its iterator through a slice index.
+    for row in &pending {
+        rows.push(*row)?;
     }
     Ok(CartesianReport { error, error_rate, unsaturated_force, saturated, damping_fallback })
 }

@@ -22,11 +22,12 @@
 //! order, which is why only the principal block diagonal of (3.6) remains, (3.7)).
 
 use heapless::Vec;
-use nalgebra::{convert, Cholesky, Const, Matrix1, Matrix2, RealField, RowSVector, SMatrix, SVector, Vector1, Vector2};
+use nalgebra::{convert, Cholesky, Const, Matrix1, Matrix2, RealField, RowSVector, SVector, Vector1, Vector2};
 
 use super::model::{CollisionData, CollisionModel, CollisionPair};
 use super::volumes::Proximity;
-use crate::dynamics::point_jacobian;
+use crate::dynamics::DynamicsError;
+use crate::math::spatial::linear_at_point;
 use crate::math::damping::{double_diagonalization, DampingError, ReflectedInertia};
 use crate::model::{BodyId, Data, Model};
 use crate::tasks::{TaskError, TaskRow, TaskRows};
@@ -193,9 +194,22 @@ fn projected_jacobian<T: RealField + Copy, const N: usize, const B: usize, const
     let Some(body) = body else {
         return Ok(RowSVector::zeros());
     };
-    let mut jacobian = SMatrix::<T, 6, N>::zeros();
-    point_jacobian(model, data, body, point, &mut jacobian)?;
-    Ok(direction.transpose() * jacobian.fixed_rows::<3>(0))
+    // `eᵀ J_p` directly over the support path (as `point_jacobian`, with each column's linear
+    // part projected on `e`): O(depth), without the 6×N Jacobian.
+    model.body(body).ok_or(DynamicsError::UnknownBody)?;
+    let mut row = RowSVector::<T, N>::zeros();
+    for id in model.support(body) {
+        let (Some(joint), Some(s)) = (model.body(id), data.motion_subspaces.get(id.0)) else {
+            continue;
+        };
+        let value = direction.dot(&linear_at_point(s, point));
+        for term in joint.drive.terms() {
+            if let Some(x) = row.get_mut(term.coordinate) {
+                *x += value * term.coefficient;
+            }
+        }
+    }
+    Ok(row)
 }
 
 /// `J M⁻¹ Jᵀ = ‖L⁻¹ Jᵀ‖²` with `M = L Lᵀ` (1/kg): the inverse reflected mass (3.20).
@@ -472,9 +486,11 @@ pub fn collision_rows_from_geometry<
             }
         }
     }
-    selected.sort_unstable_by_key(|&(_, index)| index);
+    // Rows in pair order: a pass over the pairs with a membership test (O(P·R) comparisons)
+    // instead of a sort, whose ordering-violation panic path would survive in the image.
     let mut staged: Vec<TaskRow<T, N>, R> = Vec::new();
-    for &(_, index) in &selected {
+    let chosen = (0..collision_model.pairs().len()).filter(|index| selected.iter().any(|&(_, s)| s == *index));
+    for index in chosen {
         let evaluation = evaluate_pair(collision_model, collision, model, data, mass_cholesky, parameters, index)?;
         let r = evaluation.row;
         let finite = r.force.is_finite() && r.potential.is_finite() && r.jacobian.iter().all(|x| x.is_finite());
@@ -483,8 +499,9 @@ pub fn collision_rows_from_geometry<
         }
         staged.push(r).map_err(|_| TaskError::Capacity { capacity: R })?;
     }
-    for r in staged {
-        rows.push(r)?;
+    // By reference: consuming a heapless vector drops its iterator through a slice index.
+    for r in &staged {
+        rows.push(*r)?;
     }
     report.rows = selected.len();
     Ok(report)
