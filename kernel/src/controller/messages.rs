@@ -237,6 +237,7 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
                     *slot = validated;
                     *config = *p;
                 }
+                self.collision_data.exact_within = Some(self.tasks.broad_phase_distance());
                 Ok(())
             }
             Command::SetConsistency(consistency) => {

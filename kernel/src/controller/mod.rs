@@ -152,7 +152,9 @@ pub struct Telemetry<T: RealField, const N: usize> {
     pub task_activation: [T; MAX_ACTIVE],
     /// `‖τ_task‖` of each entry before projection (Nm), as in Fig. 6.5.
     pub task_torque_norm: [T; MAX_ACTIVE],
-    /// Smallest distance over all collision pairs (m), `None` without a collision task.
+    /// Smallest distance over all collision pairs (m), `None` without a collision task; exact
+    /// up to the broad-phase distance (the larger emit distance of the two fields), a lower
+    /// bound beyond it.
     pub min_collision_distance: Option<T>,
     /// Collision rows on the stack.
     pub collision_rows: usize,
@@ -278,6 +280,12 @@ fn collision_parameters<T: RealField + Copy>(p: &CollisionFieldParameters<T>) ->
 }
 
 impl<T: RealField + Copy, const N: usize> TaskSet<T, N> {
+    /// The distance below which both collision fields need exact pair distances (their larger
+    /// emit distance): the broad phase of the geometry update skips the pairs beyond it.
+    fn broad_phase_distance(&self) -> T {
+        self.collision.iter().map(CollisionParameters::emit_distance).fold(T::zero(), |m, d| m.max(d))
+    }
+
     fn try_new<const B: usize, const F: usize>(model: &Model<T, N, B, F>, config: &ControllerConfig<T, N>) -> Result<Self, ConfigError> {
         let [right, left] = config.cartesian;
         let cartesian = [
@@ -381,7 +389,8 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
         let avoidance = PlatformAvoidance::try_new(config.platform.avoidance).map_err(ConfigError::Platform)?;
         let active = messages::initial_hierarchy(hierarchy).map_err(ConfigError::Hierarchy)?;
         let data = Data::new(&model);
-        let collision_data = CollisionData::new(&collision_model);
+        let mut collision_data = CollisionData::new(&collision_model);
+        collision_data.exact_within = Some(tasks.broad_phase_distance());
         Ok(Self {
             observer: MomentumObserver::new(config.observer.gain),
             force_limiter: ForceLimiter::new(),

@@ -140,23 +140,42 @@ impl<T: RealField + Copy, const V: usize, const P: usize> CollisionModel<T, V, P
         data: &Data<T, N, B, F>,
         collision: &mut CollisionData<T, V, P>,
     ) {
-        for (volume, slot) in self.volumes.iter().zip(collision.world_volumes.iter_mut()) {
+        for ((volume, slot), bound) in
+            self.volumes.iter().zip(collision.world_volumes.iter_mut()).zip(collision.bounding_spheres.iter_mut())
+        {
             let placement = volume.body.and_then(|b| data.body_placements.get(b.0)).copied();
             *slot = match placement {
                 Some(p) => volume.shape.transformed(&p),
                 None => volume.shape,
             };
+            *bound = slot.bounding_sphere();
         }
     }
 
     /// Distance and closest points of every enabled pair from `collision.world_volumes`:
     /// writes `collision.proximities`. Cost O(P), fixed per pair kind.
+    ///
+    /// With `collision.exact_within = Some(d)` (broad phase), a pair whose bounding spheres are
+    /// more than `d` apart gets that gap as its distance — a lower bound of the true distance,
+    /// larger than `d` — with the sphere centres as "closest points" and no direction, without
+    /// the exact narrow-phase computation. Every pair closer than `d` is exact. A task that emits
+    /// rows below `d` ([`super::CollisionParameters::emit_distance`]) gets the same rows.
     pub fn compute_distances(&self, collision: &mut CollisionData<T, V, P>) {
-        let CollisionData { world_volumes, proximities } = collision;
+        let CollisionData { world_volumes, bounding_spheres, proximities, exact_within } = collision;
         for (pair, slot) in self.pairs.iter().zip(proximities.iter_mut()) {
-            if let (Some(a), Some(b)) = (world_volumes.get(pair.first.0), world_volumes.get(pair.second.0)) {
-                *slot = proximity(a, b);
+            let (Some(a), Some(b)) = (world_volumes.get(pair.first.0), world_volumes.get(pair.second.0)) else {
+                continue;
+            };
+            if let (Some(limit), Some((ca, ra)), Some((cb, rb))) =
+                (*exact_within, bounding_spheres.get(pair.first.0), bounding_spheres.get(pair.second.0))
+            {
+                let gap = (ca - cb).norm() - *ra - *rb;
+                if gap > limit {
+                    *slot = Proximity { distance: gap, core_first: *ca, core_second: *cb, direction: None };
+                    continue;
+                }
             }
+            *slot = proximity(a, b);
         }
     }
 }
@@ -166,9 +185,15 @@ impl<T: RealField + Copy, const V: usize, const P: usize> CollisionModel<T, V, P
 pub struct CollisionData<T: RealField, const V: usize, const P: usize> {
     /// Every volume in the world frame ([`CollisionModel::update_world`]).
     pub world_volumes: [SweptSphere<T>; V],
+    /// Bounding sphere `(center, radius)` of each world volume (m).
+    pub bounding_spheres: [(Vector3<T>, T); V],
     /// Distance, closest points and direction of each enabled pair, in the order of
     /// [`CollisionModel::pairs`] ([`CollisionModel::compute_distances`]).
     pub proximities: [Proximity<T>; P],
+    /// Broad phase: pairs farther apart than this (m) get a lower bound instead of their exact
+    /// distance ([`CollisionModel::compute_distances`]); `None` (the default) computes every
+    /// pair exactly.
+    pub exact_within: Option<T>,
 }
 
 impl<T: RealField + Copy, const V: usize, const P: usize> CollisionData<T, V, P> {
@@ -177,7 +202,9 @@ impl<T: RealField + Copy, const V: usize, const P: usize> CollisionData<T, V, P>
         let origin = Vector3::zeros();
         Self {
             world_volumes: [SweptSphere { core: Core::Point(origin), radius: T::zero() }; V],
+            bounding_spheres: [(origin, T::zero()); V],
             proximities: [Proximity { distance: T::zero(), core_first: origin, core_second: origin, direction: None }; P],
+            exact_within: None,
         }
     }
 }

@@ -108,6 +108,16 @@ impl<T: RealField + Copy> SweptSphere<T> {
         Self { core: self.core.transformed(placement), radius: self.radius }
     }
 
+    /// A sphere `(center, radius)` enclosing the volume: the centroid of the core's points and
+    /// the largest distance to them plus the swept radius (m).
+    pub fn bounding_sphere(&self) -> (Vector3<T>, T) {
+        let points = self.core.points();
+        let count: T = convert(points.len().max(1) as f64);
+        let center = points.iter().fold(Vector3::zeros(), |c, p| c + p) / count;
+        let reach = points.iter().map(|p| (p - center).norm()).fold(T::zero(), |m, d| m.max(d));
+        (center, reach + self.radius)
+    }
+
     /// Signed distance of the point `p` to the surface (negative inside).
     pub fn signed_distance_to(&self, p: &Vector3<T>) -> T {
         (p - self.core.closest_point_to(p)).norm() - self.radius
