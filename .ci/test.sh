@@ -21,6 +21,8 @@ fi
 
 step "kernel and hal build for thumbv7em-none-eabihf (no_std)"
 cargo build --locked -p kernel -p hal --target thumbv7em-none-eabihf --release
+# ... and with the `defmt::Format` derives of every public kernel and hal type.
+cargo build --locked -p kernel -p hal --features kernel/defmt,hal/defmt --target thumbv7em-none-eabihf --release
 
 step "no alloc/std in the kernel's dependency graph"
 # Normal edges only: dev-dependencies (proptest, approx/std) never reach the firmware build.

@@ -171,7 +171,7 @@ pub fn validate_frame<T: RealField + Copy, const N: usize, const B: usize, const
         if joints.cycle <= last {
             return Err(Fault::StaleFrame { last, received: joints.cycle });
         }
-        let gap = joints.cycle - last;
+        let gap = joints.cycle.saturating_sub(last);
         if gap > limits.max_cycle_gap {
             return Err(Fault::CycleGap { gap });
         }
