@@ -13,7 +13,6 @@
 #![no_std]
 #![no_main]
 
-use core::arch::asm;
 
 use cortex_m_rt::{entry, exception, ExceptionFrame};
 use cortex_m_semihosting::{debug, hprintln};
@@ -25,42 +24,19 @@ use panic_semihosting as _;
 mod stages;
 use stages::*;
 
-// --- markers and stack painting (RECIPE §3.3, §5.1) ---------------------------------------
+#[path = "../../wcet/probe.rs"]
+mod probe;
+use probe::{mark_begin, mark_end, GUARD, PAINT};
 
-#[inline(always)]
-fn mark_begin<const R: u32>() {
-    // no `nomem`: the asm is a compiler barrier, nothing moves across it
-    unsafe { asm!("dbg #{r}", r = const 2 * R, options(nostack, preserves_flags)) }
-}
-#[inline(always)]
-fn mark_end<const R: u32>() {
-    unsafe { asm!("dbg #{r}", r = const 2 * R + 1, options(nostack, preserves_flags)) }
-}
-
-const PAINT: u32 = 0xC0DE_CAFE;
+/// Bytes of stack painted below the stack pointer before each measured call.
 const WINDOW: usize = 64 * 1024;
-const GUARD: usize = 64;
 
-#[inline(always)]
 fn paint_stack() -> usize {
-    let sp = cortex_m::register::msp::read() as usize;
-    let mut p = sp - WINDOW;
-    while p < sp - GUARD {
-        unsafe { core::ptr::write_volatile(p as *mut u32, PAINT) };
-        p += 4;
-    }
-    sp
+    probe::paint_stack::<WINDOW>()
 }
-#[inline(always)]
+
 fn stack_used(sp: usize) -> usize {
-    let mut p = sp - WINDOW;
-    while p < sp - GUARD {
-        if unsafe { core::ptr::read_volatile(p as *const u32) } != PAINT {
-            return sp - p;
-        }
-        p += 4;
-    }
-    0
+    probe::stack_used::<WINDOW>(sp)
 }
 
 // The controller lives in a static (`.bss`), not on the stack being painted.

@@ -1,0 +1,49 @@
+//! Region markers and stack painting shared by the measurement images (RECIPE §3.3, §5.1).
+//!
+//! `mark_begin::<R>()` / `mark_end::<R>()` emit `dbg #2R` / `dbg #2R+1`, which the TCG plugin
+//! `wcet_insn.c` turns into exact instruction counts of region `R`. `paint_stack::<W>()` fills
+//! the `W` bytes below the current stack pointer with a pattern; `stack_used::<W>(sp)` returns
+//! how deep the code run in between wrote into them (the high-water mark).
+
+use core::arch::asm;
+
+#[inline(always)]
+pub fn mark_begin<const R: u32>() {
+    // no `nomem`: the asm is a compiler barrier, nothing moves across it
+    unsafe { asm!("dbg #{r}", r = const 2 * R, options(nostack, preserves_flags)) }
+}
+
+#[inline(always)]
+pub fn mark_end<const R: u32>() {
+    unsafe { asm!("dbg #{r}", r = const 2 * R + 1, options(nostack, preserves_flags)) }
+}
+
+/// The paint pattern.
+pub const PAINT: u32 = 0xC0DE_CAFE;
+/// Bytes just below the stack pointer left unpainted (the painting code's own frame).
+pub const GUARD: usize = 64;
+
+/// Paints the `WINDOW` bytes below the stack pointer; returns the stack pointer.
+#[inline(always)]
+pub fn paint_stack<const WINDOW: usize>() -> usize {
+    let sp = cortex_m::register::msp::read() as usize;
+    let mut p = sp - WINDOW;
+    while p < sp - GUARD {
+        unsafe { core::ptr::write_volatile(p as *mut u32, PAINT) };
+        p += 4;
+    }
+    sp
+}
+
+/// Bytes of the painted window below `sp` that were overwritten.
+#[inline(always)]
+pub fn stack_used<const WINDOW: usize>(sp: usize) -> usize {
+    let mut p = sp - WINDOW;
+    while p < sp - GUARD {
+        if unsafe { core::ptr::read_volatile(p as *const u32) } != PAINT {
+            return sp - p;
+        }
+        p += 4;
+    }
+    0
+}
