@@ -112,9 +112,8 @@ pub fn all_tasks() -> Vec<TaskKind> {
         kinds.push(TaskKind::SingularityAvoidance(hand));
     }
     kinds.extend([TaskKind::EndStops, TaskKind::TorsoWorkspace]);
-    let groups = [JointGroup::Platform, JointGroup::Torso, JointGroup::Arm(Hand::Right), JointGroup::Arm(Hand::Left), JointGroup::UpperBody];
-    kinds.extend(groups.iter().map(|g| TaskKind::JointImpedance(*g)));
-    kinds.extend(groups.iter().map(|g| TaskKind::JointDamping(*g)));
+    kinds.extend(JointGroup::ALL.map(TaskKind::JointImpedance));
+    kinds.extend(JointGroup::ALL.map(TaskKind::JointDamping));
     kinds
 }
 

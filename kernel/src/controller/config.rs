@@ -83,6 +83,24 @@ pub enum JointGroup {
     UpperBody,
 }
 
+impl JointGroup {
+    /// Every group.
+    pub const ALL: [JointGroup; 5] =
+        [JointGroup::Platform, JointGroup::Torso, JointGroup::Arm(Hand::Right), JointGroup::Arm(Hand::Left), JointGroup::UpperBody];
+
+    /// The group's position in [`Self::ALL`].
+    pub const fn index(self) -> usize {
+        match self {
+            JointGroup::Platform => 0,
+            JointGroup::Torso => 1,
+            JointGroup::Arm(Hand::Right) => 2,
+            JointGroup::Arm(Hand::Left) => 3,
+            JointGroup::UpperBody => 4,
+        }
+    }
+}
+
+
 /// The control tasks the controller knows (Ch. 3), as the planner names them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -316,4 +334,16 @@ pub struct ControllerConfig<T: RealField, const N: usize> {
     pub observer: ObserverParameters<T>,
     /// Contact-force limiter on the observer's estimate ([`super::force_limit`]).
     pub force_limit: super::force_limit::ForceLimitParameters<T>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::JointGroup;
+
+    #[test]
+    fn group_indices_follow_all() {
+        for (i, group) in JointGroup::ALL.iter().enumerate() {
+            assert_eq!(group.index(), i);
+        }
+    }
 }

@@ -243,18 +243,6 @@ struct TaskSet<T: RealField, const N: usize> {
     joint: [[JointImpedance<T, N>; 5]; 2],
 }
 
-fn group_index(group: JointGroup) -> usize {
-    match group {
-        JointGroup::Platform => 0,
-        JointGroup::Torso => 1,
-        JointGroup::Arm(Hand::Right) => 2,
-        JointGroup::Arm(Hand::Left) => 3,
-        JointGroup::UpperBody => 4,
-    }
-}
-
-const GROUPS: [JointGroup; 5] =
-    [JointGroup::Platform, JointGroup::Torso, JointGroup::Arm(Hand::Right), JointGroup::Arm(Hand::Left), JointGroup::UpperBody];
 
 fn cartesian_task<T: RealField + Copy, const N: usize>(
     config: &ControllerConfig<T, N>,
@@ -331,7 +319,7 @@ impl<T: RealField + Copy, const N: usize> TaskSet<T, N> {
         };
         let mut joint = [[joint_task(JointGroup::Platform, SVector::zeros(), SVector::zeros())?; 5]; 2];
         let [impedance, damping] = &mut joint;
-        for ((group, imp), damp) in GROUPS.iter().zip(impedance.iter_mut()).zip(damping.iter_mut()) {
+        for ((group, imp), damp) in JointGroup::ALL.iter().zip(impedance.iter_mut()).zip(damping.iter_mut()) {
             *imp = joint_task(*group, config.joint_stiffness, config.joint_damping)?;
             *damp = joint_task(*group, SVector::zeros(), config.safe_damping)?;
         }
@@ -689,21 +677,45 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
 
     /// The upper-body torque `τ₀ + Σ N_i τ_i` through the priority-preserving guard.
     fn guard_torque(&mut self, compensation: &SVector<T, N>, dt: T) -> SVector<T, N> {
-        let active = self.config.layout.coordinates(JointGroup::UpperBody);
-        let limits = &self.config.output_limits;
-        let (lower, upper) = torque_box(&self.model.limits.effort, &limits.torque_rate, &self.previous_torque, dt, &active);
         let count = self.projection.level_count.min(MAX_LEVELS);
         let levels = self.projection.level_torques.get(..count).unwrap_or(&[]);
         let desired = levels.iter().fold(*compensation, |t, l| t + l);
-        let saturation = &mut self.telemetry.saturation;
-        saturation.torque_rate_limited = rate_exceeded(&desired, &self.previous_torque, &limits.torque_rate, dt, &active);
+        let active = self.config.layout.coordinates(JointGroup::UpperBody);
+        let rate = &self.config.output_limits.torque_rate;
+        self.telemetry.saturation.torque_rate_limited = rate_exceeded(&desired, &self.previous_torque, rate, dt, &active);
+        let mut saturation = self.telemetry.saturation;
+        let torque = self.guarded(compensation, levels, dt, &mut saturation);
+        self.telemetry.saturation = saturation;
+        torque
+    }
+
+    /// `compensation + Σ levels` through the effort and rate box of the upper body with
+    /// priority-preserving scaling ([`guard`]); zero on the platform coordinates.
+    fn guarded(&self, compensation: &SVector<T, N>, levels: &[SVector<T, N>], dt: T, saturation: &mut Saturation<T>) -> SVector<T, N> {
+        let active = self.config.layout.coordinates(JointGroup::UpperBody);
+        let rate = &self.config.output_limits.torque_rate;
+        let (lower, upper) = torque_box(&self.model.limits.effort, rate, &self.previous_torque, dt, &active);
         let mut torque = saturate_with_priority(compensation, levels, &lower, &upper, &active, saturation);
-        for (i, t) in torque.iter_mut().enumerate() {
-            if !active.get(i).copied().unwrap_or(false) {
+        for (t, a) in torque.iter_mut().zip(active.iter()) {
+            if !a {
                 *t = T::zero();
             }
         }
         torque
+    }
+
+    /// Writes the actuator frame and remembers the torque and platform command for the rate
+    /// limits of the next cycle.
+    fn write_output(&mut self, torque: &SVector<T, N>, platform: PlatformCommand<T>, mode: SafeOutput) {
+        self.previous_torque = *torque;
+        self.previous_base_velocity = Vector3::from(platform.velocity);
+        let out = &mut self.output;
+        for (o, t) in out.torque.iter_mut().zip(torque.iter().skip(PLATFORM_DOF)) {
+            *o = *t;
+        }
+        out.platform = platform;
+        out.brake = mode == SafeOutput::Brake;
+        out.mode = mode;
     }
 
     /// Checks the commands, updates the observer and the telemetry, writes the output.
@@ -753,15 +765,7 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
         t.base_velocity = *velocity;
 
         self.hold_gravity = self.data.gravity_torque;
-        self.previous_torque = *torque;
-        self.previous_base_velocity = *velocity;
-        let out = &mut self.output;
-        for (o, t) in out.torque.iter_mut().zip(torque.iter().skip(PLATFORM_DOF)) {
-            *o = *t;
-        }
-        out.platform = PlatformCommand { velocity: (*velocity).into(), leg_rates: *leg_rates };
-        out.brake = false;
-        out.mode = SafeOutput::Normal;
+        self.write_output(torque, PlatformCommand { velocity: (*velocity).into(), leg_rates: *leg_rates }, SafeOutput::Normal);
         Ok(())
     }
 
@@ -779,14 +783,12 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
         let gravity_torque = if positions_valid { *gravity(&self.model, &mut self.data) } else { self.hold_gravity };
         let velocity = if crate::math::all_finite(&v) { v } else { SVector::zeros() };
         let hold = gravity_torque - self.config.safe_damping.component_mul(&velocity);
-        let active = self.config.layout.coordinates(JointGroup::UpperBody);
-        let limits = &self.config.output_limits;
-        let (lower, upper) = torque_box(&self.model.limits.effort, &limits.torque_rate, &self.previous_torque, dt, &active);
         let mut saturation = Saturation::none();
-        let mut torque = saturate_with_priority(&hold, &[], &lower, &upper, &active, &mut saturation);
+        let mut torque = self.guarded(&hold, &[], dt, &mut saturation);
         if !crate::math::all_finite(&torque) {
             torque = self.previous_torque;
         }
+        let limits = &self.config.output_limits;
         let mut limited = [false; 3];
         let base = limit_base_velocity(&Vector3::zeros(), &self.previous_base_velocity, &limits.base_velocity, &limits.base_acceleration, dt, &mut limited);
         saturation.base_limited = limited;
@@ -801,20 +803,8 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
         }
         self.observer.reset();
         self.force_limiter.reset();
-        for (i, t) in torque.iter_mut().enumerate() {
-            if !active.get(i).copied().unwrap_or(false) {
-                *t = T::zero();
-            }
-        }
-        self.previous_torque = torque;
-        self.previous_base_velocity = base;
-        let out = &mut self.output;
-        for (o, t) in out.torque.iter_mut().zip(torque.iter().skip(PLATFORM_DOF)) {
-            *o = *t;
-        }
-        out.platform = PlatformCommand { velocity: base.into(), leg_rates: [T::zero(); LEGS] };
-        out.brake = brake;
-        out.mode = if brake { SafeOutput::Brake } else { SafeOutput::Hold };
+        let mode = if brake { SafeOutput::Brake } else { SafeOutput::Hold };
+        self.write_output(&torque, PlatformCommand { velocity: base.into(), leg_rates: [T::zero(); LEGS] }, mode);
     }
 }
 
@@ -911,7 +901,7 @@ fn evaluate<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
         }
         TaskKind::JointImpedance(group) | TaskKind::JointDamping(group) => {
             let damping_only = matches!(kind, TaskKind::JointDamping(_));
-            let Some(task) = cx.tasks.joint.get(usize::from(damping_only)).and_then(|t| t.get(group_index(group))) else {
+            let Some(task) = cx.tasks.joint.get(usize::from(damping_only)).and_then(|t| t.get(group.index())) else {
                 return Ok(());
             };
             let (position, velocity) = cx.joint_goal.sample();
