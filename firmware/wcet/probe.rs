@@ -3,9 +3,27 @@
 //! `mark_begin::<R>()` / `mark_end::<R>()` emit `dbg #2R` / `dbg #2R+1`, which the TCG plugin
 //! `wcet_insn.c` turns into exact instruction counts of region `R`. `paint_stack::<W>()` fills
 //! the `W` bytes below the current stack pointer with a pattern; `stack_used::<W>(sp)` returns
-//! how deep the code run in between wrote into them (the high-water mark).
+//! how deep the code run in between wrote into them (the high-water mark). `exit` ends the
+//! QEMU run with a status; a hard fault ends it as a failure.
 
 use core::arch::asm;
+
+use cortex_m_rt::{exception, ExceptionFrame};
+use cortex_m_semihosting::{debug, hprintln};
+
+/// Ends the QEMU run (semihosting exit) with success or failure.
+pub fn exit(success: bool) -> ! {
+    debug::exit(if success { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE });
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+#[exception]
+unsafe fn HardFault(frame: &ExceptionFrame) -> ! {
+    hprintln!("HardFault at pc={:#010x}", frame.pc());
+    exit(false)
+}
 
 #[inline(always)]
 pub fn mark_begin<const R: u32>() {

@@ -18,8 +18,8 @@
 #![no_main]
 
 
-use cortex_m_rt::{entry, exception, ExceptionFrame};
-use cortex_m_semihosting::{debug, hprintln};
+use cortex_m_rt::entry;
+use cortex_m_semihosting::hprintln;
 use fixtures::justin;
 use fixtures::justin::collision::JustinCollisionModel;
 use kernel::hierarchy::{HierarchyConfig, Recursion, Shaping, Stack, Weighting};
@@ -35,7 +35,7 @@ use stages::*;
 
 #[path = "../../wcet/probe.rs"]
 mod probe;
-use probe::{mark_begin, mark_end};
+use probe::{exit, mark_begin, mark_end};
 
 /// Bytes of stack painted below the stack pointer before each measured call.
 const WINDOW: usize = 48 * 1024;
@@ -131,22 +131,10 @@ fn run() -> Result<(), &'static str> {
 #[entry]
 fn main() -> ! {
     match run() {
-        Ok(()) => debug::exit(debug::EXIT_SUCCESS),
+        Ok(()) => exit(true),
         Err(what) => {
             hprintln!("wcet run failed: {}", what);
-            debug::exit(debug::EXIT_FAILURE);
+            exit(false)
         }
-    }
-    loop {
-        cortex_m::asm::wfi();
-    }
-}
-
-#[exception]
-unsafe fn HardFault(frame: &ExceptionFrame) -> ! {
-    hprintln!("HardFault at pc={:#010x}", frame.pc());
-    debug::exit(debug::EXIT_FAILURE);
-    loop {
-        cortex_m::asm::wfi();
     }
 }

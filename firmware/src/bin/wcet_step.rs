@@ -14,8 +14,8 @@
 #![no_main]
 
 
-use cortex_m_rt::{entry, exception, ExceptionFrame};
-use cortex_m_semihosting::{debug, hprintln};
+use cortex_m_rt::entry;
+use cortex_m_semihosting::hprintln;
 use fixtures::justin;
 use panic_semihosting as _;
 
@@ -26,7 +26,7 @@ use stages::*;
 
 #[path = "../../wcet/probe.rs"]
 mod probe;
-use probe::{mark_begin, mark_end, GUARD, PAINT};
+use probe::{exit, mark_begin, mark_end, GUARD, PAINT};
 
 /// Bytes of stack painted below the stack pointer before each measured call.
 const WINDOW: usize = 64 * 1024;
@@ -118,23 +118,11 @@ fn main() -> ! {
         Ok(()) => {
             let (used, free) = whole_run_stack(painted);
             hprintln!("wcet-stack whole-run={} free-above-statics={} (bytes)", used, free);
-            debug::exit(debug::EXIT_SUCCESS);
+            exit(true)
         }
         Err(what) => {
             hprintln!("wcet-step run failed: {}", what);
-            debug::exit(debug::EXIT_FAILURE);
+            exit(false)
         }
-    }
-    loop {
-        cortex_m::asm::wfi();
-    }
-}
-
-#[exception]
-unsafe fn HardFault(frame: &ExceptionFrame) -> ! {
-    hprintln!("HardFault at pc={:#010x}", frame.pc());
-    debug::exit(debug::EXIT_FAILURE);
-    loop {
-        cortex_m::asm::wfi();
     }
 }
