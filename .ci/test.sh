@@ -8,8 +8,12 @@
 #   5. the link-time panic check: Controller::step linked with an undefined panic handler
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# Incremental caches double the size of the debug target and a CI build is never incremental.
+export CARGO_INCREMENTAL=0
 
-step() { printf '\n==> %s\n' "$*"; }
+# Each step reports the free disk: the CI machine's disk is small and a full disk fails a
+# build with "No space left on device" far from its cause.
+step() { printf '\n==> %s   [%s free]\n' "$*" "$(df -h --output=avail . | tail -n 1 | tr -d ' ')"; }
 
 step "toolchain set-up"
 rustup target add thumbv7em-none-eabihf >/dev/null
@@ -44,6 +48,10 @@ done
 
 step "no panic path from Controller::step in the release image (link fails on any)"
 bash firmware/wcet/panic_check.sh m7-f32 m7-f64 m4-f32
+
+# The firmware builds (four release targets with fat LTO, ~1 GB) are done: free the disk for
+# the host build.
+rm -rf firmware/target
 
 step "clippy (panic-freedom lints are errors)"
 cargo clippy --locked --workspace --all-targets -- -D warnings
