@@ -207,6 +207,11 @@ pub struct ToolSample {
     pub measured: Vec<Vector3<f64>>,
     /// Any force limit of the reference's TCP active.
     pub limited: Vec<bool>,
+    /// The controller's estimate of the force the reference's TCP applies (N, desired-frame
+    /// axes, [`kernel::controller::force_limit`]).
+    pub estimate: Vec<Vector3<f64>>,
+    /// The contact-force governor's correction of the force bounds per axis (N).
+    pub correction: Vec<Vector3<f64>>,
     /// Base pose `(x, y, θ)`.
     pub base: [f64; 3],
 }
@@ -275,6 +280,8 @@ pub fn run_tool(
             reference: Vec::new(),
             measured: Vec::new(),
             limited: Vec::new(),
+            estimate: Vec::new(),
+            correction: Vec::new(),
             base: [rig.sim.q()[0], rig.sim.q()[1], rig.sim.q()[2]],
         };
         for index in 0..contacts.len() {
@@ -282,12 +289,16 @@ pub fn run_tool(
             sample.normal_n.push(contact.normal_force_n);
             sample.depth_m.push(contact.penetration_m);
         }
-        let limited = rig.controller.telemetry().tcp_force_limited;
+        let telemetry = rig.controller.telemetry();
+        let (limited, applied, corrections) = (telemetry.tcp_force_limited, telemetry.contact_wrench, telemetry.force_limit_correction);
         for reference in &references {
             let frame = if reference.hand == Hand::Right { justin::RIGHT_TCP } else { justin::LEFT_TCP };
             sample.measured.push(rig.sim.frame_placement(frame).map_err(|e| e.to_string())?.translation.vector);
             sample.reference.push(reference.at(info.time_s).0.translation.vector);
             sample.limited.push(limited.get(reference.hand.index()).is_some_and(|l| l.iter().any(|x| *x)));
+            let forces = |w: &[nalgebra::Vector6<f64>; 2]| w.get(reference.hand.index()).map_or_else(Vector3::zeros, |w| w.fixed_rows::<3>(0).into_owned());
+            sample.estimate.push(forces(&applied));
+            sample.correction.push(forces(&corrections));
             rig.controller.apply(&reference.command(info.time_s)).map_err(|e| format!("TcpSample: {e}"))?;
         }
         samples.push(sample);
@@ -315,7 +326,8 @@ fn hand_name(hand: Hand) -> &'static str {
 }
 
 /// The rig's columns, then per contact `contact.<label>.force`, `.depth`, per reference
-/// `ref.<hand>.x/y/z` and `limited.<hand>`.
+/// `ref.<hand>.x/y/z`, `limited.<hand>`, the estimated applied force `est.<hand>.x/y/z` and the
+/// governor's correction `corr.<hand>.x/y/z` (desired-frame axes).
 fn extend_series(rig: &TimeSeries, samples: &[ToolSample], contacts: &[Contact], references: &[ToolReference]) -> Result<TimeSeries, String> {
     let mut columns = rig.columns().to_vec();
     for c in contacts {
@@ -326,6 +338,8 @@ fn extend_series(rig: &TimeSeries, samples: &[ToolSample], contacts: &[Contact],
         let h = hand_name(r.hand);
         columns.extend(["x", "y", "z"].iter().map(|a| format!("ref.{h}.{a}")));
         columns.push(format!("limited.{h}"));
+        columns.extend(["x", "y", "z"].iter().map(|a| format!("est.{h}.{a}")));
+        columns.extend(["x", "y", "z"].iter().map(|a| format!("corr.{h}.{a}")));
     }
     let mut series = TimeSeries::new(columns);
     for (row, s) in rig.rows().iter().zip(samples.iter()) {
@@ -333,9 +347,10 @@ fn extend_series(rig: &TimeSeries, samples: &[ToolSample], contacts: &[Contact],
         for (f, d) in s.normal_n.iter().zip(s.depth_m.iter()) {
             row.extend([*f, *d]);
         }
-        for (p, l) in s.reference.iter().zip(s.limited.iter()) {
+        for (((p, l), e), c) in s.reference.iter().zip(s.limited.iter()).zip(s.estimate.iter()).zip(s.correction.iter()) {
             row.extend(p.iter());
             row.push(f64::from(u8::from(*l)));
+            row.extend(e.iter().chain(c.iter()));
         }
         series.push(row)?;
     }
