@@ -20,13 +20,16 @@
 //! collision avoidance of Table 7.1 is a *self*-collision avoidance. The base is free (the
 //! admittance of [`whole_body::controller_config`]), as the table's "Actuators" row says.
 //!
-//! Claims: the contact force along the tool x axis (the window's normal force), with the
-//! reference at rest behind the window, is within the +10 N limit of Table 7.1, and so is its
-//! mean during the strokes ([`force_claims`]); the force limit is active while wiping; the
-//! contact is kept during the strokes; the strokes are executed in the window plane; no fault;
-//! no self-collision. The peak force during the strokes (10.99 N) and its excess over the limit
-//! are reported, not claimed: transients during the motion pass the contact-force governor
-//! ([`kernel::controller::force_limit`]), and issue #7 records this open point.
+//! The approach ([`press_path`]) brings the reference onto the window plane, the last
+//! [`CLEARANCE_M`] slowly, so that the TCP touches at rest; the reference then moves behind it.
+//!
+//! Claims: the contact force along the tool x axis (the window's normal force) never exceeds
+//! the +10 N limit of Table 7.1 over the whole run; with the reference at rest behind the
+//! window it is within the limit and at least 80 % of it, and so is its mean during the strokes
+//! ([`force_claims`]); the force limit is active while wiping; the contact is kept during the
+//! strokes; the strokes are executed in the window plane; no fault; no self-collision. What
+//! keeps the force under the limit while the TCP moves is the controller's contact-force
+//! limiter ([`kernel::controller::force_limit`]).
 //!
 //! The module also holds the machinery the three Table 7.1 scenarios share ([`run_tool`]).
 
@@ -71,6 +74,10 @@ pub const SETTLE_S: f64 = 0.5;
 pub const CONTACT_THRESHOLD_N: f64 = 0.5;
 /// Window of the strokes (s).
 pub const STROKES_S: (f64, f64) = (5.0, 12.5);
+/// Distance before the surface where the approach of [`press_path`] slows down (m); chosen.
+pub const CLEARANCE_M: f64 = 0.02;
+/// When the reference reaches the window plane, the TCP at rest on it (s).
+pub const TOUCH_S: f64 = 3.0;
 /// Rest of the pressed reference before the motion starts (s): the static part of the claims.
 pub const HOLD_S: f64 = 1.0;
 /// Part of the hold over which the static contact force is averaged (s, its end).
@@ -143,12 +150,56 @@ pub struct ToolReference {
     pub turn_s: (f64, f64),
     /// Position path (world frame).
     pub path: Waypoints,
+    /// Circles added to the path (a brush scrubbing), if any.
+    pub circles: Option<Circles>,
+}
+
+/// Circles in the plane of the unit vectors `u`, `v`, added to a path: the offset
+/// `r (sin θ u + (1 − cos θ) v)` with `θ = 2π turns s((t − t₀)/(t₁ − t₀))`, `s` the quintic, so
+/// the motion starts and ends at rest and is smooth in between (no stop per segment).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Circles {
+    /// First in-plane direction (the start tangent).
+    pub u: Vector3<f64>,
+    /// Second in-plane direction (towards the circle centre at the start).
+    pub v: Vector3<f64>,
+    /// Radius (m).
+    pub radius_m: f64,
+    /// Number of turns.
+    pub turns: f64,
+    /// Time window `(t₀, t₁)` (s).
+    pub window_s: (f64, f64),
+}
+
+impl Circles {
+    /// Offset and its velocity at `t`.
+    pub fn at(&self, t: f64) -> (Vector3<f64>, Vector3<f64>) {
+        let span = (self.window_s.1 - self.window_s.0).max(1e-9);
+        let (s, ds) = quintic((t - self.window_s.0) / span);
+        let scale = core::f64::consts::TAU * self.turns;
+        let (angle, rate) = (scale * s, scale * ds / span);
+        let offset = (self.u * angle.sin() + self.v * (1.0 - angle.cos())) * self.radius_m;
+        let velocity = (self.u * angle.cos() + self.v * angle.sin()) * (self.radius_m * rate);
+        (offset, velocity)
+    }
+}
+
+/// The path of a tool pressing on a surface along the unit direction `press`: at rest at `start`
+/// until `times.0`; by `times.1` [`CLEARANCE_M`] before `touch` (the surface point ahead of the
+/// TCP), by `times.2` at `touch`, slowly, so that the TCP arrives there at rest (the tracking
+/// error of the fast part stays clear of the surface); by `times.3` at `pressed` (the reference
+/// behind the surface, Sec. 7.3). Touching at rest keeps the impact out of the contact force:
+/// the force grows with the reference's depth.
+pub fn press_path(start: Vector3<f64>, touch: Vector3<f64>, pressed: Vector3<f64>, press: &Vector3<f64>, times: (f64, f64, f64, f64)) -> Vec<(f64, Vector3<f64>)> {
+    vec![(0.0, start), (times.0, start), (times.1, touch - press * CLEARANCE_M), (times.2, touch), (times.3, pressed)]
 }
 
 impl ToolReference {
     /// Desired pose, linear and angular velocity (world frame) at `t`.
     pub fn at(&self, t: f64) -> (Placement<f64>, Vector3<f64>, Vector3<f64>) {
-        let (position, velocity) = self.path.at(t);
+        let (path, path_velocity) = self.path.at(t);
+        let (offset, offset_velocity) = self.circles.map_or((Vector3::zeros(), Vector3::zeros()), |c| c.at(t));
+        let (position, velocity) = (path + offset, path_velocity + offset_velocity);
         let span = (self.turn_s.1 - self.turn_s.0).max(1e-9);
         let (s, ds) = quintic((t - self.turn_s.0) / span);
         let relative = (self.tool * self.start.inverse()).scaled_axis();
@@ -397,33 +448,33 @@ pub fn contact_metrics(samples: &[ToolSample], index: usize, window: (f64, f64))
 }
 
 /// The force claims of a Table 7.1 tool on the largest values over its contacts, without any
-/// tolerance: the static force (reference at rest behind the surface) and the mean force during
-/// the motion are within `limit`. The largest force during the motion is reported
-/// (`motion_peak_force_n`) with its excess over the limit (`motion_excess_n`), not claimed: the
-/// Cartesian force limit and the controller's contact-force governor
-/// ([`kernel::controller::force_limit`]) bound the static force; transients during the motion
-/// (the governor acts on a low-passed estimate) can exceed the limit, and the closing note of the
-/// issue reports them.
+/// tolerance: the contact force never exceeds `limit` over the whole run (approach, pressing,
+/// motion, retreat: `run_peak_force_n`); the static force (reference at rest behind the
+/// surface) is within the limit and at least 80 % of it (the limit, not the spring, sets it);
+/// the mean during the motion is within the limit. The largest force during the motion is
+/// reported as `motion_peak_force_n`.
 pub fn force_claims(summary: &mut Summary, metrics: &[ContactMetrics], limit: f64) {
     let static_n = metrics.iter().map(|m| m.static_n).fold(0.0, f64::max);
     let static_min = metrics.iter().map(|m| m.static_n).fold(f64::INFINITY, f64::min);
     let motion_n = metrics.iter().map(|m| m.window_peak_n).fold(0.0, f64::max);
+    let run_n = metrics.iter().map(|m| m.peak_n).fold(0.0, f64::max);
     let mean_n = metrics.iter().map(|m| m.mean_n).fold(0.0, f64::max);
     summary
         .metric("static_force_n", static_n)
         .metric("motion_peak_force_n", motion_n)
-        .metric("motion_excess_n", (motion_n - limit).max(0.0))
+        .metric("run_peak_force_n", run_n)
         .metric("motion_mean_force_n", mean_n);
+    summary.claim(
+        &format!("the contact force never exceeds the Table 7.1 limit: largest over the whole run {run_n:.2} N ≤ {limit} N (during the motion {motion_n:.2} N)"),
+        run_n <= limit,
+    );
     summary.claim(
         &format!(
             "static contact force (reference at rest behind the surface, last {STATIC_S} s before the motion) within the Table 7.1 limit: {static_min:.2}…{static_n:.2} N ≤ {limit} N, and ≥ 80 % of it (the limit, not the spring, sets it)"
         ),
         static_n <= limit && static_min >= 0.8 * limit,
     );
-    summary.claim(
-        &format!("mean contact force during the motion within the limit: {mean_n:.2} N ≤ {limit} N (peak {motion_n:.2} N reported)"),
-        mean_n <= limit,
-    );
+    summary.claim(&format!("mean contact force during the motion within the limit: {mean_n:.2} N ≤ {limit} N"), mean_n <= limit);
 }
 
 /// Share of the samples in `window` with reference `index`'s force limit active.
@@ -505,7 +556,9 @@ fn plan(start: [Placement<f64>; 2]) -> ToolPlan {
     let tool = tool_orientation(&right.rotation, 0, &Vector3::x());
     let reference_x = window_x + BEHIND_M;
     let pressed = Vector3::new(reference_x, p0.y, p0.z);
-    let mut points = vec![(0.0, p0), (1.5, p0), (STROKES_S.0 - HOLD_S, pressed), (STROKES_S.0, pressed)];
+    let touch = Vector3::new(window_x, p0.y, p0.z);
+    let mut points = press_path(p0, touch, pressed, &Vector3::x(), (1.5, TOUCH_S - 0.5, TOUCH_S, STROKES_S.0 - HOLD_S));
+    points.push((STROKES_S.0, pressed));
     #[allow(clippy::cast_precision_loss, reason = "a handful of strokes")]
     let stroke_s = (STROKES_S.1 - STROKES_S.0) / STROKES as f64;
     for k in 0..STROKES {
@@ -527,7 +580,7 @@ fn plan(start: [Placement<f64>; 2]) -> ToolPlan {
         friction: WINDOW_FRICTION,
     };
     ToolPlan {
-        references: vec![ToolReference { hand: Hand::Right, start: right.rotation, tool, turn_s: (1.5, STROKES_S.0 - HOLD_S), path: Waypoints(points) }],
+        references: vec![ToolReference { hand: Hand::Right, start: right.rotation, tool, turn_s: (1.5, STROKES_S.0 - HOLD_S), path: Waypoints(points), circles: None }],
         contacts: vec![Contact { label: "window", hand: Hand::Right, surface: window }],
         cartesian: None,
     }
@@ -544,7 +597,6 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
     let mut summary = Summary::new(NAME);
     summary
         .metric("first_touch_s", m.first_touch_s)
-        .metric("peak_contact_force_n", m.peak_n)
         .metric("settled_peak_contact_force_n", m.settled_peak_n)
         .metric("mean_contact_force_strokes_n", m.mean_n)
         .metric("contact_share_strokes", m.contact_share)
@@ -599,6 +651,7 @@ mod tests {
         let outcome = simulate(Progress::Silent).unwrap();
         let s = &outcome.summary;
         assert!(s.failed_claims().is_empty(), "{:?}", s.failed_claims());
+        assert!(s.get("run_peak_force_n").unwrap() <= 10.0, "Table 7.1: +10 N, never exceeded");
         assert!(s.get("static_force_n").unwrap() <= 10.0);
         assert!(s.get("motion_mean_force_n").unwrap() <= 10.0);
         assert!(s.get("contact_share_strokes").unwrap() > 0.99);

@@ -3,13 +3,17 @@
 //! measures.
 //!
 //! ## Why the task's own clamp is not enough
-//! The Cartesian impedance clamps its *task* force `f` to `[f_lower, f_upper]`
+//! The Cartesian impedance clamps its own *spring* force to `[f_lower, f_upper]`
 //! ([`crate::tasks::cartesian_impedance`]). The contact force is the sum of everything that
-//! reaches the TCP: the lower levels through the projection (4.7) (exactly zero in a static
-//! equilibrium only for static consistency, Def. 4.1), the other arm's task through the shared
-//! torso, and the velocity-controlled base, whose admittance (5.1) is driven by the platform
-//! rows of `τ` and so keeps pushing the arm into the surface. The limiter closes the loop on
-//! the measured contact force instead.
+//! reaches the TCP: the task's other rows (a stroke decelerating along the surface presses into
+//! it through the coupling of the inertia), the lower levels through the projection (4.7)
+//! (zero in the TCP's acceleration only for a dynamically consistent projection, and in a static
+//! equilibrium only for a statically consistent one, Def. 4.1), the other arm's task through the
+//! shared torso, and the velocity-controlled base, whose admittance (5.1) is driven by the
+//! platform rows of `τ` and so keeps pushing the arm into the surface. Three mechanisms act on
+//! that sum, on the bounds shrunk by the margin `m` (`(1 − m) f_bound`, for what none of them
+//! sees): the command-side limit on the commanded torque, the governor on the measured force, the
+//! platform relief on the base.
 //!
 //! ## Estimate of the contact wrench
 //! The momentum observer ([`super::observer`]) gives `τ̂_ext`, the external torque low-passed
@@ -27,9 +31,29 @@
 //! and model errors end up in it, and it lags the true force by the observer's time constant
 //! `1/K_O`. The force the hand applies on the environment is `a = −F̂_ext`.
 //!
+//! ## Command-side limit: the contact force the commanded torque produces
+//! What a commanded torque `τ = Σ_i N_i τ_i` (4.7) presses with is the force of a rigid contact
+//! along the limited axes `L` (the axes with a finite bound; rows `J_L` of `J_u`, both hands):
+//!
+//! `λ_L = (J_L M⁻¹ J_Lᵀ + μ I)⁻¹ J_L M⁻¹ τ`,
+//!
+//! with `M` the closed-loop inertia of the cycle (the platform block the admittance mass, the
+//! inertia the projections use). With the effective bounds `[l, u]` and the Cartesian damping
+//! force `f_D` along the axis, it is kept inside `[l + max(f_D, 0), u + min(f_D, 0)]`: where the
+//! damping pulls away from a bound, the bound holds for the rest of the force and the damping
+//! acts on top (a contact pressed at the bound stays damped while the TCP moves into the
+//! surface); where it pushes towards the bound, the bound holds for the total (that part of the
+//! damping is dropped; what remains is still dissipative). Clamping the damping away entirely
+//! left the pressed contact undamped. With
+//! the excess `e` of `λ_L` over these bounds, `τ ← τ − J_Lᵀ e` lowers `λ_L` by exactly `e` (up to
+//! `μ`) and changes nothing else of the contact; the torque joins the compensation `τ₀`, which
+//! the output guard scales last. It acts before the contact exists as well: the bound is on what
+//! the controller commands, as Table 7.1's is. Velocity terms (`C q̇`, `J̇ q̇`), friction and the
+//! surface's compliance are left to the governor and the margin.
+//!
 //! ## Governor
 //! Per hand with a running Cartesian task and per axis with a finite bound, a correction
-//! `c_i ∈ [−c_max, c_max]` shifts the effective bounds the task force is clamped to:
+//! `c_i ∈ [−c_max, c_max]` shifts the effective bounds of the command-side limit:
 //! `f_upper,eff = f_upper − max(c_i, 0)`, `f_lower,eff = f_lower − min(c_i, 0)`. It integrates
 //! the excess of the applied force over the limit,
 //!
@@ -37,9 +61,9 @@
 //! `ċ_i = k_F (a_i − f_lower,i)` on the lower side (`c_i ≤ 0`),
 //!
 //! starting on a side only when `a_i` crosses that limit, and relaxing back towards zero at the
-//! same gain once `a_i` is inside again. At rest `c_i` settles where `a_i` equals the limit
-//! (integral action: whatever the other torques add, the task force gives it back). With the
-//! observer as a first-order lag and a quasi-static contact, the loop is `s² + K_O s + k_F K_O`:
+//! same gain once `a_i` is inside again (`f_upper`, `f_lower` the bounds after the margin). At
+//! rest `c_i` settles where `a_i` equals the limit (integral action: what the command-side
+//! limit does not predict, the bound gives back). With the observer as a first-order lag and a quasi-static contact, the loop is `s² + K_O s + k_F K_O`:
 //! `k_F = K_O/4` would be critically damped. That is an upper bound only: the contact force does
 //! not follow the bound quasi-statically (arm and surface dynamics), and on the simulated Justin
 //! `K_O/4` oscillated in the two-handed tasks; the fixture's gain is lower (see there).
@@ -56,7 +80,7 @@
 //! Everything is reset on a fault (with the observer) and per hand when its task is not in the
 //! hierarchy.
 
-use nalgebra::{Cholesky, Matrix3, RealField, SMatrix, SVector, Vector6};
+use nalgebra::{Cholesky, Const, Matrix3, RealField, SMatrix, SVector, Vector6};
 
 use super::config::RobotLayout;
 use crate::dynamics::{frame_jacobian, DynamicsError};
@@ -65,13 +89,19 @@ use crate::model::{Data, Model};
 /// Parameters of the contact-force limiter.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ForceLimitParameters<T> {
-    /// `true` enables the governor and the platform relief (the estimate is always reported).
+    /// `true` enables the command-side limit, the governor and the platform relief (the
+    /// estimate is always reported).
     pub enabled: bool,
+    /// Share `0 ≤ m < 1` of every finite bound kept free: the limiter holds the force within
+    /// `(1 − m)` times the configured bounds, for what neither the command-side prediction nor
+    /// the lagging estimate sees (surface compliance, friction changes, model error).
+    pub margin: T,
     /// Governor gain `k_F > 0` (1/s): N of correction per N·s of excess.
     pub gain: T,
     /// Largest correction `c_max ≥ 0` per axis (N, Nm).
     pub max_correction: T,
-    /// Regularisation `μ > 0` of the wrench estimate (m², in the units of `J Jᵀ`).
+    /// Regularisation `μ > 0` of the wrench estimate (m², in the units of `J Jᵀ`) and of the
+    /// reflected inertia of the command-side limit (1/kg, in the units of `J M⁻¹ Jᵀ`).
     pub regularisation: T,
 }
 
@@ -87,12 +117,27 @@ pub struct HandLimits<T> {
     pub upper: Vector6<T>,
 }
 
-/// State of the limiter: per hand the estimated applied wrench and the governor corrections.
+/// State of the limiter: per hand the estimated applied wrench and the governor corrections;
+/// the cycle's Jacobians and effective bounds for the command-side limit.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ForceLimiter<T, const N: usize> {
     applied: [Vector6<T>; 2],
     correction: [Vector6<T>; 2],
     relief: SVector<T, N>,
+    /// `J_u` of both hands, stacked (12 × N, desired-frame axes, platform columns zero).
+    stacked: SMatrix<T, 12, N>,
+    /// Effective bounds `(lower, upper)` per hand with an enabled limit, this cycle.
+    effective: [Option<(Vector6<T>, Vector6<T>)>; 2],
+    regularisation: T,
+}
+
+/// What the command-side limit did: the torque to add and the axes it acted on.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CommandLimit<T, const N: usize> {
+    /// `−J_Lᵀ e` (upper-body rows; zero without excess).
+    pub torque: SVector<T, N>,
+    /// Per hand and axis: the commanded contact force left its bounds.
+    pub limited: [[bool; 6]; 2],
 }
 
 impl<T: RealField + Copy, const N: usize> Default for ForceLimiter<T, N> {
@@ -104,7 +149,14 @@ impl<T: RealField + Copy, const N: usize> Default for ForceLimiter<T, N> {
 impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
     /// A limiter at rest (no correction).
     pub fn new() -> Self {
-        Self { applied: [Vector6::zeros(); 2], correction: [Vector6::zeros(); 2], relief: SVector::zeros() }
+        Self {
+            applied: [Vector6::zeros(); 2],
+            correction: [Vector6::zeros(); 2],
+            relief: SVector::zeros(),
+            stacked: SMatrix::zeros(),
+            effective: [None; 2],
+            regularisation: T::zero(),
+        }
     }
 
     /// Forgets every correction and estimate (after a fault).
@@ -178,6 +230,9 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
         stacked.fixed_rows_mut::<6>(0).copy_from(right);
         stacked.fixed_rows_mut::<6>(6).copy_from(left);
         let gram = stacked * stacked.transpose() + SMatrix::<T, 12, 12>::identity() * parameters.regularisation;
+        self.stacked = stacked;
+        self.regularisation = parameters.regularisation;
+        self.effective = [None; 2];
         let Some(factor) = Cholesky::new(gram) else {
             self.applied = [Vector6::zeros(); 2];
             self.relief = SVector::zeros();
@@ -202,6 +257,8 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
                 *correction = Vector6::zeros();
                 continue;
             };
+            let share = T::one() - parameters.margin;
+            let limits = HandLimits { lower: limits.lower * share, upper: limits.upper * share, ..limits };
             let mut reaction = Vector6::zeros();
             for axis in 0..6 {
                 let get = |v: &Vector6<T>| v.get(axis).copied().unwrap_or_else(T::zero);
@@ -216,6 +273,10 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
                     *r = get(&wrench);
                 }
             }
+            let bounds = self.bounds(h, &limits.lower, &limits.upper);
+            if let Some(e) = self.effective.get_mut(h) {
+                *e = Some(bounds);
+            }
             let torque = jacobian.transpose() * reaction;
             for (k, (r, t)) in self.relief.iter_mut().zip(torque.iter()).enumerate() {
                 if layout.platform.is_platform(k) {
@@ -224,6 +285,71 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
             }
         }
         Ok(())
+    }
+}
+
+impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
+    /// The command-side limit (module docs) for the projected task torque `τ = Σ_i N_i τ_i` of
+    /// this cycle, after [`Self::update`]: `factor` is the Cholesky factor of the closed-loop
+    /// inertia, `damping` the Cartesian damping force of each hand (task axes). Returns the
+    /// torque `−J_Lᵀ e` that moves every limited axis' rigid-contact force onto its bound (with
+    /// the damping rule of the module docs). Zero without an enabled limit or if a solve fails.
+    /// Cost: 12 solves with `factor`, one 12 × 12 Cholesky.
+    pub fn limit_command(&self, task_torque: &SVector<T, N>, factor: &Cholesky<T, Const<N>>, damping: &[Vector6<T>; 2]) -> CommandLimit<T, N> {
+        let none = CommandLimit { torque: SVector::zeros(), limited: [[false; 6]; 2] };
+        // The limited rows L: an axis of a hand with an enabled limit and a finite bound.
+        let mut selected = [false; 12];
+        for (h, bounds) in self.effective.iter().enumerate() {
+            let Some((lower, upper)) = bounds else { continue };
+            for (axis, (low, high)) in lower.iter().zip(upper.iter()).enumerate() {
+                if let Some(s) = selected.get_mut(6 * h + axis) {
+                    *s = low.is_finite() || high.is_finite();
+                }
+            }
+        }
+        if !selected.iter().any(|s| *s) {
+            return none;
+        }
+        // M⁻¹ J_uᵀ, then the reflected inertia of L (identity on the other rows) and J_L M⁻¹ τ.
+        let mobility = factor.solve(&self.stacked.transpose());
+        let mut reflected = self.stacked * mobility;
+        let mut rhs = mobility.transpose() * task_torque;
+        for (i, mut row) in reflected.row_iter_mut().enumerate() {
+            let row_selected = selected.get(i).copied().unwrap_or(false);
+            for (j, x) in row.iter_mut().enumerate() {
+                let both = row_selected && selected.get(j).copied().unwrap_or(false);
+                *x = match (i == j, both) {
+                    (true, true) => *x + self.regularisation,
+                    (true, false) => T::one(),
+                    (false, true) => *x,
+                    (false, false) => T::zero(),
+                };
+            }
+        }
+        for (r, s) in rhs.iter_mut().zip(selected.iter()) {
+            if !s {
+                *r = T::zero();
+            }
+        }
+        let Some(force) = Cholesky::new(reflected).map(|f| f.solve(&rhs)).filter(crate::math::all_finite) else {
+            return none;
+        };
+        let mut excess = SVector::<T, 12>::zeros();
+        let mut limited = [[false; 6]; 2];
+        for (h, ((bounds, flags), damping)) in self.effective.iter().zip(limited.iter_mut()).zip(damping.iter()).enumerate() {
+            let Some((lower, upper)) = bounds else { continue };
+            for (axis, flag) in flags.iter_mut().enumerate() {
+                let row = 6 * h + axis;
+                let get = |v: &Vector6<T>| v.get(axis).copied().unwrap_or_else(T::zero);
+                let (Some(f), Some(e)) = (force.get(row), excess.get_mut(row)) else { continue };
+                let d = get(damping);
+                let (low, high) = (get(lower) + d.max(T::zero()), get(upper) + d.min(T::zero()));
+                let over = *f - f.max(low).min(high);
+                *e = over;
+                *flag = over != T::zero();
+            }
+        }
+        CommandLimit { torque: -(self.stacked.transpose() * excess), limited }
     }
 }
 
@@ -312,8 +438,10 @@ mod tests {
     /// TCP on the last body. A wrench on the TCP gives `τ_ext = Jᵀ F`; the platform column is
     /// not observed; the estimate recovers the observable forces and the relief is their
     /// reaction on the platform along the limited axis.
-    fn estimate_recovers_the_contact<T: RealField + Copy>() {
-        use crate::dynamics::forward_kinematics;
+    /// A 3-DOF model: platform slider x, an upper-body slider x and one along z, 1 kg on each
+    /// body, TCP on the last one (both hands' frame); kinematics and `M` at rest.
+    fn sliders<T: RealField + Copy>() -> (Model<T, 3, 3, 1>, Data<T, 3, 3, 1>, RobotLayout<3>) {
+        use crate::dynamics::{crba, forward_kinematics};
         use crate::math::Placement;
         use crate::model::{Inertia, JointDrive, JointKind, ModelBuilder};
         use crate::platform::{PlatformAxis, PlatformLayout};
@@ -330,12 +458,24 @@ mod tests {
         let model = b.try_build().unwrap();
         let mut data = Data::new(&model);
         forward_kinematics(&model, &mut data, &SVector::zeros(), &SVector::zeros()).unwrap();
+        crba(&model, &mut data);
         let platform = PlatformLayout::try_new::<3>([PlatformAxis::Admitted(0), PlatformAxis::Absent, PlatformAxis::Absent]).unwrap();
-        let layout = RobotLayout { tcp: [tcp, tcp], platform, torso: [false; 3], arms: [[false, true, true], [false; 3]] };
+        (model, data, RobotLayout { tcp: [tcp, tcp], platform, torso: [false; 3], arms: [[false, true, true], [false; 3]] })
+    }
+
+    /// `+10 N` on the right TCP's x, nothing else.
+    fn wiper_limits<T: RealField + Copy>() -> HandLimits<T> {
+        let mut upper = Vector6::repeat(c(f64::INFINITY));
+        upper[0] = c(10.0);
+        HandLimits { axes: Matrix3::identity(), lower: Vector6::repeat(c(f64::NEG_INFINITY)), upper }
+    }
+
+    fn estimate_recovers_the_contact<T: RealField + Copy>() {
+        let (model, data, layout) = sliders::<T>();
         // The window pushes back with 30 N along −x on a TCP pressing along +x.
         let residual = SVector::<T, 3>::new(T::zero(), c(-30.0), c(0.0));
-        let limits = HandLimits { axes: Matrix3::identity(), lower: Vector6::repeat(c(f64::NEG_INFINITY)), upper: Vector6::new(c(10.0), c(f64::INFINITY), c(f64::INFINITY), c(f64::INFINITY), c(f64::INFINITY), c(f64::INFINITY)) };
-        let parameters = ForceLimitParameters { enabled: true, gain: c(12.5), max_correction: c(10.0), regularisation: c(1e-6) };
+        let limits = wiper_limits::<T>();
+        let parameters = ForceLimitParameters { enabled: true, margin: c(0.0), gain: c(12.5), max_correction: c(10.0), regularisation: c(1e-6) };
         let mut limiter = ForceLimiter::<T, 3>::new();
         limiter.update(&parameters, &model, &data, &layout, &residual, &[Some(limits), None], c(1e-3)).unwrap();
         // Both hands share the frame here: the estimate splits the 30 N between them (15 N each, over the 10 N limit).
@@ -355,4 +495,45 @@ mod tests {
         assert_eq!(limiter, ForceLimiter::new());
     }
     for_scalars!(estimate, estimate_recovers_the_contact);
+
+    /// The command-side limit on the sliders: `M = [[3, 2, 0], [2, 2, 0], [0, 0, 1]]`, the TCP x
+    /// row of `J_u` is `(0, 1, 0)` (platform column zero), so a task torque `τ` presses a rigid
+    /// contact along x with `λ = (J M⁻¹ Jᵀ)⁻¹ J M⁻¹ τ = τ₁` (z decoupled). The returned torque puts
+    /// the rigid-contact force of the limited torque exactly on the bound (checked with `M⁻¹`
+    /// computed independently), leaves the unlimited axis alone, keeps the damping that pulls
+    /// away from the bound, applies the margin, and is zero below the bound and when disabled.
+    fn command_side_limit_puts_the_contact_force_on_the_bound<T: RealField + Copy>() {
+        let (model, data, layout) = sliders::<T>();
+        let factor = Cholesky::new(data.mass_matrix).unwrap();
+        let inverse = data.mass_matrix.try_inverse().unwrap();
+        let row = nalgebra::RowVector3::new(T::zero(), T::one(), T::zero());
+        let contact = |tau: &SVector<T, 3>| (row * inverse * tau)[0] / (row * inverse * row.transpose())[0];
+        let run = |margin: f64, enabled: bool, tau: SVector<T, 3>, damping_x: f64| {
+            let parameters = ForceLimitParameters { enabled, margin: c(margin), gain: c(3.0), max_correction: c(10.0), regularisation: c(1e-6) };
+            let mut limiter = ForceLimiter::<T, 3>::new();
+            limiter.update(&parameters, &model, &data, &layout, &SVector::zeros(), &[Some(wiper_limits()), None], c(1e-3)).unwrap();
+            let mut damping = [Vector6::zeros(); 2];
+            damping[0][0] = c(damping_x);
+            limiter.limit_command(&tau, &factor, &damping)
+        };
+        let close = |a: T, b: f64| (a - c(b)).abs() < c(1e-3);
+        let tau = SVector::<T, 3>::new(T::zero(), c(30.0), c(5.0));
+        assert!(close(contact(&tau), 30.0));
+        let limit = run(0.0, true, tau, 0.0);
+        assert!(close(contact(&(tau + limit.torque)), 10.0), "{}", contact(&(tau + limit.torque)));
+        assert!(close(limit.torque[1], -20.0) && limit.torque[0] == T::zero() && close(limit.torque[2], 0.0));
+        assert_eq!(limit.limited[0], [true, false, false, false, false, false]);
+        assert_eq!(limit.limited[1], [false; 6]);
+        // Damping pushing towards the bound is dropped: the total is held at the bound.
+        assert!(close(contact(&(tau + run(0.0, true, tau, 3.0).torque)), 10.0));
+        // Damping pulling away from it acts on top of the bound: 10 − 3 N in total.
+        assert!(close(contact(&(tau + run(0.0, true, tau, -3.0).torque)), 7.0));
+        // The margin shrinks the bound to (1 − m) · 10 N.
+        assert!(close(contact(&(tau + run(0.1, true, tau, 0.0).torque)), 9.0));
+        // Below the bound, or disabled: nothing.
+        let below = SVector::<T, 3>::new(T::zero(), c(6.0), c(5.0));
+        assert_eq!(run(0.0, true, below, 0.0).torque, SVector::<T, 3>::zeros());
+        assert_eq!(run(0.0, false, tau, 0.0), CommandLimit { torque: SVector::zeros(), limited: [[false; 6]; 2] });
+    }
+    for_scalars!(command_side, command_side_limit_puts_the_contact_force_on_the_bound);
 }

@@ -71,7 +71,7 @@ use crate::tasks::end_stops::{end_stops, EndStop, EndStopConfig};
 use crate::tasks::joint_impedance::{joint_impedance, JointImpedance, JointImpedanceConfig, JointTarget};
 use crate::tasks::manipulability::{manipulability_avoidance, Manipulability, ManipulabilityConfig};
 use crate::tasks::torso_workspace::{torso_workspace, TorsoWorkspace};
-use crate::tasks::{TaskError, TaskRow, TaskRows};
+use crate::tasks::{TaskError, TaskRows};
 
 use config::{
     CartesianParameters, CollisionFieldParameters, Consistency, ControllerConfig, Hand, JointGroup, TaskKind, TaskSpec,
@@ -125,8 +125,8 @@ pub struct Telemetry<T: RealField, const N: usize> {
     /// TCP error `(p − p_des, 2ε)` in the desired frame's axes (m, rad-like), right then left;
     /// zero for a TCP without Cartesian task.
     pub tcp_error: [Vector6<T>; 2],
-    /// Where the Cartesian force limits (Table 7.1), as the contact-force governor tightened
-    /// them, clamped the force.
+    /// Where the Cartesian force limits (Table 7.1) acted: the task clamped its spring force,
+    /// or the command-side limit the commanded contact force ([`force_limit`]).
     pub tcp_force_limited: [[bool; 6]; 2],
     /// Estimated wrench each TCP applies on its environment (N, Nm), desired-frame axes, right
     /// then left: `−(J_u J_uᵀ + μ I)⁻¹ J_u τ̂_ext` ([`force_limit`]).
@@ -343,6 +343,8 @@ pub struct Controller<T: RealField, const N: usize, const B: usize, const F: usi
     reference_pose: Vector3<T>,
     observer: MomentumObserver<T, N>,
     force_limiter: ForceLimiter<T, N>,
+    /// The Cartesian damping force of each hand this cycle (task axes), outside the force limits.
+    cartesian_damping: [Vector6<T>; 2],
     data: Data<T, N, B, F>,
     collision_data: CollisionData<T, V, P>,
     stack: Stack<T, N, MAX_ROWS>,
@@ -382,6 +384,7 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
         Ok(Self {
             observer: MomentumObserver::new(config.observer.gain),
             force_limiter: ForceLimiter::new(),
+            cartesian_damping: [Vector6::zeros(); 2],
             hands: [PoseTrajectory::hold(Placement::identity()); 2],
             joint_goal: JointTrajectory::hold(SVector::zeros()),
             model,
@@ -522,7 +525,7 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
         let platform = self.platform_command(frame, dt)?;
         let terms = coupling_compensation(&self.data, &layout, &platform.acceleration).map_err(Fault::Platform)?;
         let compensation = terms.torque(self.config.platform.compensation);
-        let torque = self.guard_torque(&compensation, dt);
+        let torque = self.guard_torque(&compensation, &factor, dt);
         self.commit(frame, &torque, &platform, &closed_loop, dt)
     }
 
@@ -589,7 +592,7 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
         t.manipulability = [T::zero(); 2];
         t.tasks = [None; MAX_ACTIVE];
         t.task_count = self.hierarchy.len();
-        let mut geometry = Geometry { data: &mut self.collision_data, current: false };
+        let mut scratch = Scratch { collision: &mut self.collision_data, geometry_current: false, cartesian_damping: [Vector6::zeros(); 2] };
         for (index, entry) in self.hierarchy.iter().enumerate() {
             self.rows.clear();
             evaluate(
@@ -602,10 +605,9 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
                     hands: &self.hands,
                     joint_goal: &self.joint_goal,
                     factor,
-                    limiter: &self.force_limiter,
                 },
                 &mut self.data,
-                &mut geometry,
+                &mut scratch,
                 &mut self.rows,
                 &mut self.telemetry,
             )?;
@@ -629,6 +631,7 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
                 *norm = self.rows.torque().norm();
             }
         }
+        self.cartesian_damping = scratch.cartesian_damping;
         Ok(())
     }
 
@@ -675,11 +678,21 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
         Ok(PlatformStep { velocity, acceleration, leg_rates: legs })
     }
 
-    /// The upper-body torque `τ₀ + Σ N_i τ_i` through the priority-preserving guard.
-    fn guard_torque(&mut self, compensation: &SVector<T, N>, dt: T) -> SVector<T, N> {
+    /// The upper-body torque `τ₀ + Σ N_i τ_i` with the command-side contact-force limit
+    /// ([`force_limit`]) through the priority-preserving guard. The limit's torque joins `τ₀`:
+    /// the guard scales the task levels, never the bound on the contact force.
+    fn guard_torque(&mut self, compensation: &SVector<T, N>, factor: &Cholesky<T, Const<N>>, dt: T) -> SVector<T, N> {
         let count = self.projection.level_count.min(MAX_LEVELS);
         let levels = self.projection.level_torques.get(..count).unwrap_or(&[]);
-        let desired = levels.iter().fold(*compensation, |t, l| t + l);
+        let tasks = levels.iter().fold(SVector::<T, N>::zeros(), |t, l| t + l);
+        let limit = self.force_limiter.limit_command(&tasks, factor, &self.cartesian_damping);
+        for (flags, limited) in self.telemetry.tcp_force_limited.iter_mut().zip(limit.limited.iter()) {
+            for (flag, l) in flags.iter_mut().zip(limited.iter()) {
+                *flag |= *l;
+            }
+        }
+        let compensation = &(compensation + limit.torque);
+        let desired = compensation + tasks;
         let active = self.config.layout.coordinates(JointGroup::UpperBody);
         let rate = &self.config.output_limits.torque_rate;
         self.telemetry.saturation.torque_rate_limited = rate_exceeded(&desired, &self.previous_torque, rate, dt, &active);
@@ -808,10 +821,13 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
     }
 }
 
-/// The collision geometry of the cycle and whether it is current (updated this cycle).
-struct Geometry<'a, T: RealField, const V: usize, const P: usize> {
-    data: &'a mut CollisionData<T, V, P>,
-    current: bool,
+/// What the task evaluations of one cycle share: the collision geometry and whether it is
+/// current (updated this cycle), and the Cartesian damping force of each hand (task axes) for
+/// the command-side force limit ([`force_limit`]).
+struct Scratch<'a, T: RealField, const V: usize, const P: usize> {
+    collision: &'a mut CollisionData<T, V, P>,
+    geometry_current: bool,
+    cartesian_damping: [Vector6<T>; 2],
 }
 
 /// Read-only inputs of a task evaluation.
@@ -823,7 +839,6 @@ struct EvaluationContext<'a, T: RealField, const N: usize, const B: usize, const
     hands: &'a [PoseTrajectory<T>; 2],
     joint_goal: &'a JointTrajectory<T, N>,
     factor: &'a Cholesky<T, Const<N>>,
-    limiter: &'a ForceLimiter<T, N>,
 }
 
 /// Appends the rows of one task to `rows` and records its telemetry.
@@ -831,7 +846,7 @@ fn evaluate<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
     kind: TaskKind,
     cx: &EvaluationContext<'_, T, N, B, F, V, P>,
     data: &mut Data<T, N, B, F>,
-    geometry: &mut Geometry<'_, T, V, P>,
+    scratch: &mut Scratch<'_, T, V, P>,
     rows: &mut TaskRows<T, N, MAX_TASK_ROWS>,
     telemetry: &mut Telemetry<T, N>,
 ) -> Result<(), Fault> {
@@ -847,27 +862,17 @@ fn evaluate<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
                     *x = T::zero();
                 }
             }
-            let mut own = TaskRows::<T, N, 6>::new();
-            let report = cartesian_impedance(cx.model, data, task, &trajectory.sample(), &mut own);
+            let report = cartesian_impedance(cx.model, data, task, &trajectory.sample(), rows);
             data.v = velocity;
             let report = report.map_err(Fault::Task)?;
-            // The contact-force governor's effective bounds ([`force_limit`]), inside the
-            // configured ones: the rows' forces are clamped once more.
-            let config = task.config();
-            let (lower, upper) = cx.limiter.bounds(hand.index(), &config.force_lower, &config.force_upper);
-            let mut saturated = report.saturated;
-            let axes = (0..6).filter(|a| config.axes.contains(*a));
-            for (row, axis) in own.rows().iter().zip(axes) {
-                let entry = |v: &Vector6<T>| v.get(axis).copied().unwrap_or_else(T::zero);
-                let (raw, low, high) = (entry(&report.unsaturated_force), entry(&lower), entry(&upper));
-                if let Some(s) = saturated.get_mut(axis) {
-                    *s = raw < low || raw > high;
-                }
-                rows.push(TaskRow { force: row.force.max(low).min(high), ..*row }).map_err(Fault::Task)?;
-            }
-            if let (Some(e), Some(s)) = (telemetry.tcp_error.get_mut(hand.index()), telemetry.tcp_force_limited.get_mut(hand.index())) {
+            if let (Some(e), Some(s), Some(d)) = (
+                telemetry.tcp_error.get_mut(hand.index()),
+                telemetry.tcp_force_limited.get_mut(hand.index()),
+                scratch.cartesian_damping.get_mut(hand.index()),
+            ) {
                 *e = report.error;
-                *s = saturated;
+                *s = report.saturated;
+                *d = report.damping_force;
             }
         }
         TaskKind::CollisionAvoidance(field) => {
@@ -876,12 +881,12 @@ fn evaluate<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
             // kinematics: the first collision entry of the cycle updates it, the later ones (the
             // other field) reuse it. Same rows as updating twice.
             let (model, data_ref, factor, collision_model) = (cx.model, &*data, cx.factor, cx.collision_model);
-            let report = if geometry.current {
-                collision_rows_from_geometry(collision_model, geometry.data, model, data_ref, factor, parameters, rows)
+            let report = if scratch.geometry_current {
+                collision_rows_from_geometry(collision_model, scratch.collision, model, data_ref, factor, parameters, rows)
             } else {
-                self_collision_rows(collision_model, geometry.data, model, data_ref, factor, parameters, rows)
+                self_collision_rows(collision_model, scratch.collision, model, data_ref, factor, parameters, rows)
             };
-            geometry.current = true;
+            scratch.geometry_current = true;
             let report = report.map_err(Fault::Task)?;
             telemetry.min_collision_distance = report.min_distance;
             telemetry.collision_rows += report.rows;
@@ -941,6 +946,8 @@ fn validate_config<T: RealField + Copy, const N: usize>(config: &ControllerConfi
         (
             positive(force_limit.gain)
                 && positive(force_limit.regularisation)
+                && force_limit.margin >= T::zero()
+                && force_limit.margin < T::one()
                 && force_limit.max_correction.is_finite()
                 && force_limit.max_correction >= T::zero(),
             "force_limit",
