@@ -142,11 +142,19 @@ pub type JustinController = Controller<S, N, { justin::BODIES }, { justin::FRAME
 /// One sensor frame.
 pub type Frame = SensorFrame<S, U>;
 
-/// The controller with `whole_body::controller_config` and `fig_6_3_hierarchy(Hand::Right)`.
+/// The controller with `whole_body::controller_config` and `fig_6_3_hierarchy(Hand::Right)`,
+/// both TCPs with the force limits of Table 7.1's "Clean the mug!" (±20 N on every tool axis):
+/// the contact-force limiter's command-side limit (12 solves with the inertia factor, one
+/// 12 × 12 Cholesky) runs in every valid frame.
 pub fn new_controller() -> Option<JustinController> {
     let model = justin::model::<S>().ok()?;
     let collision = justin::collision::collision_model(&model).ok()?;
-    let config = whole_body::controller_config::<S>().ok()?;
+    let mut config = whole_body::controller_config::<S>().ok()?;
+    let limits = whole_body::CLEAN_MUG.cartesian::<S>();
+    for hand in config.cartesian.iter_mut() {
+        hand.force_lower = limits.force_lower;
+        hand.force_upper = limits.force_upper;
+    }
     JustinController::try_new(model, collision, config, &whole_body::fig_6_3_hierarchy(Hand::Right)).ok()
 }
 

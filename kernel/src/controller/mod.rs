@@ -11,8 +11,8 @@
 //! 3. **Contact-force limiter** ([`force_limit`]), then the **stack**: the limiter estimates the
 //!    contact wrench of each TCP from the momentum residual, tightens the Table 7.1 force bounds
 //!    per axis where the estimate exceeds them and adds the reaction along the limited axes to
-//!    the platform's virtual force; every task of the hierarchy ([`config::TaskSpec`], data, not code) emits its
-//!    rows on its level; a task moving between levels, or fading in or out after a planner
+//!    the platform's virtual force; every task of the hierarchy ([`config::TaskSpec`], data, not
+//!    code) emits its rows on its level; a task moving between levels, or fading in or out after a planner
 //!    command, is blended with the cubic (4.68) over `transition_s`
 //!    ([`crate::hierarchy::push_transitioning`], [`crate::hierarchy::push_scaled`]).
 //! 4. **Projection** ([`crate::hierarchy::project`]): dynamically consistent (`W` = the
@@ -22,7 +22,9 @@
 //!    (5.1), (5.12) (with a force deadband, Sec. 6.2); its velocity is the reference of the ICR
 //!    singularity avoidance with leg motion (Fig. 3.10), which commands `ṙ_des` and `λ̇`.
 //! 6. **Upper body** (5.13): `τ_q = τ₀ + Σ_i N_i τ_i` with the compensation
-//!    `τ₀ = M_qr r̈ + C_qr ṙ + g_q` (5.14) for the commanded platform acceleration.
+//!    `τ₀ = M_qr r̈ + C_qr ṙ + g_q` (5.14) for the commanded platform acceleration, plus the
+//!    limiter's command-side correction, which keeps the rigid-contact force of `Σ_i N_i τ_i`
+//!    along the limited TCP axes inside the bounds ([`force_limit`]).
 //! 7. **Guards** ([`guard`]): torque and torque-rate limits with priority-preserving scaling,
 //!    platform velocity and acceleration limits, leg-rate limits.
 //! 8. **Telemetry**: TCP errors, storage (potential) per level and its rate, activations and
