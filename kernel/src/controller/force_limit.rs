@@ -44,7 +44,9 @@
 //! acts on top (a contact pressed at the bound stays damped while the TCP moves into the
 //! surface); where it pushes towards the bound, the bound holds for the total (that part of the
 //! damping is dropped; what remains is still dissipative). Clamping the damping away entirely
-//! left the pressed contact undamped. With
+//! left the pressed contact undamped. `f_D` is the task's damping before projection and
+//! blending: exact for a Cartesian task on the first level (Fig. 6.3, Table 7.1), an
+//! approximation during its transition or on a lower level. With
 //! the excess `e` of `λ_L` over these bounds, `τ ← τ − J_Lᵀ e` lowers `λ_L` by exactly `e` (up to
 //! `μ`) and changes nothing else of the contact; the torque joins the compensation `τ₀`, which
 //! the output guard scales last. It acts before the contact exists as well: the bound is on what

@@ -12,8 +12,8 @@
 //!    contact wrench of each TCP from the momentum residual, tightens the Table 7.1 force bounds
 //!    per axis where the estimate exceeds them and adds the reaction along the limited axes to
 //!    the platform's virtual force; every task of the hierarchy ([`config::TaskSpec`], data, not
-//!    code) emits its rows on its level; a task moving between levels, or fading in or out after a planner
-//!    command, is blended with the cubic (4.68) over `transition_s`
+//!    code) emits its rows on its level; a task moving between levels, or fading in or out after
+//!    a planner command, is blended with the cubic (4.68) over `transition_s`
 //!    ([`crate::hierarchy::push_transitioning`], [`crate::hierarchy::push_scaled`]).
 //! 4. **Projection** ([`crate::hierarchy::project`]): dynamically consistent (`W` = the
 //!    closed-loop inertia) for free motion or statically consistent (`W = I`) for contact tasks
