@@ -114,16 +114,14 @@ fn frame_spec() -> impl Strategy<Value = FrameSpec> {
         .prop_map(|(deviation, scale, overrides, cycle)| FrameSpec { deviation, scale, overrides, cycle })
 }
 
+/// Any joint group.
+fn joint_group() -> impl Strategy<Value = JointGroup> {
+    prop::sample::select(JointGroup::ALL.to_vec())
+}
+
 fn task_kind() -> impl Strategy<Value = TaskKind> {
     let hand = prop_oneof![Just(Hand::Right), Just(Hand::Left)];
-    let group = prop_oneof![
-        Just(JointGroup::Platform),
-        Just(JointGroup::Torso),
-        Just(JointGroup::Arm(Hand::Right)),
-        Just(JointGroup::Arm(Hand::Left)),
-        Just(JointGroup::UpperBody),
-    ];
-    (0..8_u8, hand, group).prop_map(|(k, hand, group)| match k {
+    (0..8_u8, hand, joint_group()).prop_map(|(k, hand, group)| match k {
         0 => TaskKind::CartesianImpedance(hand),
         1 => TaskKind::CollisionAvoidance(if hand == Hand::Right { Field::Strong } else { Field::Weak }),
         2 => TaskKind::SingularityAvoidance(hand),
@@ -167,13 +165,7 @@ fn command() -> impl Strategy<Value = Command<f64>> {
     let field = (parameter(200.0), parameter(0.3), parameter(2.0), parameter(0.1), parameter(0.3)).prop_map(|(f, d, xi, a0, a1)| {
         CollisionFieldParameters { max_force: f, influence_distance: d, damping_ratio: xi, activation_full: a0, activation_zero: a1 }
     });
-    let group = prop_oneof![
-        Just(JointGroup::Platform),
-        Just(JointGroup::Torso),
-        Just(JointGroup::Arm(Hand::Right)),
-        Just(JointGroup::Arm(Hand::Left)),
-        Just(JointGroup::UpperBody),
-    ];
+    let group = joint_group();
     prop_oneof![
         prop::collection::vec((task_kind(), prop_oneof![8 => 0..4_u8, 1 => any::<u8>()]), 0..14)
             .prop_map(|specs| Command::SetHierarchy(specs.into_iter().map(|(kind, level)| TaskSpec { kind, level }).collect())),
