@@ -35,9 +35,9 @@ use kernel::controller::config::Hand;
 use kernel::model::Placement;
 use nalgebra::{Unit, Vector3};
 
-use super::wipe_window::{force_claims, press_path, HOLD_S,
-    base_travel, contact_metrics, limited_share, measured_range, run_tool, tool_figures, tool_orientation, Contact,
-    Circles, ToolPlan, ToolReference, Waypoints,
+use super::wipe_window::{
+    base_travel, force_claims, labelled_contact_metrics, measured_range, press_path, run_tool, tool_figures,
+    tool_orientation, Circles, Contact, ToolPlan, ToolReference, Waypoints, HOLD_S,
 };
 use super::{Outcome, Progress};
 use crate::output::{Span, Summary};
@@ -127,20 +127,8 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
     let limit = CLEAN_MUG.force_upper[2];
     let travel = base_travel(&run.samples);
     let mut summary = Summary::new(NAME);
-    let mut all = Vec::new();
-    let mut share = 1.0_f64;
-    for (i, c) in run.contacts.iter().enumerate() {
-        let m = contact_metrics(&run.samples, i, SCRUB_S);
-        summary
-            .metric(&format!("{}_first_touch_s", c.label), m.first_touch_s)
-            .metric(&format!("{}_peak_force_n", c.label), m.peak_n)
-            .metric(&format!("{}_settled_peak_force_n", c.label), m.settled_peak_n)
-            .metric(&format!("{}_mean_force_n", c.label), m.mean_n)
-            .metric(&format!("{}_contact_share", c.label), m.contact_share)
-            .metric(&format!("{}_force_limited_share", c.label), limited_share(&run.samples, i, SCRUB_S));
-        all.push(m);
-        share = share.min(m.contact_share);
-    }
+    let all = labelled_contact_metrics(&mut summary, &run, SCRUB_S);
+    let share = all.iter().map(|m| m.contact_share).fold(1.0_f64, f64::min);
     let circle_x = measured_range(&run.samples, 0, &Vector3::x(), SCRUB_S);
     let circle_z = measured_range(&run.samples, 0, &Vector3::z(), SCRUB_S);
     summary

@@ -34,9 +34,9 @@ use kernel::controller::config::Hand;
 use kernel::model::Placement;
 use nalgebra::{Unit, Vector3};
 
-use super::wipe_window::{force_claims, press_path, HOLD_S,
-    base_travel, contact_metrics, limited_share, measured_range, run_tool, tool_figures, tool_orientation, Contact,
-    ToolPlan, ToolReference, Waypoints,
+use super::wipe_window::{
+    base_travel, force_claims, labelled_contact_metrics, measured_range, press_path, run_tool, tool_figures,
+    tool_orientation, Contact, ToolPlan, ToolReference, Waypoints, HOLD_S,
 };
 use super::{Outcome, Progress};
 use crate::output::{Span, Summary};
@@ -134,23 +134,12 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
     let limit = -SWEEP_FLOOR.force_lower[2];
     let travel = base_travel(&run.samples);
     let mut summary = Summary::new(NAME);
-    let mut all = Vec::new();
-    let mut share = 1.0_f64;
+    let all = labelled_contact_metrics(&mut summary, &run, SWEEP_S);
+    let share = all.iter().map(|m| m.contact_share).fold(1.0_f64, f64::min);
     let mut range = f64::INFINITY;
     for (i, c) in run.contacts.iter().enumerate() {
-        let m = contact_metrics(&run.samples, i, SWEEP_S);
-        let limited = limited_share(&run.samples, i, SWEEP_S);
         let r = measured_range(&run.samples, i, &Vector3::x(), SWEEP_S);
-        summary
-            .metric(&format!("{}_first_touch_s", c.label), m.first_touch_s)
-            .metric(&format!("{}_peak_force_n", c.label), m.peak_n)
-            .metric(&format!("{}_settled_peak_force_n", c.label), m.settled_peak_n)
-            .metric(&format!("{}_mean_force_n", c.label), m.mean_n)
-            .metric(&format!("{}_contact_share", c.label), m.contact_share)
-            .metric(&format!("{}_force_limited_share", c.label), limited)
-            .metric(&format!("{}_sweep_range_x_m", c.label), r);
-        all.push(m);
-        share = share.min(m.contact_share);
+        summary.metric(&format!("{}_sweep_range_x_m", c.label), r);
         range = range.min(r);
     }
     summary

@@ -447,6 +447,26 @@ pub fn contact_metrics(samples: &[ToolSample], index: usize, window: (f64, f64))
     ContactMetrics { first_touch_s, peak_n, settled_peak_n, mean_n, window_peak_n, static_n, contact_share: touched / count }
 }
 
+/// [`contact_metrics`] of every contact of `run` over `window`, each recorded in `summary` under
+/// its label: `<label>_first_touch_s`, `_peak_force_n`, `_settled_peak_force_n`,
+/// `_mean_force_n`, `_contact_share` and `_force_limited_share` (of the reference with the same
+/// index).
+pub fn labelled_contact_metrics(summary: &mut Summary, run: &ToolRun, window: (f64, f64)) -> Vec<ContactMetrics> {
+    let mut all = Vec::new();
+    for (i, c) in run.contacts.iter().enumerate() {
+        let m = contact_metrics(&run.samples, i, window);
+        summary
+            .metric(&format!("{}_first_touch_s", c.label), m.first_touch_s)
+            .metric(&format!("{}_peak_force_n", c.label), m.peak_n)
+            .metric(&format!("{}_settled_peak_force_n", c.label), m.settled_peak_n)
+            .metric(&format!("{}_mean_force_n", c.label), m.mean_n)
+            .metric(&format!("{}_contact_share", c.label), m.contact_share)
+            .metric(&format!("{}_force_limited_share", c.label), limited_share(&run.samples, i, window));
+        all.push(m);
+    }
+    all
+}
+
 /// The force claims of a Table 7.1 tool on the largest values over its contacts, without any
 /// tolerance: the contact force never exceeds `limit` over the whole run (approach, pressing,
 /// motion, retreat: `run_peak_force_n`); the static force (reference at rest behind the
