@@ -130,7 +130,6 @@ pub struct ForceLimiter<T, const N: usize> {
     stacked: SMatrix<T, 12, N>,
     /// Effective bounds `(lower, upper)` per hand with an enabled limit, this cycle.
     effective: [Option<(Vector6<T>, Vector6<T>)>; 2],
-    regularisation: T,
 }
 
 /// What the command-side limit did: the torque to add and the axes it acted on.
@@ -157,7 +156,6 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
             relief: SVector::zeros(),
             stacked: SMatrix::zeros(),
             effective: [None; 2],
-            regularisation: T::zero(),
         }
     }
 
@@ -233,7 +231,6 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
         stacked.fixed_rows_mut::<6>(6).copy_from(left);
         let gram = stacked * stacked.transpose() + SMatrix::<T, 12, 12>::identity() * parameters.regularisation;
         self.stacked = stacked;
-        self.regularisation = parameters.regularisation;
         self.effective = [None; 2];
         let Some(factor) = Cholesky::new(gram) else {
             self.applied = [Vector6::zeros(); 2];
@@ -292,12 +289,13 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
 
 impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
     /// The command-side limit (module docs) for the projected task torque `τ = Σ_i N_i τ_i` of
-    /// this cycle, after [`Self::update`]: `factor` is the Cholesky factor of the closed-loop
-    /// inertia, `damping` the Cartesian damping force of each hand (task axes). Returns the
-    /// torque `−J_Lᵀ e` that moves every limited axis' rigid-contact force onto its bound (with
-    /// the damping rule of the module docs). Zero without an enabled limit or if a solve fails.
+    /// this cycle, after [`Self::update`]: `regularisation` is `μ` of the parameters, `factor`
+    /// the Cholesky factor of the closed-loop inertia, `damping` the Cartesian damping force of
+    /// each hand (task axes). Returns the torque `−J_Lᵀ e` that moves every limited axis'
+    /// rigid-contact force onto its bound (with the damping rule of the module docs). Zero
+    /// without an enabled limit or if a solve fails.
     /// Cost: 12 solves with `factor`, one 12 × 12 Cholesky.
-    pub fn limit_command(&self, task_torque: &SVector<T, N>, factor: &Cholesky<T, Const<N>>, damping: &[Vector6<T>; 2]) -> CommandLimit<T, N> {
+    pub fn limit_command(&self, regularisation: T, task_torque: &SVector<T, N>, factor: &Cholesky<T, Const<N>>, damping: &[Vector6<T>; 2]) -> CommandLimit<T, N> {
         let none = CommandLimit { torque: SVector::zeros(), limited: [[false; 6]; 2] };
         // The limited rows L: an axis of a hand with an enabled limit and a finite bound.
         let mut selected = [false; 12];
@@ -321,7 +319,7 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
             for (j, x) in row.iter_mut().enumerate() {
                 let both = row_selected && selected.get(j).copied().unwrap_or(false);
                 *x = match (i == j, both) {
-                    (true, true) => *x + self.regularisation,
+                    (true, true) => *x + regularisation,
                     (true, false) => T::one(),
                     (false, true) => *x,
                     (false, false) => T::zero(),
@@ -516,7 +514,7 @@ mod tests {
             limiter.update(&parameters, &model, &data, &layout, &SVector::zeros(), &[Some(wiper_limits()), None], c(1e-3)).unwrap();
             let mut damping = [Vector6::zeros(); 2];
             damping[0][0] = c(damping_x);
-            limiter.limit_command(&tau, &factor, &damping)
+            limiter.limit_command(parameters.regularisation, &tau, &factor, &damping)
         };
         let close = |a: T, b: f64| (a - c(b)).abs() < c(1e-3);
         let tau = SVector::<T, 3>::new(T::zero(), c(30.0), c(5.0));

@@ -687,7 +687,7 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
         let count = self.projection.level_count.min(MAX_LEVELS);
         let levels = self.projection.level_torques.get(..count).unwrap_or(&[]);
         let tasks = levels.iter().fold(SVector::<T, N>::zeros(), |t, l| t + l);
-        let limit = self.force_limiter.limit_command(&tasks, factor, &self.cartesian_damping);
+        let limit = self.force_limiter.limit_command(self.config.force_limit.regularisation, &tasks, factor, &self.cartesian_damping);
         for (flags, limited) in self.telemetry.tcp_force_limited.iter_mut().zip(limit.limited.iter()) {
             for (flag, l) in flags.iter_mut().zip(limited.iter()) {
                 *flag |= *l;
