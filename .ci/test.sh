@@ -6,6 +6,7 @@
 #      the link fails if anything in the kernel's dependency graph pulls in `alloc`
 #   4. a QEMU smoke run of that image on Cortex-M7 (mps2-an500) and Cortex-M4F (mps2-an386)
 #   5. the link-time panic check: Controller::step linked with an undefined panic handler
+#   6. formatting (`cargo fmt --check`) and rustdoc with warnings as errors
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # Incremental caches double the size of the debug target and a CI build is never incremental.
@@ -17,11 +18,16 @@ step() { printf '\n==> %s   [%s free]\n' "$*" "$(df -h --output=avail . | tail -
 
 step "toolchain set-up"
 rustup target add thumbv7em-none-eabihf >/dev/null
-rustup component add clippy >/dev/null 2>&1 || true
+rustup component add clippy rustfmt >/dev/null 2>&1 || true
 if ! command -v qemu-system-arm >/dev/null; then
     export DEBIAN_FRONTEND=noninteractive
     apt-get update -qq && apt-get install -y -qq qemu-system-arm >/dev/null
 fi
+
+step "formatting (rustfmt.toml) of the workspace, the firmware and its host bench"
+for manifest in Cargo.toml firmware/Cargo.toml firmware/wcet/host/Cargo.toml; do
+    cargo fmt --manifest-path "$manifest" --all --check
+done
 
 step "kernel and hal build for thumbv7em-none-eabihf (no_std)"
 cargo build --locked -p kernel -p hal --target thumbv7em-none-eabihf --release
@@ -55,6 +61,9 @@ rm -rf firmware/target
 
 step "clippy (panic-freedom lints are errors)"
 cargo clippy --locked --workspace --all-targets -- -D warnings
+
+step "rustdoc (warnings are errors)"
+RUSTDOCFLAGS="-D warnings" cargo doc --locked --workspace --no-deps
 
 step "workspace tests"
 cargo test --locked --workspace

@@ -5,14 +5,14 @@
 use fixtures::justin;
 use fixtures::justin::collision::JustinCollisionModel;
 use fixtures::justin::whole_body;
+use fixtures::justin::JustinModel;
 use hal::{JointSample, PlatformSample};
 use kernel::controller::config::Hand;
 use kernel::controller::{Controller, SensorFrame};
-use fixtures::justin::JustinModel;
 use kernel::dynamics::{coriolis_matrix, crba, forward_kinematics, frame_jacobian, gravity, mass_matrix_cholesky};
 use kernel::hierarchy::{project, HierarchyConfig, HierarchyData, Stack};
 use kernel::math::CholeskyFactor;
-use kernel::tasks::collision::{self_collision_rows, CollisionData, CollisionReport, CollisionParameters};
+use kernel::tasks::collision::{self_collision_rows, CollisionData, CollisionParameters, CollisionReport};
 use kernel::tasks::{TaskRow, TaskRows};
 use kernel::{Data, FrameId};
 use nalgebra::{ComplexField, RowSVector, SMatrix, SVector};
@@ -93,13 +93,22 @@ impl XorShift {
     }
 }
 
-fn push_frame_rows(stack: &mut Stack<S, N, ROWS>, data: &JustinData, model: &JustinModel<S>, level: usize, frame: FrameId, rows: &[usize]) -> Option<()> {
+fn push_frame_rows(
+    stack: &mut Stack<S, N, ROWS>,
+    data: &JustinData,
+    model: &JustinModel<S>,
+    level: usize,
+    frame: FrameId,
+    rows: &[usize],
+) -> Option<()> {
     let mut j = SMatrix::<S, 6, N>::zeros();
     frame_jacobian(model, data, frame, &mut j).ok()?;
     for r in rows {
         let k = stack.rows().len();
         let force = c(5.0) * ComplexField::cos(c(0.7) * c(k as f64));
-        stack.push(level, TaskRow { jacobian: j.row(*r).into_owned(), force, potential: c(0.0), activation: c(1.0) }).ok()?;
+        stack
+            .push(level, TaskRow { jacobian: j.row(*r).into_owned(), force, potential: c(0.0), activation: c(1.0) })
+            .ok()?;
     }
     Some(())
 }
@@ -138,7 +147,15 @@ pub fn case_input(case: u32) -> (SVector<S, N>, SVector<S, N>) {
 /// Upper-body joints of the Justin-like robot.
 pub const U: usize = justin::UPPER_DOF;
 /// The whole-body controller of Fig. 6.3 for the right hand, every one of the 214 pairs enabled.
-pub type JustinController = Controller<S, N, { justin::BODIES }, { justin::FRAMES }, U, { justin::collision::VOLUMES }, { justin::collision::PAIRS }>;
+pub type JustinController = Controller<
+    S,
+    N,
+    { justin::BODIES },
+    { justin::FRAMES },
+    U,
+    { justin::collision::VOLUMES },
+    { justin::collision::PAIRS },
+>;
 /// One sensor frame.
 pub type Frame = SensorFrame<S, U>;
 
@@ -194,17 +211,35 @@ pub fn frame_class(k: u32) -> &'static str {
 pub const ADVERSARIAL: &[[f64; U]] = &[
     // Found by `wcet-host search 3000` (score = 3·strong + weak + joints near a stop):
     // strong 29, weak 44, joints near a stop 6
-    [3.424, 0.326, 1.018, -0.505, 1.618, -1.034, 1.376, 0.960, -0.532, -2.084, 1.289, 0.706, 2.957, -2.084, -2.914, -1.335, 1.949],
+    [
+        3.424, 0.326, 1.018, -0.505, 1.618, -1.034, 1.376, 0.960, -0.532, -2.084, 1.289, 0.706, 2.957, -2.084, -2.914,
+        -1.335, 1.949,
+    ],
     // strong 27, weak 46, 5
-    [-2.419, 0.336, 1.649, 1.737, -0.668, 2.702, 1.892, -0.391, 1.910, 2.018, -0.839, 2.013, 2.604, -2.058, -1.073, 0.114, -0.004],
+    [
+        -2.419, 0.336, 1.649, 1.737, -0.668, 2.702, 1.892, -0.391, 1.910, 2.018, -0.839, 2.013, 2.604, -2.058, -1.073,
+        0.114, -0.004,
+    ],
     // strong 26, weak 59, 7
-    [3.439, 0.896, 2.306, -0.505, 1.355, 0.199, -2.084, 2.957, -1.165, -2.012, 0.881, 1.279, -2.896, -1.886, 2.679, -2.055, 1.788],
+    [
+        3.439, 0.896, 2.306, -0.505, 1.355, 0.199, -2.084, 2.957, -1.165, -2.012, 0.881, 1.279, -2.896, -1.886, 2.679,
+        -2.055, 1.788,
+    ],
     // strong 26, weak 57, 6
-    [-1.233, 1.053, 1.735, 2.954, 1.957, -1.644, -1.189, -2.066, 1.965, 2.084, 2.957, 1.988, -2.311, -0.016, -1.553, -1.784, -0.018],
+    [
+        -1.233, 1.053, 1.735, 2.954, 1.957, -1.644, -1.189, -2.066, 1.965, 2.084, 2.957, 1.988, -2.311, -0.016, -1.553,
+        -1.784, -0.018,
+    ],
     // strong 26, weak 36, 5
-    [3.481, -1.561, 0.838, 2.782, -2.084, 0.500, 1.239, -2.267, -2.084, 1.532, -2.626, -0.775, -2.666, 1.332, -1.527, 0.768, -1.232],
+    [
+        3.481, -1.561, 0.838, 2.782, -2.084, 0.500, 1.239, -2.267, -2.084, 1.532, -2.626, -0.775, -2.666, 1.332,
+        -1.527, 0.768, -1.232,
+    ],
     // strong 24, weak 39, 7
-    [-2.334, -1.272, 1.715, -2.863, 1.972, -1.185, -2.084, -1.285, -0.468, -1.553, 2.600, -2.084, -0.872, -2.084, -2.789, 0.406, -1.134],
+    [
+        -2.334, -1.272, 1.715, -2.863, 1.972, -1.185, -2.084, -1.285, -0.468, -1.553, 2.600, -2.084, -0.872, -2.084,
+        -2.789, 0.406, -1.134,
+    ],
     // Hand-made: torso bent to its workspace boundary (q_t2, q_t3 at their stops), right arm
     // stretched (elbow at 0.02 rad: near-singular), left arm at home.
     [0.0, 1.55, 2.33, 0.0, 1.0, 0.0, 0.02, 0.0, 0.0, 0.0, 0.5, 0.5, 0.5, 1.5, -0.5, -0.5, -0.2],
@@ -253,7 +288,11 @@ pub fn step_frame(k: u32, speed: &SVector<S, N>) -> Frame {
     // Nonzero velocities: 60 % of the joint speed limit, alternating signs; platform moving.
     let v = SVector::<S, N>::from_fn(|i, _| {
         let sign = if (i + a as usize) % 2 == 0 { c(1.0) } else { c(-1.0) };
-        if i < justin::BASE_DOF { sign * c(0.3) } else { sign * c(0.6) * speed[i] }
+        if i < justin::BASE_DOF {
+            sign * c(0.3)
+        } else {
+            sign * c(0.6) * speed[i]
+        }
     });
     frame(cycle, &q, &v)
 }

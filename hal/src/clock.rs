@@ -137,14 +137,8 @@ mod tests {
         // The last read returned the count before its own step.
         assert_eq!(previous, 251);
         let rate = clock.ticks_per_second();
-        #[allow(
-            clippy::cast_precision_loss,
-            reason = "small exact tick counts in a test"
-        )]
-        let (seconds_f64, seconds_f32) = (
-            previous as f64 / f64::from(rate),
-            previous as f32 / rate as f32,
-        );
+        #[allow(clippy::cast_precision_loss, reason = "small exact tick counts in a test")]
+        let (seconds_f64, seconds_f32) = (previous as f64 / f64::from(rate), previous as f32 / rate as f32);
         assert!((seconds_f64 - 0.251).abs() < 1e-12);
         assert!((seconds_f32 - 0.251).abs() < 1e-6);
     }
@@ -180,9 +174,6 @@ mod tests {
         let mut timer = LostTimer;
         let result = measure(&mut timer);
         assert_eq!(result.map_err(|e| e.kind()), Err(ErrorKind::Communication));
-        assert_eq!(
-            <&mut LostTimer as CycleClock>::ticks_per_second(&&mut timer),
-            32_768
-        );
+        assert_eq!(<&mut LostTimer as CycleClock>::ticks_per_second(&&mut timer), 32_768);
     }
 }

@@ -191,14 +191,8 @@ mod tests {
     fn error_type_forwards_through_mut_ref() {
         let mut device = Device;
         let by_ref = &mut device;
-        assert_eq!(
-            kind_through(&by_ref, &BusError { code: 0x10 }),
-            ErrorKind::Communication
-        );
-        assert_eq!(
-            kind_through(&by_ref, &BusError { code: 1 }),
-            ErrorKind::Other
-        );
+        assert_eq!(kind_through(&by_ref, &BusError { code: 0x10 }), ErrorKind::Communication);
+        assert_eq!(kind_through(&by_ref, &BusError { code: 1 }), ErrorKind::Other);
 
         // An ideal implementation stays infallible by reference.
         fn infallible<D: ErrorType<Error = Infallible>>() {}

@@ -164,12 +164,7 @@ mod tests {
         fn new(dt: T) -> Self {
             let zero = T::from(0.0);
             Self {
-                frame: JointSample {
-                    position: [zero; N],
-                    velocity: [zero; N],
-                    torque: [zero; N],
-                    cycle: 0,
-                },
+                frame: JointSample { position: [zero; N], velocity: [zero; N], torque: [zero; N], cycle: 0 },
                 command: [zero; N],
                 dt,
             }
@@ -187,12 +182,7 @@ mod tests {
         fn read(&mut self) -> Result<JointSample<T, N>, Infallible> {
             let dt = self.dt;
             let frame = &mut self.frame;
-            for ((q, dq), tau) in frame
-                .position
-                .iter_mut()
-                .zip(frame.velocity.iter_mut())
-                .zip(self.command)
-            {
+            for ((q, dq), tau) in frame.position.iter_mut().zip(frame.velocity.iter_mut()).zip(self.command) {
                 *dq = *dq + tau * dt;
                 *q = *q + *dq * dt;
             }
@@ -227,12 +217,7 @@ mod tests {
 
     fn ideal_through_mut_ref<T>(expected_velocity: [T; 2], expected_position: [T; 2])
     where
-        T: Copy
-            + From<f32>
-            + core::ops::Add<Output = T>
-            + core::ops::Mul<Output = T>
-            + PartialEq
-            + core::fmt::Debug,
+        T: Copy + From<f32> + core::ops::Add<Output = T> + core::ops::Mul<Output = T> + PartialEq + core::fmt::Debug,
     {
         let mut body = IdealJoints::<T, 2>::new(T::from(0.5));
         let Ok(sample) = run_cycles(&mut body, [T::from(1.0), T::from(-2.0)], 2);
@@ -284,27 +269,16 @@ mod tests {
     impl JointTorqueInterface<f64, 3> for FaultyBus {
         fn read(&mut self) -> Result<JointSample<f64, 3>, BusFault> {
             if self.cycle >= self.frames {
-                return Err(BusFault {
-                    kind: ErrorKind::Stale,
-                    cycle: self.cycle,
-                });
+                return Err(BusFault { kind: ErrorKind::Stale, cycle: self.cycle });
             }
             self.cycle += 1;
-            Ok(JointSample {
-                position: [0.0; 3],
-                velocity: [0.0; 3],
-                torque: self.applied,
-                cycle: self.cycle,
-            })
+            Ok(JointSample { position: [0.0; 3], velocity: [0.0; 3], torque: self.applied, cycle: self.cycle })
         }
 
         fn write_torque(&mut self, torque: &[f64; 3]) -> Result<(), BusFault> {
             if torque.iter().any(|t| !t.is_finite()) {
                 self.applied = [0.0; 3];
-                return Err(BusFault {
-                    kind: ErrorKind::OutOfRange,
-                    cycle: self.cycle,
-                });
+                return Err(BusFault { kind: ErrorKind::OutOfRange, cycle: self.cycle });
             }
             self.applied = *torque;
             Ok(())
@@ -313,11 +287,7 @@ mod tests {
 
     #[test]
     fn faulty_read_reports_stale_through_mut_ref() {
-        let mut bus = FaultyBus {
-            frames: 3,
-            cycle: 0,
-            applied: [0.0; 3],
-        };
+        let mut bus = FaultyBus { frames: 3, cycle: 0, applied: [0.0; 3] };
         // Three frames, then the fourth read of five cycles fails.
         let error = run_cycles(&mut bus, [1.0, 2.0, 3.0], 5).err();
         assert_eq!(error.map(|e| e.kind()), Some(ErrorKind::Stale));
@@ -327,16 +297,9 @@ mod tests {
 
     #[test]
     fn faulty_write_rejects_non_finite() {
-        let mut bus = FaultyBus {
-            frames: 10,
-            cycle: 0,
-            applied: [0.0; 3],
-        };
+        let mut bus = FaultyBus { frames: 10, cycle: 0, applied: [0.0; 3] };
         // By value, so `&mut bus` goes through the forwarding impl.
-        fn write<J: JointTorqueInterface<f64, 3>>(
-            mut joints: J,
-            torque: [f64; 3],
-        ) -> Result<(), J::Error> {
+        fn write<J: JointTorqueInterface<f64, 3>>(mut joints: J, torque: [f64; 3]) -> Result<(), J::Error> {
             joints.write_torque(&torque)
         }
         assert_eq!(write(&mut bus, [1.0, 1.0, 1.0]), Ok(()));

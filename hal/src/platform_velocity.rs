@@ -187,10 +187,7 @@ mod tests {
                     leg_lengths: [leg_length; LEGS],
                     cycle: 0,
                 },
-                command: PlatformCommand {
-                    velocity: [zero; 3],
-                    leg_rates: [zero; LEGS],
-                },
+                command: PlatformCommand { velocity: [zero; 3], leg_rates: [zero; LEGS] },
                 dt,
             }
         }
@@ -242,10 +239,8 @@ mod tests {
     {
         let t = T::from;
         let mut base = IdealBase::new(t(0.25), t(0.5));
-        let command = PlatformCommand {
-            velocity: [t(1.0), t(-0.5), t(0.25)],
-            leg_rates: [t(0.125), t(0.0), t(-0.125), t(0.0)],
-        };
+        let command =
+            PlatformCommand { velocity: [t(1.0), t(-0.5), t(0.25)], leg_rates: [t(0.125), t(0.0), t(-0.125), t(0.0)] };
         let Ok(last) = drive(&mut base, command, 4);
         let expected = PlatformSample {
             pose: [t(1.0), t(-0.5), t(0.25)],
@@ -299,26 +294,14 @@ mod tests {
             if self.stopped {
                 return Err(BaseFault::EmergencyStop);
             }
-            Ok(PlatformSample {
-                pose: [0.0; 3],
-                velocity: self.command.velocity,
-                leg_lengths: [0.5; LEGS],
-                cycle: 1,
-            })
+            Ok(PlatformSample { pose: [0.0; 3], velocity: self.command.velocity, leg_lengths: [0.5; LEGS], cycle: 1 })
         }
 
         fn write_velocity(&mut self, command: &PlatformCommand<f32>) -> Result<(), BaseFault> {
-            let finite = command
-                .velocity
-                .iter()
-                .chain(&command.leg_rates)
-                .all(|v| v.is_finite());
+            let finite = command.velocity.iter().chain(&command.leg_rates).all(|v| v.is_finite());
             if !finite {
                 self.stopped = true;
-                self.command = PlatformCommand {
-                    velocity: [0.0; 3],
-                    leg_rates: [0.0; LEGS],
-                };
+                self.command = PlatformCommand { velocity: [0.0; 3], leg_rates: [0.0; LEGS] };
                 return Err(BaseFault::NonFiniteCommand);
             }
             self.command = *command;
@@ -328,24 +311,13 @@ mod tests {
 
     #[test]
     fn faulty_base_reports_kinds_through_mut_ref() {
-        let mut base = FaultyBase {
-            stopped: false,
-            command: PlatformCommand {
-                velocity: [0.0; 3],
-                leg_rates: [0.0; LEGS],
-            },
-        };
-        let good = PlatformCommand {
-            velocity: [0.5, 0.0, 0.0],
-            leg_rates: [0.0; LEGS],
-        };
+        let mut base =
+            FaultyBase { stopped: false, command: PlatformCommand { velocity: [0.0; 3], leg_rates: [0.0; LEGS] } };
+        let good = PlatformCommand { velocity: [0.5, 0.0, 0.0], leg_rates: [0.0; LEGS] };
         let velocity = drive(&mut base, good, 2).map(|last| last.map(|s| s.velocity));
         assert_eq!(velocity, Ok(Some([0.5, 0.0, 0.0])));
 
-        let bad = PlatformCommand {
-            velocity: [0.5, f32::INFINITY, 0.0],
-            leg_rates: [0.0; LEGS],
-        };
+        let bad = PlatformCommand { velocity: [0.5, f32::INFINITY, 0.0], leg_rates: [0.0; LEGS] };
         let error = drive(&mut base, bad, 1).err();
         assert_eq!(error.map(|e| e.kind()), Some(ErrorKind::OutOfRange));
         assert_eq!(base.command.velocity, [0.0; 3]);

@@ -102,7 +102,8 @@ fn justin(c: &mut Criterion) {
     group.bench_function("step_table_3_1", |b| {
         b.iter(|| {
             rows.clear();
-            black_box(self_collision_rows(&collision, &mut cd, &model, &data, &factor, &table, &mut rows)).map(|r| r.rows)
+            black_box(self_collision_rows(&collision, &mut cd, &model, &data, &factor, &table, &mut rows))
+                .map(|r| r.rows)
         });
     });
     group.finish();

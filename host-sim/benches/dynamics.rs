@@ -55,12 +55,8 @@ fn algorithms<const N: usize, const B: usize, const F: usize>(
     });
     let _ = forward_kinematics(model, &mut data, &q, &v);
     group.bench_function("crba", |b| b.iter(|| *crba(black_box(model), &mut data)));
-    group.bench_function("rnea", |b| {
-        b.iter(|| rnea(black_box(model), &mut data, black_box(&a)).copied())
-    });
-    group.bench_function("coriolis_matrix", |b| {
-        b.iter(|| *coriolis_matrix(black_box(model), &mut data))
-    });
+    group.bench_function("rnea", |b| b.iter(|| rnea(black_box(model), &mut data, black_box(&a)).copied()));
+    group.bench_function("coriolis_matrix", |b| b.iter(|| *coriolis_matrix(black_box(model), &mut data)));
     let mut jacobian = SMatrix::<f64, 6, N>::zeros();
     group.bench_function("frame_jacobian", |b| {
         b.iter(|| frame_jacobian(black_box(model), &data, black_box(tcp), &mut jacobian));
@@ -95,11 +91,7 @@ fn justin(c: &mut Criterion) {
         b.iter(|| controller.step(&mut sim).map(|t| t.torque_ratio));
     });
     group.bench_function("sim_physics_step", |b| {
-        b.iter_batched_ref(
-            || sim.clone(),
-            |s| s.step().map(|r| r.time_s),
-            criterion::BatchSize::SmallInput,
-        );
+        b.iter_batched_ref(|| sim.clone(), |s| s.step().map(|r| r.time_s), criterion::BatchSize::SmallInput);
     });
     group.finish();
 }

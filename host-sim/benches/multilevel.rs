@@ -54,7 +54,10 @@ fn bench<const N: usize, const B: usize, const F: usize>(
     let Some(pose) = data.frame_placements.get(tcp.0).copied() else {
         return;
     };
-    let target = Placement::from_parts(Translation3::from(pose.translation.vector + Vector3::new(0.03, -0.02, 0.01)), pose.rotation);
+    let target = Placement::from_parts(
+        Translation3::from(pose.translation.vector + Vector3::new(0.03, -0.02, 0.01)),
+        pose.rotation,
+    );
     let Ok(mut controller) = ArmHierarchy::new(model.clone(), tcp, target, q + SVector::repeat(0.1)) else {
         eprintln!("skipping {name}: controller");
         return;
@@ -72,7 +75,8 @@ fn bench<const N: usize, const B: usize, const F: usize>(
     let Ok(factor) = mass_matrix_cholesky(&data) else {
         return;
     };
-    let terms = DynamicsTerms { mass_matrix: &mass, mass_factor: &factor, coriolis: &coriolis, gravity: &g, velocity: &v };
+    let terms =
+        DynamicsTerms { mass_matrix: &mass, mass_factor: &factor, coriolis: &coriolis, gravity: &g, velocity: &v };
     let config = MultilevelConfig::default();
     let stack = controller.stack().clone();
     let mut out = MultilevelData::<f64, N, 3>::default();
@@ -81,9 +85,13 @@ fn bench<const N: usize, const B: usize, const F: usize>(
     });
     let mut decomposition = Decomposition::<f64, N, 3>::default();
     group.bench_function("decompose", |b| {
-        b.iter(|| decompose(&config, black_box(&stack), black_box(&terms), &mut decomposition).map(|d| d.level_count()));
+        b.iter(|| {
+            decompose(&config, black_box(&stack), black_box(&terms), &mut decomposition).map(|d| d.level_count())
+        });
     });
-    group.bench_function("coriolis_decoupling", |b| b.iter(|| coriolis_decoupling(black_box(&decomposition), black_box(&terms))));
+    group.bench_function("coriolis_decoupling", |b| {
+        b.iter(|| coriolis_decoupling(black_box(&decomposition), black_box(&terms)))
+    });
     group.finish();
 }
 

@@ -163,15 +163,12 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> CartesianJo
         };
         model.frame(tcp).ok_or(ControllerError::UnknownFrame)?;
         let non_negative = |x: f64| x.is_finite() && x >= 0.0;
-        let gains_ok = gains
-            .translational_stiffness
-            .iter()
-            .chain(gains.rotational_stiffness.iter())
-            .all(|k| non_negative(*k))
-            && non_negative(gains.joint_stiffness)
-            && non_negative(gains.joint_damping)
-            && gains.damping_ratio.is_finite()
-            && gains.damping_ratio > 0.0;
+        let gains_ok =
+            gains.translational_stiffness.iter().chain(gains.rotational_stiffness.iter()).all(|k| non_negative(*k))
+                && non_negative(gains.joint_stiffness)
+                && non_negative(gains.joint_damping)
+                && gains.damping_ratio.is_finite()
+                && gains.damping_ratio > 0.0;
         if !gains_ok {
             return Err(ControllerError::InvalidGains);
         }
@@ -258,10 +255,7 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> CartesianJo
         };
         self.telemetry.torque = torque;
         robot.write_torque(&torque.into())?;
-        robot.write_velocity(&PlatformCommand {
-            velocity: [0.0; 3],
-            leg_rates: [0.0; LEGS],
-        })?;
+        robot.write_velocity(&PlatformCommand { velocity: [0.0; 3], leg_rates: [0.0; LEGS] })?;
         Ok(&self.telemetry)
     }
 
@@ -311,14 +305,7 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> CartesianJo
 
         let translation = x.translation.vector - self.target.translation.vector;
         let rotation = (x.rotation * self.target.rotation.inverse()).scaled_axis();
-        let error = Vector6::new(
-            translation.x,
-            translation.y,
-            translation.z,
-            rotation.x,
-            rotation.y,
-            rotation.z,
-        );
+        let error = Vector6::new(translation.x, translation.y, translation.z, rotation.x, rotation.y, rotation.z);
         let tcp_velocity = jacobian * v;
         let wrench = self.stiffness.component_mul(&error) + damping.component_mul(&tcp_velocity);
         let desired = g_u
@@ -347,9 +334,5 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> CartesianJo
 }
 
 fn placement_is_finite(p: &Placement<f64>) -> bool {
-    p.rotation
-        .matrix()
-        .iter()
-        .chain(p.translation.vector.iter())
-        .all(|x| x.is_finite())
+    p.rotation.matrix().iter().chain(p.translation.vector.iter()).all(|x| x.is_finite())
 }

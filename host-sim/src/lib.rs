@@ -19,10 +19,10 @@
 pub mod codegen;
 pub mod controllers;
 pub mod dynamics_cli;
+pub mod mobile_controller;
 pub mod output;
 pub mod scenario;
 pub mod sim;
 pub mod urdf;
-pub mod mobile_controller;
-pub mod wheels;
 pub mod wbc;
+pub mod wheels;

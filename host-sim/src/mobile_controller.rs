@@ -316,7 +316,8 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> MobileImped
         task_data.v.fixed_rows_mut::<BASE>(0).fill(0.0);
         let mut rows = TaskRows::<f64, N, 6>::new();
         let at_rest = CartesianTarget::at_rest(self.target.pose);
-        let report = cartesian_impedance(model, task_data, &self.task, &at_rest, &mut rows).map_err(MobileFault::Task)?;
+        let report =
+            cartesian_impedance(model, task_data, &self.task, &at_rest, &mut rows).map_err(MobileFault::Task)?;
         let spring = self.task.stiffness() * report.error;
         let mut tau_task = SVector::<f64, N>::zeros();
         let mut tau_spring = SVector::<f64, N>::zeros();
@@ -332,10 +333,8 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> MobileImped
                 *f = tau_spring.get(c).copied().unwrap_or(0.0);
             }
         }
-        let admittance = self
-            .admittance
-            .step(&virtual_force, &Vector3::zeros(), self.period_s)
-            .map_err(MobileFault::Platform)?;
+        let admittance =
+            self.admittance.step(&virtual_force, &Vector3::zeros(), self.period_s).map_err(MobileFault::Platform)?;
 
         // (3) Upper body: impedance, damping, posture and compensation (5.13)–(5.14).
         let terms = coupling_compensation(data, &layout, &admittance.acceleration).map_err(MobileFault::Platform)?;
@@ -352,11 +351,12 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> MobileImped
         // (4) Storage (5.21), its predicted rate (5.22) and the monitor.
         let posture_potential = 0.5 * posture_error.component_mul(&posture_error).dot(&s.posture_stiffness);
         let impedance_potential = rows.potential();
-        let storage = storage_function(&m_closed, &v, impedance_potential + posture_potential).map_err(MobileFault::Platform)?;
+        let storage =
+            storage_function(&m_closed, &v, impedance_potential + posture_potential).map_err(MobileFault::Platform)?;
         let mut damping_torque = SVector::<f64, N>::zeros();
-        damping_torque.fixed_rows_mut::<U>(BASE).copy_from(
-            &(-(tau_task - tau_spring).fixed_rows::<U>(BASE) + vu.component_mul(&s.posture_damping)),
-        );
+        damping_torque
+            .fixed_rows_mut::<U>(BASE)
+            .copy_from(&(-(tau_task - tau_spring).fixed_rows::<U>(BASE) + vu.component_mul(&s.posture_damping)));
         for ((axis, d), rate) in layout.axes().iter().zip(s.admittance.damping.iter()).zip(base.velocity.iter()) {
             if let (Some(c), true) = (axis.coordinate(), axis.is_admitted()) {
                 if let Some(x) = damping_torque.get_mut(c) {

@@ -27,10 +27,7 @@ pub struct TimeSeries {
 impl TimeSeries {
     /// An empty table with the given column names (the first should be `t`).
     pub fn new(columns: Vec<String>) -> Self {
-        Self {
-            columns,
-            rows: Vec::new(),
-        }
+        Self { columns, rows: Vec::new() }
     }
 
     /// The column names.
@@ -46,11 +43,7 @@ impl TimeSeries {
     /// Appends a row. Errors if its length differs from the number of columns.
     pub fn push(&mut self, row: Vec<f64>) -> Result<(), String> {
         if row.len() != self.columns.len() {
-            return Err(format!(
-                "row has {} values for {} columns",
-                row.len(),
-                self.columns.len()
-            ));
+            return Err(format!("row has {} values for {} columns", row.len(), self.columns.len()));
         }
         self.rows.push(row);
         Ok(())
@@ -92,21 +85,13 @@ pub struct Summary {
 impl Summary {
     /// An empty summary of scenario `scenario`.
     pub fn new(scenario: &str) -> Self {
-        Self {
-            scenario: scenario.to_owned(),
-            metrics: Map::new(),
-            passed: Vec::new(),
-            failed: Vec::new(),
-        }
+        Self { scenario: scenario.to_owned(), metrics: Map::new(), passed: Vec::new(), failed: Vec::new() }
     }
 
     /// Records a numeric metric (`snake_case_unit`, e.g. `settle_time_s`). Non-finite values are
     /// written as JSON `null`.
     pub fn metric(&mut self, name: &str, value: f64) -> &mut Self {
-        self.metrics.insert(
-            name.to_owned(),
-            serde_json::Number::from_f64(value).map_or(Value::Null, Value::Number),
-        );
+        self.metrics.insert(name.to_owned(), serde_json::Number::from_f64(value).map_or(Value::Null, Value::Number));
         self
     }
 
@@ -167,20 +152,12 @@ pub struct Line {
 impl Line {
     /// A solid line.
     pub fn new(label: impl Into<String>, points: Vec<(f64, f64)>) -> Self {
-        Self {
-            label: label.into(),
-            points,
-            dashed: false,
-        }
+        Self { label: label.into(), points, dashed: false }
     }
 
     /// A dashed line.
     pub fn dashed(label: impl Into<String>, points: Vec<(f64, f64)>) -> Self {
-        Self {
-            label: label.into(),
-            points,
-            dashed: true,
-        }
+        Self { label: label.into(), points, dashed: true }
     }
 }
 
@@ -318,9 +295,7 @@ fn draw_panel(area: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>, panel:
         };
         // An empty label keeps the line out of the legend (e.g. the second bound of a band).
         if !line.label.is_empty() {
-            drawn
-                .label(&line.label)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], style));
+            drawn.label(&line.label).legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], style));
         }
     }
     chart
@@ -335,13 +310,7 @@ fn draw_panel(area: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>, panel:
 
 /// Data ranges of a panel with a 5 % margin in y; degenerate ranges are widened.
 fn ranges(panel: &Panel) -> (std::ops::Range<f64>, std::ops::Range<f64>) {
-    let points = || {
-        panel
-            .lines
-            .iter()
-            .flat_map(|l| l.points.iter())
-            .filter(|(x, y)| x.is_finite() && y.is_finite())
-    };
+    let points = || panel.lines.iter().flat_map(|l| l.points.iter()).filter(|(x, y)| x.is_finite() && y.is_finite());
     let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
     for (x, y) in points() {
         x0 = x0.min(*x);
@@ -358,11 +327,7 @@ fn ranges(panel: &Panel) -> (std::ops::Range<f64>, std::ops::Range<f64>) {
     if x1 <= x0 {
         x1 = x0 + 1.0;
     }
-    let pad = if y1 > y0 {
-        0.05 * (y1 - y0)
-    } else {
-        0.5 * y0.abs().max(1.0)
-    };
+    let pad = if y1 > y0 { 0.05 * (y1 - y0) } else { 0.5 * y0.abs().max(1.0) };
     (x0..x1, (y0 - pad)..(y1 + pad * 4.0))
 }
 

@@ -11,20 +11,20 @@ use crate::output::{self, Figure, Summary, TimeSeries};
 
 #[path = "scenarios/cartesian_step.rs"]
 pub mod cartesian_step;
+#[path = "scenarios/clean_mug.rs"]
+pub mod clean_mug;
 #[path = "scenarios/energy_planar4.rs"]
 pub mod energy_planar4;
 #[path = "scenarios/hierarchy_common.rs"]
 pub mod hierarchy_common;
-#[path = "scenarios/projectors_sim1.rs"]
-pub mod projectors_sim1;
-#[path = "scenarios/stiffness_sim2.rs"]
-pub mod stiffness_sim2;
-#[path = "scenarios/unilateral_sim.rs"]
-pub mod unilateral_sim;
-#[path = "scenarios/torso_workspace.rs"]
-pub mod torso_workspace;
-#[path = "scenarios/sca_damping.rs"]
-pub mod sca_damping;
+#[path = "scenarios/icr_avoidance.rs"]
+pub mod icr_avoidance;
+#[path = "scenarios/mobile_impedance.rs"]
+pub mod mobile_impedance;
+#[path = "scenarios/mobile_impedance_critical.rs"]
+pub mod mobile_impedance_critical;
+#[path = "scenarios/multilevel_arm.rs"]
+pub mod multilevel_arm;
 #[path = "scenarios/multilevel_planar.rs"]
 pub mod multilevel_planar;
 #[path = "scenarios/multilevel_sim1.rs"]
@@ -33,32 +33,32 @@ pub mod multilevel_sim1;
 pub mod multilevel_sim2;
 #[path = "scenarios/multilevel_sim3.rs"]
 pub mod multilevel_sim3;
-#[path = "scenarios/multilevel_arm.rs"]
-pub mod multilevel_arm;
-#[path = "scenarios/mobile_impedance.rs"]
-pub mod mobile_impedance;
-#[path = "scenarios/mobile_impedance_critical.rs"]
-pub mod mobile_impedance_critical;
+#[path = "scenarios/projectors_sim1.rs"]
+pub mod projectors_sim1;
+#[path = "scenarios/sca_damping.rs"]
+pub mod sca_damping;
+#[path = "scenarios/soak.rs"]
+pub mod soak;
 #[path = "scenarios/stability_map.rs"]
 pub mod stability_map;
-#[path = "scenarios/icr_avoidance.rs"]
-pub mod icr_avoidance;
+#[path = "scenarios/stiffness_sim2.rs"]
+pub mod stiffness_sim2;
+#[path = "scenarios/sweep_floor.rs"]
+pub mod sweep_floor;
+#[path = "scenarios/torso_workspace.rs"]
+pub mod torso_workspace;
+#[path = "scenarios/unilateral_sim.rs"]
+pub mod unilateral_sim;
+#[path = "scenarios/wbc_grasp.rs"]
+pub mod wbc_grasp;
+#[path = "scenarios/wbc_phri.rs"]
+pub mod wbc_phri;
 #[path = "scenarios/wbc_step.rs"]
 pub mod wbc_step;
 #[path = "scenarios/wbc_trajectory.rs"]
 pub mod wbc_trajectory;
-#[path = "scenarios/wbc_phri.rs"]
-pub mod wbc_phri;
-#[path = "scenarios/wbc_grasp.rs"]
-pub mod wbc_grasp;
 #[path = "scenarios/wipe_window.rs"]
 pub mod wipe_window;
-#[path = "scenarios/sweep_floor.rs"]
-pub mod sweep_floor;
-#[path = "scenarios/clean_mug.rs"]
-pub mod clean_mug;
-#[path = "scenarios/soak.rs"]
-pub mod soak;
 
 /// What a scenario produced.
 #[derive(Clone, Debug)]
@@ -200,24 +200,14 @@ const SCENARIOS: &[Entry] = &[
         simulate: icr_avoidance::simulate,
         extra_files: Some(icr_avoidance::write_files),
     },
-    Entry {
-        name: wbc_step::NAME,
-        description: wbc_step::DESCRIPTION,
-        simulate: wbc_step::simulate,
-        extra_files: None,
-    },
+    Entry { name: wbc_step::NAME, description: wbc_step::DESCRIPTION, simulate: wbc_step::simulate, extra_files: None },
     Entry {
         name: wbc_trajectory::NAME,
         description: wbc_trajectory::DESCRIPTION,
         simulate: wbc_trajectory::simulate,
         extra_files: None,
     },
-    Entry {
-        name: wbc_phri::NAME,
-        description: wbc_phri::DESCRIPTION,
-        simulate: wbc_phri::simulate,
-        extra_files: None,
-    },
+    Entry { name: wbc_phri::NAME, description: wbc_phri::DESCRIPTION, simulate: wbc_phri::simulate, extra_files: None },
     Entry {
         name: wbc_grasp::NAME,
         description: wbc_grasp::DESCRIPTION,
@@ -242,12 +232,7 @@ const SCENARIOS: &[Entry] = &[
         simulate: clean_mug::simulate,
         extra_files: None,
     },
-    Entry {
-        name: soak::NAME,
-        description: soak::DESCRIPTION,
-        simulate: soak::simulate,
-        extra_files: None,
-    },
+    Entry { name: soak::NAME, description: soak::DESCRIPTION, simulate: soak::simulate, extra_files: None },
 ];
 
 /// The scenarios: `(name, one-line description)`.
@@ -301,25 +286,15 @@ pub fn run(name: &str, out: &Path) -> Result<(), String> {
 
 /// Standard column names for per-joint signals: `q.<joint>`, `dq.<joint>`, `tau.<joint>`.
 pub fn joint_columns(names: &[&str]) -> Vec<String> {
-    ["q", "dq", "tau"]
-        .iter()
-        .flat_map(|p| names.iter().map(move |n| format!("{p}.{n}")))
-        .collect()
+    ["q", "dq", "tau"].iter().flat_map(|p| names.iter().map(move |n| format!("{p}.{n}"))).collect()
 }
 
 /// Columns `e<level>.x, .y, .z, .rx, .ry, .rz` of a 6-D Cartesian task error.
 pub fn pose_error_columns(level: usize) -> Vec<String> {
-    ["x", "y", "z", "rx", "ry", "rz"]
-        .iter()
-        .map(|a| format!("e{level}.{a}"))
-        .collect()
+    ["x", "y", "z", "rx", "ry", "rz"].iter().map(|a| format!("e{level}.{a}")).collect()
 }
 
 /// Index of `name` in a time series' columns.
 pub(crate) fn column_index(series: &TimeSeries, name: &str) -> Result<usize, String> {
-    series
-        .columns()
-        .iter()
-        .position(|c| c == name)
-        .ok_or_else(|| format!("no column {name}"))
+    series.columns().iter().position(|c| c == name).ok_or_else(|| format!("no column {name}"))
 }

@@ -184,11 +184,7 @@ pub struct PassiveJoints<const U: usize> {
 impl<const U: usize> PassiveJoints<U> {
     /// No springs, no damping.
     pub fn none() -> Self {
-        Self {
-            stiffness: SVector::zeros(),
-            rest: SVector::zeros(),
-            damping: SVector::zeros(),
-        }
+        Self { stiffness: SVector::zeros(), rest: SVector::zeros(), damping: SVector::zeros() }
     }
 
     /// The torque the elements exert at `(q_u, q̇_u)`.
@@ -290,7 +286,8 @@ impl Surface {
         let depth_rate = -velocity.dot(&n);
         let normal_force = (self.stiffness_n_m * depth + self.damping_ns_m * depth_rate).max(0.0);
         let tangential = velocity - n * velocity.dot(&n);
-        let regularised = (tangential.norm_squared() + FRICTION_REGULARISATION_M_S * FRICTION_REGULARISATION_M_S).sqrt();
+        let regularised =
+            (tangential.norm_squared() + FRICTION_REGULARISATION_M_S * FRICTION_REGULARISATION_M_S).sqrt();
         let friction = tangential * (-self.friction * normal_force / regularised);
         SurfaceContact { penetration_m: depth, normal_force_n: normal_force, force_world: n * normal_force + friction }
     }
@@ -338,11 +335,7 @@ impl BaseMotion {
             (*r, *v, *a) = if self.lag_s > 0.0 {
                 let decay = (-s / self.lag_s).exp();
                 let gap = v0 - vd;
-                (
-                    r0 + vd * s + gap * self.lag_s * (1.0 - decay),
-                    vd + gap * decay,
-                    -gap * decay / self.lag_s,
-                )
+                (r0 + vd * s + gap * self.lag_s * (1.0 - decay), vd + gap * decay, -gap * decay / self.lag_s)
             } else {
                 (r0 + vd * s, *vd, 0.0)
             };
@@ -386,12 +379,7 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N
     pub fn new(model: Model<f64, N, B, F>, config: SimConfig) -> Result<Self, SimError> {
         let base_dof = match N.checked_sub(U) {
             Some(b @ (0 | PLANAR_BASE_DOF)) if U > 0 => b,
-            _ => {
-                return Err(SimError::InvalidDimensions {
-                    coordinates: N,
-                    upper_body: U,
-                })
-            }
+            _ => return Err(SimError::InvalidDimensions { coordinates: N, upper_body: U }),
         };
         validate(&config)?;
         let data = Data::new(&model);
@@ -406,10 +394,7 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N
             torque: SVector::zeros(),
             torque_saturated: false,
             brakes: false,
-            base_command: PlatformCommand {
-                velocity: [0.0; 3],
-                leg_rates: [0.0; LEGS],
-            },
+            base_command: PlatformCommand { velocity: [0.0; 3], leg_rates: [0.0; LEGS] },
             legs: [config.initial_leg_length_m; LEGS],
             pushes: Vec::new(),
             surfaces: Vec::new(),
@@ -507,22 +492,13 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N
         duration_s: f64,
     ) -> Result<(), SimError> {
         self.model.frame(frame).ok_or(SimError::UnknownFrame)?;
-        if !force_world
-            .iter()
-            .chain([start_s, duration_s].iter())
-            .all(|x| x.is_finite())
-        {
+        if !force_world.iter().chain([start_s, duration_s].iter()).all(|x| x.is_finite()) {
             return Err(SimError::NonFinite { what: "push" });
         }
         if duration_s < 0.0 {
             return Err(SimError::InvalidConfig { field: "duration_s" });
         }
-        self.pushes.push(Push {
-            frame,
-            force_world,
-            start_s,
-            duration_s,
-        });
+        self.pushes.push(Push { frame, force_world, start_s, duration_s });
         Ok(())
     }
 
@@ -612,21 +588,13 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N
 
     /// Sum of the pushes active at time `t` on `frame` (N, world frame).
     pub fn push_force(&self, frame: FrameId, t: f64) -> Vector3<f64> {
-        self.pushes
-            .iter()
-            .filter(|p| p.frame == frame && p.active(t))
-            .map(|p| p.force_world)
-            .sum()
+        self.pushes.iter().filter(|p| p.frame == frame && p.active(t)).map(|p| p.force_world).sum()
     }
 
     /// World placement of `frame` at the current state.
     pub fn frame_placement(&mut self, frame: FrameId) -> Result<Placement<f64>, SimError> {
         forward_kinematics(&self.model, &mut self.data, &self.q, &self.v)?;
-        self.data
-            .frame_placements
-            .get(frame.0)
-            .copied()
-            .ok_or(SimError::UnknownFrame)
+        self.data.frame_placements.get(frame.0).copied().ok_or(SimError::UnknownFrame)
     }
 
     /// Kinetic, potential and total energy at the current state.
@@ -634,11 +602,7 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N
         forward_kinematics(&self.model, &mut self.data, &self.q, &self.v)?;
         let kinetic = kinetic_energy(&self.model, &self.data);
         let potential = potential_energy(&self.model, &self.data);
-        Ok(Energies {
-            kinetic,
-            potential,
-            total: kinetic + potential,
-        })
+        Ok(Energies { kinetic, potential, total: kinetic + potential })
     }
 
     /// Upper-body accelerations `q̈_u` at time `t` (absolute) and state `(q, v)` with the base
@@ -663,7 +627,9 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N
         if let Some(stops) = self.stops {
             let (lower, high): (SVector<f64, U>, SVector<f64, U>) =
                 (upper(&self.model.limits.position_lower, b), upper(&self.model.limits.position_upper, b));
-            for ((((r, qi), vi), lo), hi) in rhs.iter_mut().zip(qu.iter()).zip(vu.iter()).zip(lower.iter()).zip(high.iter()) {
+            for ((((r, qi), vi), lo), hi) in
+                rhs.iter_mut().zip(qu.iter()).zip(vu.iter()).zip(lower.iter()).zip(high.iter())
+            {
                 *r += stops.torque(*qi, *vi, *lo, *hi);
             }
         }
@@ -719,12 +685,8 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N
         let h = self.config.physics_step_s;
         let t0 = self.time_s();
         let b = self.base_dof;
-        let mut base = BaseMotion {
-            pose: [0.0; 3],
-            velocity: [0.0; 3],
-            desired: [0.0; 3],
-            lag_s: self.config.base_lag_s,
-        };
+        let mut base =
+            BaseMotion { pose: [0.0; 3], velocity: [0.0; 3], desired: [0.0; 3], lag_s: self.config.base_lag_s };
         for i in 0..b {
             if let (Some(p), Some(v), Some(d), Some(q), Some(qd), Some(cmd)) = (
                 base.pose.get_mut(i),
@@ -760,10 +722,7 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N
             let (q4, v4) = (qu0 + v3 * h, vu0 + a3 * h);
             let a4 = stage(h, &q4, &v4)?;
             let sixth = h / 6.0;
-            (
-                qu0 + (vu0 + v2 * 2.0 + v3 * 2.0 + v4) * sixth,
-                vu0 + (a1 + a2 * 2.0 + a3 * 2.0 + a4) * sixth,
-            )
+            (qu0 + (vu0 + v2 * 2.0 + v3 * 2.0 + v4) * sixth, vu0 + (a1 + a2 * 2.0 + a3 * 2.0 + a4) * sixth)
         };
         if !qu.iter().chain(vu.iter()).all(|x| x.is_finite()) {
             return Err(SimError::Dynamics(DynamicsError::NonFinite { input: "state" }));
@@ -777,11 +736,7 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N
             *leg = (*leg + rate * h).clamp(lo, hi);
         }
         self.steps += 1;
-        Ok(StepReport {
-            time_s: self.time_s(),
-            torque_saturated: self.torque_saturated,
-            pushed,
-        })
+        Ok(StepReport { time_s: self.time_s(), torque_saturated: self.torque_saturated, pushed })
     }
 
     /// Advances by `duration_s` rounded to a whole number (at least one) of physics steps.
@@ -897,28 +852,13 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> PlatformVel
             *p = self.q.get(i).copied().unwrap_or(0.0);
             *v = self.v.get(i).copied().unwrap_or(0.0);
         }
-        Ok(PlatformSample {
-            pose,
-            velocity,
-            leg_lengths: self.legs,
-            cycle: self.steps,
-        })
+        Ok(PlatformSample { pose, velocity, leg_lengths: self.legs, cycle: self.steps })
     }
 
     fn write_velocity(&mut self, command: &PlatformCommand<f64>) -> Result<(), SimError> {
-        if !command
-            .velocity
-            .iter()
-            .chain(command.leg_rates.iter())
-            .all(|x| x.is_finite())
-        {
-            self.base_command = PlatformCommand {
-                velocity: [0.0; 3],
-                leg_rates: [0.0; LEGS],
-            };
-            return Err(SimError::NonFinite {
-                what: "platform command",
-            });
+        if !command.velocity.iter().chain(command.leg_rates.iter()).all(|x| x.is_finite()) {
+            self.base_command = PlatformCommand { velocity: [0.0; 3], leg_rates: [0.0; LEGS] };
+            return Err(SimError::NonFinite { what: "platform command" });
         }
         if self.base_dof == 0 && command.velocity.iter().any(|v| *v != 0.0) {
             return Err(SimError::FixedBase);
@@ -933,11 +873,7 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> PlatformVel
 impl<const N: usize, const B: usize, const F: usize, const U: usize> CycleClock for Simulator<N, B, F, U> {
     fn now(&mut self) -> Result<u64, SimError> {
         let micros = (self.time_s() * f64::from(CLOCK_TICKS_PER_SECOND)).round();
-        #[allow(
-            clippy::cast_possible_truncation,
-            clippy::cast_sign_loss,
-            reason = "time is ≥ 0 and far below 2^64 µs"
-        )]
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss, reason = "time is ≥ 0 and far below 2^64 µs")]
         Ok(micros as u64)
     }
 
@@ -988,19 +924,9 @@ where
     #[allow(clippy::cast_precision_loss, reason = "a handful of substeps")]
     let period = sim.config.physics_step_s * substeps as f64;
     let cycles = whole_periods(duration_s, period, 0, "duration_s")?;
-    let mut report = LoopReport {
-        control_cycles: 0,
-        physics_steps: 0,
-        saturated_steps: 0,
-    };
+    let mut report = LoopReport { control_cycles: 0, physics_steps: 0, saturated_steps: 0 };
     for index in 0..cycles {
-        cycle(
-            sim,
-            &CycleInfo {
-                cycle: index,
-                time_s: sim.time_s(),
-            },
-        )?;
+        cycle(sim, &CycleInfo { cycle: index, time_s: sim.time_s() })?;
         for _ in 0..substeps {
             let step = sim.step()?;
             report.physics_steps += 1;

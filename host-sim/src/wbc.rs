@@ -129,9 +129,30 @@ pub fn columns() -> Vec<String> {
     columns.extend(all_tasks().into_iter().map(|k| format!("tn.{}", task_name(k))));
     columns.extend(
         [
-            "vcmd.x", "vcmd.y", "vcmd.theta", "fvir.x", "fvir.y", "fvir.theta", "leg.0", "leg.1", "leg.2", "leg.3",
-            "min_distance", "collision_rows", "tau_ext_norm", "contact", "kinetic_j", "potential_j", "mode",
-            "saturated", "right_tcp.x", "right_tcp.y", "right_tcp.z", "left_tcp.x", "left_tcp.y", "left_tcp.z",
+            "vcmd.x",
+            "vcmd.y",
+            "vcmd.theta",
+            "fvir.x",
+            "fvir.y",
+            "fvir.theta",
+            "leg.0",
+            "leg.1",
+            "leg.2",
+            "leg.3",
+            "min_distance",
+            "collision_rows",
+            "tau_ext_norm",
+            "contact",
+            "kinetic_j",
+            "potential_j",
+            "mode",
+            "saturated",
+            "right_tcp.x",
+            "right_tcp.y",
+            "right_tcp.z",
+            "left_tcp.x",
+            "left_tcp.y",
+            "left_tcp.z",
         ]
         .iter()
         .map(|s| s.to_string()),
@@ -171,7 +192,12 @@ impl Rig {
         row.extend(t.level_storage.iter());
         row.extend(t.level_storage_rate.iter());
         let entry = |kind: TaskKind, values: &[f64]| {
-            t.tasks.iter().zip(values.iter()).take(t.task_count).find(|(k, _)| **k == Some(kind)).map_or(0.0, |(_, v)| *v)
+            t.tasks
+                .iter()
+                .zip(values.iter())
+                .take(t.task_count)
+                .find(|(k, _)| **k == Some(kind))
+                .map_or(0.0, |(_, v)| *v)
         };
         row.extend(all_tasks().into_iter().map(|k| entry(k, &t.task_activation)));
         row.extend(all_tasks().into_iter().map(|k| entry(k, &t.task_torque_norm)));

@@ -89,7 +89,11 @@ pub struct Wheels {
 /// `x` wrapped to `(−π/2, π/2]` (angles modulo π).
 fn wrap_half_turn(x: f64) -> f64 {
     let wrapped = x - PI * (x / PI).round();
-    if wrapped <= -FRAC_PI_2 { wrapped + PI } else { wrapped }
+    if wrapped <= -FRAC_PI_2 {
+        wrapped + PI
+    } else {
+        wrapped
+    }
 }
 
 impl Wheels {

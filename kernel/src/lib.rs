@@ -35,13 +35,13 @@
 #![forbid(unsafe_code)]
 #![deny(missing_docs)]
 
+pub mod controller;
 pub mod dynamics;
 pub mod hierarchy;
 pub mod math;
 pub mod model;
-pub mod tasks;
 pub mod platform;
-pub mod controller;
+pub mod tasks;
 
 #[cfg(test)]
 mod test_models;

@@ -44,26 +44,68 @@ pub fn branched<T: RealField + Copy>() -> Branched<T> {
     let mut b = ModelBuilder::<T, N, B, F>::new(Vector3::new(T::zero(), T::zero(), c(-9.81)));
     let x = Unit::new_normalize(Vector3::new(c(1.0), c(0.2), c(0.0)));
     let base = b
-        .add_body(None, placement([0.1, 0.0, 0.2], [0.0, 0.0, 0.3]), JointKind::Prismatic { axis: x }, JointDrive::actuated(0), inertia(5.0, [0.1, 0.0, 0.05], [0.4, 0.5, 0.6], 0.01))
+        .add_body(
+            None,
+            placement([0.1, 0.0, 0.2], [0.0, 0.0, 0.3]),
+            JointKind::Prismatic { axis: x },
+            JointDrive::actuated(0),
+            inertia(5.0, [0.1, 0.0, 0.05], [0.4, 0.5, 0.6], 0.01),
+        )
         .unwrap();
     let yaw = b
-        .add_body(Some(base), placement([0.0, 0.1, 0.3], [0.1, 0.0, 0.0]), revolute([0.0, 0.1, 1.0]), JointDrive::actuated(1), inertia(3.0, [0.0, 0.05, 0.1], [0.1, 0.12, 0.08], 0.005))
+        .add_body(
+            Some(base),
+            placement([0.0, 0.1, 0.3], [0.1, 0.0, 0.0]),
+            revolute([0.0, 0.1, 1.0]),
+            JointDrive::actuated(1),
+            inertia(3.0, [0.0, 0.05, 0.1], [0.1, 0.12, 0.08], 0.005),
+        )
         .unwrap();
     let pitch = b
-        .add_body(Some(yaw), placement([0.0, 0.0, 0.25], [0.0, 0.2, 0.0]), revolute([0.0, 1.0, 0.0]), JointDrive::actuated(2), inertia(2.0, [0.15, 0.0, 0.0], [0.02, 0.05, 0.05], 0.002))
+        .add_body(
+            Some(yaw),
+            placement([0.0, 0.0, 0.25], [0.0, 0.2, 0.0]),
+            revolute([0.0, 1.0, 0.0]),
+            JointDrive::actuated(2),
+            inertia(2.0, [0.15, 0.0, 0.0], [0.02, 0.05, 0.05], 0.002),
+        )
         .unwrap();
     // Coupled joint: q_tree = −(q2 + q3) + 0.1, like (3.41) with an offset.
     let elbow = b
-        .add_body(Some(pitch), placement([0.3, 0.0, 0.0], [0.0, 0.0, 0.1]), revolute([0.0, 1.0, 0.2]), JointDrive::actuated(3), inertia(1.5, [0.12, 0.01, 0.0], [0.01, 0.03, 0.03], 0.001))
+        .add_body(
+            Some(pitch),
+            placement([0.3, 0.0, 0.0], [0.0, 0.0, 0.1]),
+            revolute([0.0, 1.0, 0.2]),
+            JointDrive::actuated(3),
+            inertia(1.5, [0.12, 0.01, 0.0], [0.01, 0.03, 0.03], 0.001),
+        )
         .unwrap();
     let passive = b
-        .add_body(Some(elbow), placement([0.28, 0.0, 0.0], [0.0, 0.0, 0.0]), revolute([0.0, 1.0, 0.0]), JointDrive::coupled(&[(2, c(-1.0)), (3, c(-1.0))], c(0.1)).unwrap(), inertia(0.8, [0.05, 0.0, 0.02], [0.004, 0.006, 0.005], 0.0))
+        .add_body(
+            Some(elbow),
+            placement([0.28, 0.0, 0.0], [0.0, 0.0, 0.0]),
+            revolute([0.0, 1.0, 0.0]),
+            JointDrive::coupled(&[(2, c(-1.0)), (3, c(-1.0))], c(0.1)).unwrap(),
+            inertia(0.8, [0.05, 0.0, 0.02], [0.004, 0.006, 0.005], 0.0),
+        )
         .unwrap();
     let prism = b
-        .add_body(Some(yaw), placement([0.0, 0.2, 0.1], [0.3, 0.0, 0.0]), JointKind::Prismatic { axis: Unit::new_normalize(Vector3::new(c(0.0), c(0.3), c(1.0))) }, JointDrive::actuated(4), inertia(1.0, [0.0, 0.0, 0.1], [0.01, 0.01, 0.002], 0.0))
+        .add_body(
+            Some(yaw),
+            placement([0.0, 0.2, 0.1], [0.3, 0.0, 0.0]),
+            JointKind::Prismatic { axis: Unit::new_normalize(Vector3::new(c(0.0), c(0.3), c(1.0))) },
+            JointDrive::actuated(4),
+            inertia(1.0, [0.0, 0.0, 0.1], [0.01, 0.01, 0.002], 0.0),
+        )
         .unwrap();
     let wrist = b
-        .add_body(Some(prism), placement([0.0, 0.0, 0.2], [0.0, 0.0, 0.5]), revolute([1.0, 0.0, 0.3]), JointDrive::actuated(5), inertia(0.6, [0.03, 0.02, 0.05], [0.003, 0.002, 0.004], 0.0005))
+        .add_body(
+            Some(prism),
+            placement([0.0, 0.0, 0.2], [0.0, 0.0, 0.5]),
+            revolute([1.0, 0.0, 0.3]),
+            JointDrive::actuated(5),
+            inertia(0.6, [0.03, 0.02, 0.05], [0.003, 0.002, 0.004], 0.0005),
+        )
         .unwrap();
     b.add_frame(Some(passive), placement([0.1, 0.02, -0.03], [0.2, 0.1, 0.0])).unwrap();
     b.add_frame(Some(wrist), placement([0.0, 0.05, 0.12], [0.0, 0.0, 0.0])).unwrap();

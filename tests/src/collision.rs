@@ -17,8 +17,7 @@ use fixtures::justin::{self, collision as jc};
 use kernel::dynamics::{crba, forward_kinematics, mass_matrix_cholesky};
 use kernel::model::BodyId;
 use kernel::tasks::collision::{
-    exclusion_rule, proximity, self_collision_rows, CollisionData, CollisionParameters, Volume,
-    VolumeId,
+    exclusion_rule, proximity, self_collision_rows, CollisionData, CollisionParameters, Volume, VolumeId,
 };
 use kernel::tasks::TaskRows;
 use kernel::{Data, Model};
@@ -32,7 +31,8 @@ const N: usize = justin::N;
 /// body's path to the root but not on the other's. For a world-fixed volume (the floor) the
 /// platform's planar coordinates are left out: they do not change heights.
 fn relevant_coordinates(model: &Justin, a: Option<BodyId>, b: Option<BodyId>) -> Vec<usize> {
-    let path = |x: Option<BodyId>| -> Vec<usize> { x.map(|id| model.support(id).map(|s| s.0).collect()).unwrap_or_default() };
+    let path =
+        |x: Option<BodyId>| -> Vec<usize> { x.map(|id| model.support(id).map(|s| s.0).collect()).unwrap_or_default() };
     let (pa, pb) = (path(a), path(b));
     let mut coordinates: Vec<usize> = pa
         .iter()
@@ -114,7 +114,13 @@ fn exclusion_survey() {
             jc::VOLUME_SPECS[pair.first.0].name,
             jc::VOLUME_SPECS[pair.second.0].name,
             coordinates,
-            if lo > 0.0 { "  NEVER" } else if hi < 0.0 { "  OVERLAP" } else { "" }
+            if lo > 0.0 {
+                "  NEVER"
+            } else if hi < 0.0 {
+                "  OVERLAP"
+            } else {
+                ""
+            }
         );
     }
 }
@@ -200,7 +206,8 @@ fn data_file_matches_the_constructor() {
     // The thesis' grouping (Fig. 3.2): left arm 8, right arm 8, base 5, torso 4, head 2, floor 1.
     let count = |g: jc::Group| jc::VOLUME_SPECS.iter().filter(|v| v.group == g).count();
     assert_eq!(
-        [jc::Group::LeftArm, jc::Group::RightArm, jc::Group::Base, jc::Group::Torso, jc::Group::Head, jc::Group::Floor].map(count),
+        [jc::Group::LeftArm, jc::Group::RightArm, jc::Group::Base, jc::Group::Torso, jc::Group::Head, jc::Group::Floor]
+            .map(count),
         [8, 8, 5, 4, 2, 1]
     );
 }
@@ -219,7 +226,9 @@ fn enabled_pairs_follow_the_rules() {
     // No listed pair is also excluded by a rule, and no pair is listed twice.
     for (k, e) in jc::EXCLUDED.iter().enumerate() {
         assert!(exclusion_rule(&model, volumes[e.first.0].body, volumes[e.second.0].body).is_none(), "{e:?}");
-        assert!(jc::EXCLUDED[..k].iter().all(|f| (f.first, f.second) != (e.first, e.second) && (f.first, f.second) != (e.second, e.first)));
+        assert!(jc::EXCLUDED[..k]
+            .iter()
+            .all(|f| (f.first, f.second) != (e.first, e.second) && (f.first, f.second) != (e.second, e.first)));
     }
     assert_eq!(total - by_rule - jc::EXCLUDED.len(), jc::PAIRS);
     println!(
@@ -229,7 +238,8 @@ fn enabled_pairs_follow_the_rules() {
         jc::PAIRS
     );
     // The pairs the thesis' Fig. 3.5 shows are enabled: left hand – right hand and right wrist.
-    let enabled = |a: VolumeId, b: VolumeId| collision.pairs().iter().any(|p| (p.first, p.second) == (a.min(b), a.max(b)));
+    let enabled =
+        |a: VolumeId, b: VolumeId| collision.pairs().iter().any(|p| (p.first, p.second) == (a.min(b), a.max(b)));
     assert!(enabled(jc::LEFT_PALM, jc::RIGHT_PALM) && enabled(jc::LEFT_FINGERS, jc::RIGHT_WRIST));
     assert!(enabled(jc::RIGHT_FINGERS, jc::FLOOR) && !enabled(jc::BASE_UPPER_A, jc::FLOOR));
 }
@@ -329,9 +339,8 @@ fn volumes_cover_the_urdf_visuals() {
             let frame_id = justin::FRAME_NAMES.iter().position(|f| *f == visual.link).unwrap();
             let frame = model.frame(kernel::FrameId(frame_id)).unwrap();
             let placement = data.frame_placements[frame_id];
-            let allowed = |v: &Volume<f64>| {
-                v.body == frame.parent || (visual.link == "torso_link1" && v.body == Some(BodyId(2)))
-            };
+            let allowed =
+                |v: &Volume<f64>| v.body == frame.parent || (visual.link == "torso_link1" && v.body == Some(BodyId(2)));
             for p in &visual.samples {
                 let world = placement * (visual.origin * nalgebra::Point3::from(*p));
                 let inside = collision
@@ -348,7 +357,6 @@ fn volumes_cover_the_urdf_visuals() {
     }
     println!("largest signed distance of a URDF visual sample to its volumes: {worst:.2e} m");
 }
-
 
 /// A random configuration within the limits (platform within ±1 m, ±π), with the torso's
 /// coupled bound `0 ≤ q_t2 + q_t3 ≤ 135°` respected.
@@ -432,7 +440,8 @@ fn listed_exclusions_hold() {
         let (lo, hi) = (distances[0].0, distances[distances.len() - 1].0);
         let step = 240f64.to_radians() / (n.max(2) - 1) as f64 / 2.0;
         let label = format!("{} – {}", jc::VOLUME_SPECS[e.first.0].name, jc::VOLUME_SPECS[e.second.0].name);
-        let mut distance = |q: &SVector<f64, N>| distance_range(&model, &mut data, &collision, pair, std::slice::from_ref(q)).0;
+        let mut distance =
+            |q: &SVector<f64, N>| distance_range(&model, &mut data, &collision, pair, std::slice::from_ref(q)).0;
         match e.reason {
             jc::ExclusionReason::NeverClose => {
                 let refined = distances
@@ -509,7 +518,12 @@ fn justin_torques_are_the_negative_potential_gradient() {
                 / (2.0 * h)
         });
         let error = (tau + gradient).amax() / tau.amax();
-        assert!(error <= 1e-6, "relative error {error:.2e} with {} rows: τ = {tau}, −∂V/∂q = {}", rows.len(), -gradient);
+        assert!(
+            error <= 1e-6,
+            "relative error {error:.2e} with {} rows: τ = {tau}, −∂V/∂q = {}",
+            rows.len(),
+            -gradient
+        );
         worst = worst.max(error);
         rows_seen += rows.len();
         checked += 1;

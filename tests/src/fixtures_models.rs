@@ -55,7 +55,6 @@ fn generated_justin_constructor_is_up_to_date() {
     }
 }
 
-
 type Justin = Model<f64, { justin::N }, { justin::BODIES }, { justin::FRAMES }>;
 
 fn random_state(model: &Justin, rng: &mut Rng) -> SVector<f64, { justin::N }> {

@@ -5,22 +5,22 @@
 #[cfg(test)]
 mod collision;
 #[cfg(test)]
-mod dynamics_properties;
-#[cfg(test)]
 mod dynamics;
+#[cfg(test)]
+mod dynamics_properties;
 #[cfg(test)]
 mod fixtures_models;
 #[cfg(test)]
 mod hierarchy;
 #[cfg(test)]
-mod simulation;
-#[cfg(test)]
-mod torso_workspace;
+mod multilevel;
 #[cfg(test)]
 mod platform;
 #[cfg(test)]
-mod multilevel;
+mod robustness;
+#[cfg(test)]
+mod simulation;
 #[cfg(test)]
 mod support;
 #[cfg(test)]
-mod robustness;
+mod torso_workspace;

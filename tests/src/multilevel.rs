@@ -13,9 +13,7 @@
 
 use fixtures::{justin, planar};
 use host_sim::scenario::{multilevel_arm, multilevel_sim1, multilevel_sim2, multilevel_sim3, Progress};
-use kernel::dynamics::{
-    coriolis_matrix, crba, forward_kinematics, frame_jacobian, frame_jacobian_derivative, gravity,
-};
+use kernel::dynamics::{coriolis_matrix, crba, forward_kinematics, frame_jacobian, frame_jacobian_derivative, gravity};
 use kernel::hierarchy::multilevel::{
     coriolis_decoupling, decompose, task_space_coriolis, ComplianceRow, ComplianceStack, Decomposition, DynamicsTerms,
     MultilevelConfig,
@@ -102,7 +100,19 @@ fn state<const N: usize, const B: usize, const F: usize>(
     }
     let mut out = Decomposition::default();
     // A random state may be singular for the hierarchy: skip it (the caller counts).
-    decompose(&MultilevelConfig::default(), &stack, &DynamicsTerms { mass_matrix: &mass, mass_factor: &factor, coriolis: &coriolis, gravity: &gravity, velocity: v }, &mut out).ok()?;
+    decompose(
+        &MultilevelConfig::default(),
+        &stack,
+        &DynamicsTerms {
+            mass_matrix: &mass,
+            mass_factor: &factor,
+            coriolis: &coriolis,
+            gravity: &gravity,
+            velocity: v,
+        },
+        &mut out,
+    )
+    .ok()?;
     Some(State { mass, factor, coriolis, gravity, velocity: *v, stack, out })
 }
 
@@ -111,7 +121,11 @@ fn state<const N: usize, const B: usize, const F: usize>(
 fn check_properties<const N: usize>(s: &State<N>) -> Result<(), TestCaseError> {
     let (z, jbar) = (s.out.basis(), s.out.extended_jacobian());
     let identity = SMatrix::<f64, N, N>::identity();
-    prop_assert!((jbar * z.transpose() - identity).amax() < 1e-9, "J̄ Zᵀ − I = {}", (jbar * z.transpose() - identity).amax());
+    prop_assert!(
+        (jbar * z.transpose() - identity).amax() < 1e-9,
+        "J̄ Zᵀ − I = {}",
+        (jbar * z.transpose() - identity).amax()
+    );
     prop_assert!((z.transpose() * jbar - identity).amax() < 1e-9);
     let lambda = z * s.mass * z.transpose();
     let mu = task_space_coriolis(&s.out, &s.terms());
@@ -155,7 +169,8 @@ const JUSTIN_TASKS: [Task; 3] = [
     Task { frame: justin::RIGHT_TCP, rows: &[3, 4, 5] },
     Task { frame: justin::LEFT_TCP, rows: &[0, 1, 2, 3, 4, 5] },
 ];
-const PLANAR_TASKS: [Task; 2] = [Task { frame: planar::PLANAR4_TCP, rows: &[0, 1] }, Task { frame: planar::PLANAR4_TCP, rows: &[5] }];
+const PLANAR_TASKS: [Task; 2] =
+    [Task { frame: planar::PLANAR4_TCP, rows: &[0, 1] }, Task { frame: planar::PLANAR4_TCP, rows: &[5] }];
 
 fn vector<const N: usize>(range: f64) -> impl Strategy<Value = SVector<f64, N>> {
     proptest::collection::vec(-range..range, N).prop_map(|x| SVector::from_column_slice(&x))
@@ -212,7 +227,10 @@ fn basis_rate_is_the_derivative_along_the_motion() {
         let v = SVector::<f64, { justin::N }>::from_fn(|i, _| 0.8 * ((i * 3 + k * 7) as f64).sin());
         let q = justin::home_configuration() + dq;
         let s = state(&model, &JUSTIN_TASKS, &q, &v).unwrap();
-        let (plus, minus) = (state(&model, &JUSTIN_TASKS, &(q + v * h), &v).unwrap(), state(&model, &JUSTIN_TASKS, &(q - v * h), &v).unwrap());
+        let (plus, minus) = (
+            state(&model, &JUSTIN_TASKS, &(q + v * h), &v).unwrap(),
+            state(&model, &JUSTIN_TASKS, &(q - v * h), &v).unwrap(),
+        );
         let fd = (plus.out.basis() - minus.out.basis()) / (2.0 * h);
         let rate = s.out.basis_rate();
         let scale = 1.0 + rate.amax();
@@ -263,7 +281,13 @@ fn rotation_row_rates_match_a_central_difference() {
         let (mut j, mut j_rate) = (SMatrix::<f64, 6, 7>::zeros(), SMatrix::<f64, 6, 7>::zeros());
         frame_jacobian(&model, &data, tcp, &mut j).unwrap();
         frame_jacobian_derivative(&model, &data, tcp, &v, &mut j_rate).unwrap();
-        let rates = multilevel_arm::rotation_row_rates(data.frame_placements[tcp.0].rotation.matrix(), target.pose.rotation.matrix(), &j, &j_rate, &v);
+        let rates = multilevel_arm::rotation_row_rates(
+            data.frame_placements[tcp.0].rotation.matrix(),
+            target.pose.rotation.matrix(),
+            &j,
+            &j_rate,
+            &v,
+        );
         let h = 1e-6;
         let fd = (rows_at(&(q + v * h)) - rows_at(&(q - v * h))) / (2.0 * h);
         assert!((fd - rates).amax() < 1e-7 * (1.0 + fd.amax()), "case {k}: {}", (fd - rates).amax());
@@ -319,7 +343,11 @@ fn simulation_2_energies_converge_in_priority_order() {
     let outcome = multilevel_sim2::simulate(Progress::Silent).unwrap();
     let s = &outcome.summary;
     assert!(s.failed_claims().is_empty(), "{:?}", s.failed_claims());
-    let (t1, t2, t3) = (s.get("s1_almost_zero_time_s").unwrap(), s.get("s2_almost_zero_time_s").unwrap(), s.get("s3_almost_zero_time_s").unwrap());
+    let (t1, t2, t3) = (
+        s.get("s1_almost_zero_time_s").unwrap(),
+        s.get("s2_almost_zero_time_s").unwrap(),
+        s.get("s3_almost_zero_time_s").unwrap(),
+    );
     assert!(t1 < 0.3 && t1 < t2 && t2 < t3, "{t1} {t2} {t3}");
     // Initial potentials of THESIS-NUMBERS §5.2: 7.3 J, 12 J, 0.75 J.
     let first = |c: &str| outcome.series.column(c).unwrap()[0];

@@ -114,7 +114,10 @@ fn mobile_impedance_energy_decays_with_compensation_and_oscillates_without() {
 
 #[test]
 fn mobile_impedance_critical_set_is_stable_only_with_compensation() {
-    let [on, off] = mobile_impedance_critical::experiments(mobile_impedance_critical::DURATION_S, host_sim::sim::DEFAULT_PHYSICS_STEP_S);
+    let [on, off] = mobile_impedance_critical::experiments(
+        mobile_impedance_critical::DURATION_S,
+        host_sim::sim::DEFAULT_PHYSICS_STEP_S,
+    );
     let on = mobile_impedance::run(&on, Progress::Silent, "ON").unwrap();
     let off = mobile_impedance::run(&off, Progress::Silent, "OFF").unwrap();
     let outcome = mobile_impedance_critical::evaluate(&on, &off).unwrap();
@@ -179,7 +182,8 @@ fn linearised_justin_loop_explains_the_critical_experiment() {
         }
         let mut platform = Admittance::try_new(*admittance).unwrap();
         platform.reset(&Vector3::new(desired_rate, 0.0, 0.0)).unwrap();
-        let r_dd_adm = platform.step(&Vector3::new(tau_spring[0], 0.0, 0.0), &Vector3::zeros(), 1e-3).unwrap().acceleration;
+        let r_dd_adm =
+            platform.step(&Vector3::new(tau_spring[0], 0.0, 0.0), &Vector3::zeros(), 1e-3).unwrap().acceleration;
         let compensation = coupling_compensation(&data, &settings.layout, &r_dd_adm).unwrap().torque(switch);
         let (qu, vu) = (q.fixed_rows::<U>(3).into_owned(), v.fixed_rows::<U>(3).into_owned());
         let tau: SVector<f64, U> = tau_task.fixed_rows::<U>(3)
@@ -207,7 +211,10 @@ fn linearised_justin_loop_explains_the_critical_experiment() {
         for k in 0..S {
             let mut e = DVector::zeros(S);
             e[k] = h;
-            a.set_column(k, &((derivative(&admittance, switch, lag, &e) - derivative(&admittance, switch, lag, &-e)) / (2.0 * h)));
+            a.set_column(
+                k,
+                &((derivative(&admittance, switch, lag, &e) - derivative(&admittance, switch, lag, &-e)) / (2.0 * h)),
+            );
         }
         a.complex_eigenvalues().iter().filter(|l| l.im.abs() > 2.0).map(|l| l.re).fold(f64::NEG_INFINITY, f64::max)
     };
@@ -236,7 +243,10 @@ fn icr_avoidance_reduces_the_steering_rates_and_legs_reduce_the_deviation() {
     assert!(metric(&outcome, "legs_translation_error_reduction") > 0.0);
     assert!(metric(&outcome, "legs_rotation_error_reduction") > 0.0);
     // With leg motion the repulsion needed is smaller (Fig. 3.13 bottom).
-    assert!(metric(&outcome, "wheel2_pass_legs_peak_avoidance_acceleration_rad_s2") < metric(&outcome, "wheel2_pass_on_peak_avoidance_acceleration_rad_s2"));
+    assert!(
+        metric(&outcome, "wheel2_pass_legs_peak_avoidance_acceleration_rad_s2")
+            < metric(&outcome, "wheel2_pass_on_peak_avoidance_acceleration_rad_s2")
+    );
 }
 
 #[test]
@@ -255,7 +265,11 @@ fn quintic_bezier_trajectory_is_c2_and_follows_the_design() {
     }
     // Continuity across a knot (0.25 s): value, first and second derivative.
     let (l, r) = (spline.evaluate(0.25 * 29.0 - 1e-9), spline.evaluate(0.25 * 29.0 + 1e-9));
-    assert!((l.pose - r.pose).amax() < 1e-8 && (l.velocity - r.velocity).amax() < 1e-7 && (l.acceleration - r.acceleration).amax() < 1e-6);
+    assert!(
+        (l.pose - r.pose).amax() < 1e-8
+            && (l.velocity - r.velocity).amax() < 1e-7
+            && (l.acceleration - r.acceleration).amax() < 1e-6
+    );
 }
 
 #[test]

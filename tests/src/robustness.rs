@@ -104,15 +104,30 @@ fn frame<T: Float>(q: &SVector<T, N>, v: &SVector<T, N>, cycle: u64) -> SensorFr
 
 /// `(y, ẏ)` of a frame (platform first).
 fn state<T: Float>(frame: &SensorFrame<T, U>) -> (SVector<T, N>, SVector<T, N>) {
-    let q = SVector::from_fn(|i, _| if i < PLATFORM_DOF { frame.platform.pose[i] } else { frame.joints.position[i - PLATFORM_DOF] });
-    let v = SVector::from_fn(|i, _| if i < PLATFORM_DOF { frame.platform.velocity[i] } else { frame.joints.velocity[i - PLATFORM_DOF] });
+    let q = SVector::from_fn(|i, _| {
+        if i < PLATFORM_DOF {
+            frame.platform.pose[i]
+        } else {
+            frame.joints.position[i - PLATFORM_DOF]
+        }
+    });
+    let v = SVector::from_fn(|i, _| {
+        if i < PLATFORM_DOF {
+            frame.platform.velocity[i]
+        } else {
+            frame.joints.velocity[i - PLATFORM_DOF]
+        }
+    });
     (q, v)
 }
 
 /// The test state: home pose, a small joint velocity on every upper-body joint.
 fn home<T: Float>() -> (SVector<T, N>, SVector<T, N>) {
     let q = justin::home_configuration::<T>();
-    let v = SVector::from_fn(|i, _| if i < PLATFORM_DOF { T::zero() } else { c(0.05 * (if i % 2 == 0 { 1.0 } else { -1.0 })) });
+    let v =
+        SVector::from_fn(
+            |i, _| if i < PLATFORM_DOF { T::zero() } else { c(0.05 * (if i % 2 == 0 { 1.0 } else { -1.0 })) },
+        );
     (q, v)
 }
 
@@ -155,7 +170,8 @@ fn shifted_goal<T: Float>(target: kernel::math::Placement<T>, offset: [f64; 3]) 
     let p = target.translation.vector;
     // Turned by 0.05 rad about the vertical: a goal orientation equal to the current one up to
     // rounding hits the f32 trajectory bug documented at the end of this module.
-    let quaternion = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), c(0.05)) * UnitQuaternion::from_rotation_matrix(&target.rotation);
+    let quaternion = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), c(0.05))
+        * UnitQuaternion::from_rotation_matrix(&target.rotation);
     Pose {
         position: [p.x + c(offset[0]), p.y + c(offset[1]), p.z + c(offset[2])],
         orientation: [quaternion.w, quaternion.i, quaternion.j, quaternion.k],
@@ -259,7 +275,10 @@ fn check_fault<T: Float>(row: &Case<T>) {
             let (now, before) = (out.platform.velocity[axis].to_f64(), previous.platform.velocity[axis].to_f64());
             let step = (config.output_limits.base_acceleration[axis] * dt).to_f64();
             assert!(now.is_finite(), "{what}");
-            assert!((now - before).abs() <= step * (1.0 + 1e-5) + tol * (1.0 + before.abs()), "{what}: axis {axis} jumped {before} → {now}");
+            assert!(
+                (now - before).abs() <= step * (1.0 + 1e-5) + tol * (1.0 + before.abs()),
+                "{what}: axis {axis} jumped {before} → {now}"
+            );
             assert!(now.abs() <= before.abs() + 1e-12, "{what}: axis {axis} sped up {before} → {now}");
             assert!(
                 now == 0.0 || (before.abs() - now.abs()) >= step * (1.0 - 1e-3) - tol * (1.0 + before.abs()),
@@ -268,7 +287,11 @@ fn check_fault<T: Float>(row: &Case<T>) {
         }
         assert!(out.platform.leg_rates.iter().all(|r| *r == T::zero()), "{what}: legs move");
     }
-    assert!(controller.output().platform.velocity.iter().all(|v| *v == T::zero()), "{}: platform not at rest", row.name);
+    assert!(
+        controller.output().platform.velocity.iter().all(|v| *v == T::zero()),
+        "{}: platform not at rest",
+        row.name
+    );
     if !row.recovers {
         return;
     }
@@ -332,7 +355,8 @@ fn range_cases<T: Float>() -> Vec<Case<T>> {
     let model = justin::model::<T>().unwrap();
     let config = whole_body::controller_config::<T>().unwrap();
     let (tolerance, factor) = (config.input_limits.position_tolerance, config.input_limits.velocity_factor);
-    let (upper, lower, speed) = (model.limits.position_upper[6], model.limits.position_lower[9], model.limits.velocity[8]);
+    let (upper, lower, speed) =
+        (model.limits.position_upper[6], model.limits.position_lower[9], model.limits.velocity[8]);
     vec![
         case(
             "position above the upper limit",
@@ -384,12 +408,12 @@ fn cycle_cases<T: Float>() -> Vec<Case<T>> {
             move |f| retag(f, f.joints.cycle - 3),
             |fault| matches!(fault, Fault::StaleFrame { last, received } if *received + 2 == *last),
         ),
-        case("cycle gap", move |f| retag(f, f.joints.cycle + gap), move |fault| *fault == Fault::CycleGap { gap: gap + 1 }),
         case(
-            "joint and platform cycles differ",
-            |f| f.platform.cycle += 1,
-            |fault| *fault == Fault::InconsistentFrame,
+            "cycle gap",
+            move |f| retag(f, f.joints.cycle + gap),
+            move |fault| *fault == Fault::CycleGap { gap: gap + 1 },
         ),
+        case("joint and platform cycles differ", |f| f.platform.cycle += 1, |fault| *fault == Fault::InconsistentFrame),
     ]
 }
 
@@ -465,7 +489,11 @@ fn the_f32_controller_runs_without_fault_at_home_and_agrees_with_f64() {
 
 /// Checks the guard invariants of one normal cycle against the previous output.
 fn check_guards<T: Float, const V: usize, const P: usize>(
-    controller: &Controller<T, N, { justin::BODIES }, { justin::FRAMES }, U, V, P>, previous: &[T; U], previous_base: &[T; 3], what: &str) {
+    controller: &Controller<T, N, { justin::BODIES }, { justin::FRAMES }, U, V, P>,
+    previous: &[T; U],
+    previous_base: &[T; 3],
+    what: &str,
+) {
     let config = controller.config();
     let effort = controller.model().limits.effort;
     let dt = config.period_s;
@@ -491,7 +519,10 @@ fn check_guards<T: Float, const V: usize, const P: usize>(
     for (i, s) in scales.iter().enumerate() {
         assert!(*s >= T::zero() && *s <= T::one(), "{what}: scale {i} = {s:?}");
         if *s < T::one() {
-            assert!(scales[i + 1..].iter().all(|lower| *lower == T::zero()), "{what}: level {i} scaled before a lower one: {scales:?}");
+            assert!(
+                scales[i + 1..].iter().all(|lower| *lower == T::zero()),
+                "{what}: level {i} scaled before a lower one: {scales:?}"
+            );
         }
     }
 }
@@ -516,7 +547,8 @@ fn huge_goal_step_on_frames<T: Float>() {
         rate_limited += usize::from(s.torque_rate_limited);
         let count = controller.telemetry().level_count;
         level_scaled += usize::from(s.level_scale[..count].iter().any(|x| *x < T::one()));
-        lower_off_higher_scaled += usize::from(count >= 2 && s.level_scale[0] < T::one() && s.level_scale[1] == T::zero());
+        lower_off_higher_scaled +=
+            usize::from(count >= 2 && s.level_scale[0] < T::one() && s.level_scale[1] == T::zero());
     }
     assert!(rate_limited > 0 && level_scaled > 0, "rate limited {rate_limited}, scaled {level_scaled}");
     assert!(lower_off_higher_scaled > 0, "the top level should have been scaled with level 1 off");
@@ -541,7 +573,9 @@ fn a_huge_goal_step_in_closed_loop_stays_within_the_limits() {
     rig.run(2.0, |rig, info| {
         if info.cycle == 0 {
             let goal = shifted_goal(rig.controller.tcp_target(Hand::Right).pose, [0.8, 0.4, -0.3]);
-            rig.controller.apply(&Command::TcpGoal { hand: Hand::Right, pose: goal, duration_s: 0.0 }).map_err(|e| e.to_string())?;
+            rig.controller
+                .apply(&Command::TcpGoal { hand: Hand::Right, pose: goal, duration_s: 0.0 })
+                .map_err(|e| e.to_string())?;
         } else {
             // The step may drive a joint beyond its velocity limit: the safe output takes over
             // for a while (VelocityOutOfRange), inside the same limits.
@@ -645,7 +679,11 @@ fn invalid_commands_are_rejected<T: Float>() {
     // Goals before the first frame.
     let mut controller = controller::<T>();
     let pose = Pose { position: [c(0.5), c(-0.3), c(1.0)], orientation: [T::one(), T::zero(), T::zero(), T::zero()] };
-    rejected(&mut controller, &Command::TcpGoal { hand: Hand::Right, pose, duration_s: T::one() }, CommandError::NotStarted);
+    rejected(
+        &mut controller,
+        &Command::TcpGoal { hand: Hand::Right, pose, duration_s: T::one() },
+        CommandError::NotStarted,
+    );
     let zero = [T::zero(); 3];
     rejected(
         &mut controller,
@@ -663,8 +701,16 @@ fn invalid_commands_are_rejected<T: Float>() {
         change(&mut parameters);
         Command::SetCartesian { hand: Hand::Right, parameters }
     };
-    rejected(&mut controller, &set(|p| p.translational_stiffness[1] = nan()), CommandError::NonFinite { field: "translational_stiffness" });
-    rejected(&mut controller, &set(|p| p.rotational_stiffness[2] = inf()), CommandError::NonFinite { field: "rotational_stiffness" });
+    rejected(
+        &mut controller,
+        &set(|p| p.translational_stiffness[1] = nan()),
+        CommandError::NonFinite { field: "translational_stiffness" },
+    );
+    rejected(
+        &mut controller,
+        &set(|p| p.rotational_stiffness[2] = inf()),
+        CommandError::NonFinite { field: "rotational_stiffness" },
+    );
     rejected(&mut controller, &set(|p| p.damping_ratio = nan()), CommandError::NonFinite { field: "damping_ratio" });
     let out_of_range = CommandError::OutOfRange { field: "cartesian parameters" };
     rejected(&mut controller, &set(|p| p.translational_stiffness[0] = c(-1.0)), out_of_range);
@@ -672,13 +718,17 @@ fn invalid_commands_are_rejected<T: Float>() {
     rejected(&mut controller, &set(|p| p.force_upper[4] = c(-5.0)), out_of_range);
     let mut field = controller.config().collision[0];
     field.max_force = nan();
-    rejected(&mut controller, &Command::SetCollisionField { field: Field::Strong, parameters: field }, CommandError::NonFinite {
-        field: "collision parameters",
-    });
+    rejected(
+        &mut controller,
+        &Command::SetCollisionField { field: Field::Strong, parameters: field },
+        CommandError::NonFinite { field: "collision parameters" },
+    );
     field.max_force = c(-10.0);
-    rejected(&mut controller, &Command::SetCollisionField { field: Field::Strong, parameters: field }, CommandError::OutOfRange {
-        field: "collision parameters",
-    });
+    rejected(
+        &mut controller,
+        &Command::SetCollisionField { field: Field::Strong, parameters: field },
+        CommandError::OutOfRange { field: "collision parameters" },
+    );
 
     // Hierarchies.
     let mut specs = whole_body::fig_6_3_hierarchy(Hand::Right);
@@ -691,39 +741,62 @@ fn invalid_commands_are_rejected<T: Float>() {
     rejected(&mut controller, &set_hierarchy(&specs), CommandError::DuplicateTask);
 
     // Goals.
-    rejected(&mut controller, &joint_goal(JointGroup::Torso, &[T::zero(); 2], T::one()), CommandError::WrongLength {
-        expected: 3,
-        received: 2,
-    });
-    rejected(&mut controller, &joint_goal(JointGroup::Arm(Hand::Left), &[T::zero(); 17], T::one()), CommandError::WrongLength {
-        expected: 7,
-        received: 17,
-    });
+    rejected(
+        &mut controller,
+        &joint_goal(JointGroup::Torso, &[T::zero(); 2], T::one()),
+        CommandError::WrongLength { expected: 3, received: 2 },
+    );
+    rejected(
+        &mut controller,
+        &joint_goal(JointGroup::Arm(Hand::Left), &[T::zero(); 17], T::one()),
+        CommandError::WrongLength { expected: 7, received: 17 },
+    );
     let mut nan_values = torso;
     nan_values[1] = nan();
-    rejected(&mut controller, &joint_goal(JointGroup::Torso, &nan_values, T::one()), CommandError::NonFinite { field: "values" });
-    rejected(&mut controller, &joint_goal(JointGroup::Torso, &torso, c(-1.0)), CommandError::OutOfRange { field: "duration_s" });
+    rejected(
+        &mut controller,
+        &joint_goal(JointGroup::Torso, &nan_values, T::one()),
+        CommandError::NonFinite { field: "values" },
+    );
+    rejected(
+        &mut controller,
+        &joint_goal(JointGroup::Torso, &torso, c(-1.0)),
+        CommandError::OutOfRange { field: "duration_s" },
+    );
     let goal = shifted_goal(controller.tcp_target(Hand::Right).pose, [0.1, 0.0, 0.0]);
     let mut bad = goal;
     bad.orientation = [c(2.0), T::zero(), T::zero(), T::zero()];
-    rejected(&mut controller, &Command::TcpGoal { hand: Hand::Right, pose: bad, duration_s: T::one() }, CommandError::OutOfRange {
-        field: "orientation",
-    });
-    bad.orientation = [T::zero(); 4];
-    rejected(&mut controller, &Command::TcpGoal { hand: Hand::Left, pose: bad, duration_s: T::one() }, CommandError::OutOfRange {
-        field: "orientation",
-    });
-    let mut bad = goal;
-    bad.position[2] = inf();
-    rejected(&mut controller, &Command::TcpGoal { hand: Hand::Right, pose: bad, duration_s: T::one() }, CommandError::NonFinite {
-        field: "position",
-    });
-    rejected(&mut controller, &Command::TcpGoal { hand: Hand::Right, pose: goal, duration_s: nan() }, CommandError::NonFinite {
-        field: "duration_s",
-    });
     rejected(
         &mut controller,
-        &Command::TcpSample { hand: Hand::Right, pose: goal, linear_velocity: [nan(), T::zero(), T::zero()], angular_velocity: zero },
+        &Command::TcpGoal { hand: Hand::Right, pose: bad, duration_s: T::one() },
+        CommandError::OutOfRange { field: "orientation" },
+    );
+    bad.orientation = [T::zero(); 4];
+    rejected(
+        &mut controller,
+        &Command::TcpGoal { hand: Hand::Left, pose: bad, duration_s: T::one() },
+        CommandError::OutOfRange { field: "orientation" },
+    );
+    let mut bad = goal;
+    bad.position[2] = inf();
+    rejected(
+        &mut controller,
+        &Command::TcpGoal { hand: Hand::Right, pose: bad, duration_s: T::one() },
+        CommandError::NonFinite { field: "position" },
+    );
+    rejected(
+        &mut controller,
+        &Command::TcpGoal { hand: Hand::Right, pose: goal, duration_s: nan() },
+        CommandError::NonFinite { field: "duration_s" },
+    );
+    rejected(
+        &mut controller,
+        &Command::TcpSample {
+            hand: Hand::Right,
+            pose: goal,
+            linear_velocity: [nan(), T::zero(), T::zero()],
+            angular_velocity: zero,
+        },
         CommandError::NonFinite { field: "linear_velocity" },
     );
 
@@ -777,7 +850,11 @@ fn commands_roundtrip_through_bytes_and_apply() {
     let commands = [
         Command::SetCartesian { hand: Hand::Right, parameters },
         Command::TcpGoal { hand: Hand::Left, pose: goal, duration_s: 0.5 },
-        Command::JointGoal { group: JointGroup::Torso, values: [0.0, 0.1, -0.1].into_iter().collect(), duration_s: 1.0 },
+        Command::JointGoal {
+            group: JointGroup::Torso,
+            values: [0.0, 0.1, -0.1].into_iter().collect(),
+            duration_s: 1.0,
+        },
         set_hierarchy(&moved),
     ];
     let mut buffer = [0_u8; 512];
@@ -853,7 +930,10 @@ fn a_hierarchy_change_blends_continuously() {
     println!("blend: largest step {step} Nm, without the change {baseline} Nm, blend slope {slope} Nm/cycle, change {change} Nm");
     // An abrupt switch would jump by the whole change in one cycle; the blend's steps stay
     // within a few times the cubic's slope (the robot moves during the transition as well).
-    assert!(step <= baseline + 0.02 * change, "largest step {step} Nm (baseline {baseline}, slope {slope}, change {change})");
+    assert!(
+        step <= baseline + 0.02 * change,
+        "largest step {step} Nm (baseline {baseline}, slope {slope}, change {change})"
+    );
 }
 
 /// Regression: the safe output used to set the platform reference pose to the measured pose
@@ -861,9 +941,11 @@ fn a_hierarchy_change_blends_continuously() {
 /// `Platform(NonFinite)`, and the controller never returned to `Normal`.
 #[test]
 fn recovers_after_a_non_finite_platform_pose() {
-    let mut row = case::<f64>("NaN platform pose", |f| f.platform.pose[0] = f64::NAN, |fault| {
-        *fault == Fault::NonFiniteSensor { field: "platform pose" }
-    });
+    let mut row = case::<f64>(
+        "NaN platform pose",
+        |f| f.platform.pose[0] = f64::NAN,
+        |fault| *fault == Fault::NonFiniteSensor { field: "platform pose" },
+    );
     row.recovers = true;
     check_fault(&row);
 }
@@ -879,7 +961,8 @@ fn an_f32_goal_with_the_current_orientation_is_finite() {
     let target = controller.tcp_target(Hand::Right).pose;
     let p = target.translation.vector;
     let quaternion = UnitQuaternion::from_rotation_matrix(&target.rotation);
-    let pose = Pose { position: [p.x + 0.1, p.y, p.z], orientation: [quaternion.w, quaternion.i, quaternion.j, quaternion.k] };
+    let pose =
+        Pose { position: [p.x + 0.1, p.y, p.z], orientation: [quaternion.w, quaternion.i, quaternion.j, quaternion.k] };
     controller.apply(&Command::TcpGoal { hand: Hand::Right, pose, duration_s: 0.5 }).unwrap();
     stream.valid(&mut controller, 10);
 }

@@ -30,15 +30,12 @@ fn pendulum(length: f64) -> Model<f64, 1, 1, 1> {
         .add_body(
             None,
             Placement::identity(),
-            JointKind::Revolute {
-                axis: Unit::new_normalize(Vector3::y()),
-            },
+            JointKind::Revolute { axis: Unit::new_normalize(Vector3::y()) },
             JointDrive::actuated(0),
             Inertia::point_mass(1.0, Vector3::new(0.0, 0.0, -length)),
         )
         .unwrap();
-    b.add_frame(Some(link), Placement::translation(0.0, 0.0, -length))
-        .unwrap();
+    b.add_frame(Some(link), Placement::translation(0.0, 0.0, -length)).unwrap();
     b.try_build().unwrap()
 }
 
@@ -51,9 +48,7 @@ fn mobile_arm() -> Model<f64, 5, 5, 2> {
         .add_body(
             None,
             Placement::identity(),
-            JointKind::Prismatic {
-                axis: axis(Vector3::x()),
-            },
+            JointKind::Prismatic { axis: axis(Vector3::x()) },
             JointDrive::actuated(0),
             Inertia::point_mass(10.0, Vector3::zeros()),
         )
@@ -62,9 +57,7 @@ fn mobile_arm() -> Model<f64, 5, 5, 2> {
         .add_body(
             Some(x),
             Placement::identity(),
-            JointKind::Prismatic {
-                axis: axis(Vector3::y()),
-            },
+            JointKind::Prismatic { axis: axis(Vector3::y()) },
             JointDrive::actuated(1),
             Inertia::point_mass(10.0, Vector3::zeros()),
         )
@@ -74,24 +67,16 @@ fn mobile_arm() -> Model<f64, 5, 5, 2> {
         .add_body(
             Some(y),
             Placement::identity(),
-            JointKind::Revolute {
-                axis: axis(Vector3::z()),
-            },
+            JointKind::Revolute { axis: axis(Vector3::z()) },
             JointDrive::actuated(2),
-            Inertia {
-                mass: 50.0,
-                com: Vector3::zeros(),
-                rotational,
-            },
+            Inertia { mass: 50.0, com: Vector3::zeros(), rotational },
         )
         .unwrap();
     let link1 = b
         .add_body(
             Some(theta),
             Placement::translation(0.2, 0.0, 0.8),
-            JointKind::Revolute {
-                axis: axis(Vector3::y()),
-            },
+            JointKind::Revolute { axis: axis(Vector3::y()) },
             JointDrive::actuated(3),
             Inertia::point_mass(2.0, Vector3::new(0.0, 0.0, 0.2)),
         )
@@ -100,9 +85,7 @@ fn mobile_arm() -> Model<f64, 5, 5, 2> {
         .add_body(
             Some(link1),
             Placement::translation(0.0, 0.0, 0.4),
-            JointKind::Revolute {
-                axis: axis(Vector3::y()),
-            },
+            JointKind::Revolute { axis: axis(Vector3::y()) },
             JointDrive::actuated(4),
             Inertia::point_mass(1.0, Vector3::new(0.0, 0.0, 0.2)),
         )
@@ -124,11 +107,7 @@ fn planar4_energy_is_conserved_without_input() {
     println!("energy_planar4: relative drift {drift:.3e} over {duration} s");
     assert!((duration - 10.0).abs() < 1e-9);
     assert!(drift < 1e-6, "relative energy drift {drift:e}");
-    assert!(
-        outcome.summary.failed_claims().is_empty(),
-        "{:?}",
-        outcome.summary.failed_claims()
-    );
+    assert!(outcome.summary.failed_claims().is_empty(), "{:?}", outcome.summary.failed_claims());
     // The arm really moved: a drift bound on a resting arm would prove nothing.
     assert!(outcome.summary.get("energy_scale_j").unwrap() > 10.0);
 }
@@ -156,30 +135,17 @@ fn pendulum_period_matches_the_analytic_period() {
     let period = (crossings[4] - crossings[0]) / 4.0;
     let corrected = small_angle * (1.0 + theta0 * theta0 / 16.0);
     println!("pendulum: period {period:.9} s, small-angle {small_angle:.9} s, corrected {corrected:.9} s");
-    assert!(
-        (period / small_angle - 1.0).abs() < 1e-5,
-        "small-angle period within 1e-5"
-    );
-    assert!(
-        (period / corrected - 1.0).abs() < 1e-8,
-        "amplitude-corrected period within 1e-8"
-    );
+    assert!((period / small_angle - 1.0).abs() < 1e-5, "small-angle period within 1e-5");
+    assert!((period / corrected - 1.0).abs() < 1e-8, "amplitude-corrected period within 1e-8");
 }
 
 #[test]
 fn base_velocity_follows_the_command_with_the_configured_lag() {
     let lag = 0.1;
-    let config = SimConfig {
-        base_lag_s: lag,
-        ..SimConfig::default()
-    };
+    let config = SimConfig { base_lag_s: lag, ..SimConfig::default() };
     let mut sim = Simulator::<5, 5, 2, 2>::new(mobile_arm(), config).unwrap();
     let desired = [0.2, -0.1, 0.3];
-    sim.write_velocity(&PlatformCommand {
-        velocity: desired,
-        leg_rates: [0.05, 0.0, -0.05, 2.0],
-    })
-    .unwrap();
+    sim.write_velocity(&PlatformCommand { velocity: desired, leg_rates: [0.05, 0.0, -0.05, 2.0] }).unwrap();
     // The arm swings under zero torque; the base motion must not care.
     let report = run_loop(&mut sim, lag, CONTROL_PERIOD_S, |_, _| Ok(())).unwrap();
     assert_eq!((report.control_cycles, report.physics_steps), (100, 600));
@@ -188,10 +154,7 @@ fn base_velocity_follows_the_command_with_the_configured_lag() {
     for (v, d) in sample.velocity.iter().zip(desired) {
         let ratio = v / d;
         assert!((ratio - 0.632).abs() < 0.01, "first-order response at t = T: {ratio}");
-        assert!(
-            (ratio - expected).abs() < 1e-9,
-            "closed-form lag: {ratio} vs {expected}"
-        );
+        assert!((ratio - expected).abs() < 1e-9, "closed-form lag: {ratio} vs {expected}");
     }
     // r(T) = ṙ_des (T − T (1 − e⁻¹)) = ṙ_des T e⁻¹.
     for (r, d) in sample.pose.iter().zip(desired) {
@@ -206,12 +169,7 @@ fn base_velocity_follows_the_command_with_the_configured_lag() {
 
     // Without lag the base velocity is the command from the first step on.
     let mut ideal = Simulator::<5, 5, 2, 2>::new(mobile_arm(), SimConfig::default()).unwrap();
-    ideal
-        .write_velocity(&PlatformCommand {
-            velocity: desired,
-            leg_rates: [0.0; LEGS],
-        })
-        .unwrap();
+    ideal.write_velocity(&PlatformCommand { velocity: desired, leg_rates: [0.0; LEGS] }).unwrap();
     ideal.step().unwrap();
     let sample = PlatformVelocityInterface::read(&mut ideal).unwrap();
     assert_eq!(sample.velocity, desired);
@@ -241,11 +199,7 @@ fn torque_commands_saturate_at_the_effort_limits() {
 #[test]
 fn non_finite_commands_are_refused_with_the_safe_reaction() {
     let mut sim = Simulator::<5, 5, 2, 2>::new(mobile_arm(), SimConfig::default()).unwrap();
-    sim.set_state(
-        SVector::from([0.0, 0.0, 0.0, 0.3, -0.2]),
-        SVector::from([0.0, 0.0, 0.0, 1.0, 0.5]),
-    )
-    .unwrap();
+    sim.set_state(SVector::from([0.0, 0.0, 0.0, 0.3, -0.2]), SVector::from([0.0, 0.0, 0.0, 1.0, 0.5])).unwrap();
     let error = JointTorqueInterface::write_torque(&mut sim, &[f64::NAN, 0.0]).unwrap_err();
     assert_eq!(error.kind(), ErrorKind::OutOfRange);
     assert!(sim.brakes_engaged());
@@ -256,36 +210,17 @@ fn non_finite_commands_are_refused_with_the_safe_reaction() {
     JointTorqueInterface::write_torque(&mut sim, &[0.0, 0.0]).unwrap();
     assert!(!sim.brakes_engaged(), "a valid command releases the brakes");
 
-    sim.write_velocity(&PlatformCommand {
-        velocity: [0.1, 0.0, 0.0],
-        leg_rates: [0.0; LEGS],
-    })
-    .unwrap();
-    let error = sim.write_velocity(&PlatformCommand {
-        velocity: [f64::INFINITY, 0.0, 0.0],
-        leg_rates: [0.0; LEGS],
-    });
+    sim.write_velocity(&PlatformCommand { velocity: [0.1, 0.0, 0.0], leg_rates: [0.0; LEGS] }).unwrap();
+    let error = sim.write_velocity(&PlatformCommand { velocity: [f64::INFINITY, 0.0, 0.0], leg_rates: [0.0; LEGS] });
     assert_eq!(error.map_err(|e| e.kind()), Err(ErrorKind::OutOfRange));
     sim.step().unwrap();
-    assert_eq!(
-        PlatformVelocityInterface::read(&mut sim).unwrap().velocity,
-        [0.0; 3],
-        "the base stops"
-    );
+    assert_eq!(PlatformVelocityInterface::read(&mut sim).unwrap().velocity, [0.0; 3], "the base stops");
 
     // A robot without a base refuses a base velocity but accepts standing still.
     let mut fixed = Simulator::<1, 1, 1, 1>::new(pendulum(1.0), SimConfig::default()).unwrap();
-    let moving = PlatformCommand {
-        velocity: [0.1, 0.0, 0.0],
-        leg_rates: [0.0; LEGS],
-    };
+    let moving = PlatformCommand { velocity: [0.1, 0.0, 0.0], leg_rates: [0.0; LEGS] };
     assert_eq!(fixed.write_velocity(&moving), Err(SimError::FixedBase));
-    assert!(fixed
-        .write_velocity(&PlatformCommand {
-            velocity: [0.0; 3],
-            leg_rates: [0.0; LEGS]
-        })
-        .is_ok());
+    assert!(fixed.write_velocity(&PlatformCommand { velocity: [0.0; 3], leg_rates: [0.0; LEGS] }).is_ok());
     // Dimensions are checked: 5 coordinates cannot be 0 or 3 base coordinates plus 1.
     assert!(matches!(
         Simulator::<5, 5, 2, 1>::new(mobile_arm(), SimConfig::default()),
@@ -308,10 +243,7 @@ fn cartesian_impedance_steps_the_justin_tcp_to_steady_state() {
     );
     assert!(final_error < 5e-3, "final TCP error {final_error} m");
     assert!(settle <= 1.5, "settle time {settle} s");
-    assert!(
-        s.get("max_push_deflection_m").unwrap() > 5e-3,
-        "the push must visibly deflect the TCP"
-    );
+    assert!(s.get("max_push_deflection_m").unwrap() > 5e-3, "the push must visibly deflect the TCP");
     assert!(outcome.series.rows().iter().flatten().all(|x| x.is_finite()), "no NaN");
     assert!(s.failed_claims().is_empty(), "{:?}", s.failed_claims());
 }

@@ -9,7 +9,12 @@
 //! The number of proptest cases comes from `FUZZ_CASES` (default [`DEFAULT_CASES`], ≈ 20 s in
 //! the test profile); each case is a fresh controller and [`STEPS`] cycles. The long local run:
 //! `FUZZ_CASES=200000 cargo test --release -p thesis-tests --test fuzz` (≥ 10 minutes).
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, reason = "test code: a failure is a test failure")]
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::indexing_slicing,
+    reason = "test code: a failure is a test failure"
+)]
 
 use fixtures::justin::{self, collision as jc, whole_body};
 use hal::{JointSample, PlatformSample};
@@ -151,10 +156,17 @@ fn command() -> impl Strategy<Value = Command<f64>> {
     let pose = (array::<3>(prop_oneof![4 => -0.3..0.3_f64, 1 => value()]), array::<4>(value()), any::<bool>())
         .prop_map(|(position, orientation, unit)| {
             let norm = orientation.iter().map(|x| x * x).sum::<f64>().sqrt();
-            let orientation = if unit && norm.is_finite() && norm > 1e-6 { orientation.map(|x| x / norm) } else { orientation };
+            let orientation =
+                if unit && norm.is_finite() && norm > 1e-6 { orientation.map(|x| x / norm) } else { orientation };
             Pose { position, orientation }
         });
-    let cartesian = (array::<3>(parameter(2000.0)), array::<3>(parameter(300.0)), parameter(2.0), array::<6>(value()), array::<6>(value()))
+    let cartesian = (
+        array::<3>(parameter(2000.0)),
+        array::<3>(parameter(300.0)),
+        parameter(2.0),
+        array::<6>(value()),
+        array::<6>(value()),
+    )
         .prop_map(|(t, r, d, lower, upper)| CartesianParameters {
             translational_stiffness: t,
             rotational_stiffness: r,
@@ -162,24 +174,42 @@ fn command() -> impl Strategy<Value = Command<f64>> {
             force_lower: lower.map(|x| -x.abs() * 100.0),
             force_upper: upper.map(|x| x * 100.0),
         });
-    let field = (parameter(200.0), parameter(0.3), parameter(2.0), parameter(0.1), parameter(0.3)).prop_map(|(f, d, xi, a0, a1)| {
-        CollisionFieldParameters { max_force: f, influence_distance: d, damping_ratio: xi, activation_full: a0, activation_zero: a1 }
-    });
+    let field = (parameter(200.0), parameter(0.3), parameter(2.0), parameter(0.1), parameter(0.3)).prop_map(
+        |(f, d, xi, a0, a1)| CollisionFieldParameters {
+            max_force: f,
+            influence_distance: d,
+            damping_ratio: xi,
+            activation_full: a0,
+            activation_zero: a1,
+        },
+    );
     let group = joint_group();
     prop_oneof![
-        prop::collection::vec((task_kind(), prop_oneof![8 => 0..4_u8, 1 => any::<u8>()]), 0..14)
-            .prop_map(|specs| Command::SetHierarchy(specs.into_iter().map(|(kind, level)| TaskSpec { kind, level }).collect())),
+        prop::collection::vec((task_kind(), prop_oneof![8 => 0..4_u8, 1 => any::<u8>()]), 0..14).prop_map(|specs| {
+            Command::SetHierarchy(specs.into_iter().map(|(kind, level)| TaskSpec { kind, level }).collect())
+        }),
         (hand(), cartesian).prop_map(|(hand, parameters)| Command::SetCartesian { hand, parameters }),
         (any::<bool>(), field).prop_map(|(strong, parameters)| Command::SetCollisionField {
             field: if strong { Field::Strong } else { Field::Weak },
             parameters
         }),
-        (hand(), pose.clone(), parameter(3.0)).prop_map(|(hand, pose, duration_s)| Command::TcpGoal { hand, pose, duration_s }),
-        (hand(), pose, array::<3>(value()), array::<3>(value())).prop_map(|(hand, pose, linear_velocity, angular_velocity)| {
-            Command::TcpSample { hand, pose, linear_velocity, angular_velocity }
+        (hand(), pose.clone(), parameter(3.0)).prop_map(|(hand, pose, duration_s)| Command::TcpGoal {
+            hand,
+            pose,
+            duration_s
         }),
-        (group, prop::collection::vec(prop_oneof![4 => -0.3..0.3_f64, 1 => value()], 0..20), parameter(3.0))
-            .prop_map(|(group, values, duration_s)| Command::JointGoal { group, values: values.into_iter().collect(), duration_s }),
+        (hand(), pose, array::<3>(value()), array::<3>(value())).prop_map(
+            |(hand, pose, linear_velocity, angular_velocity)| {
+                Command::TcpSample { hand, pose, linear_velocity, angular_velocity }
+            }
+        ),
+        (group, prop::collection::vec(prop_oneof![4 => -0.3..0.3_f64, 1 => value()], 0..20), parameter(3.0)).prop_map(
+            |(group, values, duration_s)| Command::JointGoal {
+                group,
+                values: values.into_iter().collect(),
+                duration_s
+            }
+        ),
     ]
 }
 
@@ -308,7 +338,13 @@ fn check<T: Float>(controller: &Justin<T>) -> Result<(), TestCaseError> {
     }
     for (axis, v) in out.platform.velocity.iter().enumerate() {
         let (v, vmax) = (v.to_f64(), limits.base_velocity[axis].to_f64());
-        prop_assert!(v.is_finite() && v.abs() <= vmax * (1.0 + 1e-6), "base velocity {} = {} (limit {})", axis, v, vmax);
+        prop_assert!(
+            v.is_finite() && v.abs() <= vmax * (1.0 + 1e-6),
+            "base velocity {} = {} (limit {})",
+            axis,
+            v,
+            vmax
+        );
     }
     for r in &out.platform.leg_rates {
         prop_assert!(r.is_finite() && r.to_f64().abs() <= limits.leg_rate.to_f64() * (1.0 + 1e-6), "leg rate {:?}", r);
@@ -354,7 +390,13 @@ fn fuzz<T: Float>(cases: u32) {
     let mut runner = TestRunner::new(config);
     runner.run(&case(), |steps| run::<T>(&steps)).unwrap();
     let c = |i: usize| COUNTS.get(i).map_or(0, |c| c.load(Ordering::Relaxed));
-    eprintln!("fuzz ({cases} cases): {} normal cycles, {} faulty cycles, {} commands accepted, {} rejected", c(0), c(1), c(2), c(3));
+    eprintln!(
+        "fuzz ({cases} cases): {} normal cycles, {} faulty cycles, {} commands accepted, {} rejected",
+        c(0),
+        c(1),
+        c(2),
+        c(3)
+    );
 }
 
 #[test]

@@ -11,8 +11,8 @@ use std::cell::Cell;
 
 use fixtures::justin;
 use kernel::dynamics::{
-    coriolis_matrix, crba, forward_dynamics, forward_kinematics, frame_drift, frame_jacobian, gravity,
-    kinetic_energy, potential_energy, rnea,
+    coriolis_matrix, crba, forward_dynamics, forward_kinematics, frame_drift, frame_jacobian, gravity, kinetic_energy,
+    potential_energy, rnea,
 };
 use kernel::Data;
 use nalgebra::{RealField, SMatrix, SVector};
@@ -109,7 +109,14 @@ mod chapter3_tasks {
             rotational_stiffness: Matrix3::from_diagonal(&Vector3::new(c(500.0), c(10.0), c(10.0))),
             damping_ratio: c(0.7),
             force_lower: Vector6::repeat(c(f64::NEG_INFINITY)),
-            force_upper: Vector6::new(c(10.0), c(f64::INFINITY), c(f64::INFINITY), c(f64::INFINITY), c(f64::INFINITY), c(f64::INFINITY)),
+            force_upper: Vector6::new(
+                c(10.0),
+                c(f64::INFINITY),
+                c(f64::INFINITY),
+                c(f64::INFINITY),
+                c(f64::INFINITY),
+                c(f64::INFINITY),
+            ),
             fallback_damping: Vector6::repeat(c(20.0)),
         })
         .unwrap();
@@ -279,7 +286,10 @@ fn multilevel_control_does_not_allocate() {
     let v = SVector::<f64, { justin::N }>::repeat(0.2);
     forward_kinematics(&model, &mut data, &q, &v).unwrap();
     let pose = data.frame_placements[justin::RIGHT_TCP.0];
-    let target = Placement::from_parts(Translation3::from(pose.translation.vector + Vector3::new(0.05, 0.0, 0.0)), pose.rotation);
+    let target = Placement::from_parts(
+        Translation3::from(pose.translation.vector + Vector3::new(0.05, 0.0, 0.0)),
+        pose.rotation,
+    );
     let mut controller = ArmHierarchy::new(model.clone(), justin::RIGHT_TCP, target, q).unwrap();
     controller.step(&q, &v).unwrap();
     let stack = controller.stack().clone();
@@ -292,7 +302,8 @@ fn multilevel_control_does_not_allocate() {
     let coriolis = *coriolis_matrix(&model, &mut data);
     let g = *gravity(&model, &mut data);
     let factor = kernel::dynamics::mass_matrix_cholesky(&data).unwrap();
-    let terms = DynamicsTerms { mass_matrix: &mass, mass_factor: &factor, coriolis: &coriolis, gravity: &g, velocity: &v };
+    let terms =
+        DynamicsTerms { mass_matrix: &mass, mass_factor: &factor, coriolis: &coriolis, gravity: &g, velocity: &v };
     let torque = *multilevel_control(&config, &stack, &terms, &mut out).unwrap();
     assert_eq!(allocations() - before, 0, "multi-level control allocated");
     assert!(torque.iter().all(|t| t.is_finite()));
@@ -302,21 +313,24 @@ fn multilevel_control_does_not_allocate() {
 /// Justin-like model with every collision pair: zero allocations per cycle.
 fn run_controller<T: kernel::controller::messages::WireScalar>() -> usize {
     use hal::{JointSample, PlatformSample};
+    use justin::whole_body;
     use kernel::controller::config::Hand;
     use kernel::controller::messages::{decode_command, encode_command, Command, Pose};
     use kernel::controller::{Controller, SensorFrame};
-    use justin::whole_body;
 
     let model = justin::model::<T>().unwrap();
     let collision = justin::collision::collision_model(&model).unwrap();
     let config = whole_body::controller_config::<T>().unwrap();
     let mut controller = Box::new(
-        Controller::<T, { justin::N }, { justin::BODIES }, { justin::FRAMES }, { justin::UPPER_DOF }, { justin::collision::VOLUMES }, { justin::collision::PAIRS }>::try_new(
-            model,
-            collision,
-            config,
-            &whole_body::fig_6_3_hierarchy(Hand::Right),
-        )
+        Controller::<
+            T,
+            { justin::N },
+            { justin::BODIES },
+            { justin::FRAMES },
+            { justin::UPPER_DOF },
+            { justin::collision::VOLUMES },
+            { justin::collision::PAIRS },
+        >::try_new(model, collision, config, &whole_body::fig_6_3_hierarchy(Hand::Right))
         .unwrap(),
     );
     let q = justin::home_configuration::<T>();

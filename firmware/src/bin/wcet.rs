@@ -17,7 +17,6 @@
 #![no_std]
 #![no_main]
 
-
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
 use fixtures::justin;
@@ -51,7 +50,8 @@ fn stack_used(sp: usize) -> usize {
 // Large working sets live in statics (`.bss`), not on the stack being painted.
 static mut DATA: Option<JustinData> = None;
 static mut COLLISION: Option<JustinCollisionModel<S>> = None;
-static mut COLLISION_DATA: Option<CollisionData<S, { justin::collision::VOLUMES }, { justin::collision::PAIRS }>> = None;
+static mut COLLISION_DATA: Option<CollisionData<S, { justin::collision::VOLUMES }, { justin::collision::PAIRS }>> =
+    None;
 static mut ROWS_OUT: Rows = TaskRows::new();
 static mut STACK: Stack<S, N, ROWS> = Stack::new();
 static mut HIERARCHY: Option<Hierarchy> = None;
@@ -61,11 +61,18 @@ fn run() -> Result<(), &'static str> {
     // SAFETY: single-threaded, no interrupts use these; each is borrowed once here.
     let (data, collision, collision_data, rows, stack, hierarchy) = unsafe {
         let data = (*core::ptr::addr_of_mut!(DATA)).insert(Data::new(&model));
-        let collision =
-            (*core::ptr::addr_of_mut!(COLLISION)).insert(justin::collision::collision_model(&model).map_err(|_| "collision model")?);
+        let collision = (*core::ptr::addr_of_mut!(COLLISION))
+            .insert(justin::collision::collision_model(&model).map_err(|_| "collision model")?);
         let collision_data = (*core::ptr::addr_of_mut!(COLLISION_DATA)).insert(CollisionData::new(collision));
         let hierarchy = (*core::ptr::addr_of_mut!(HIERARCHY)).insert(Hierarchy::default());
-        (data, &*collision, collision_data, &mut *core::ptr::addr_of_mut!(ROWS_OUT), &mut *core::ptr::addr_of_mut!(STACK), hierarchy)
+        (
+            data,
+            &*collision,
+            collision_data,
+            &mut *core::ptr::addr_of_mut!(ROWS_OUT),
+            &mut *core::ptr::addr_of_mut!(STACK),
+            hierarchy,
+        )
     };
     // d0 = 1 m: most pairs are active, the row path runs many times (worst-input flavour).
     let parameters = CollisionParameters::try_new(c(25.0), c(1.0), c(0.7), c(0.0), c(1.0)).map_err(|_| "parameters")?;
@@ -92,7 +99,12 @@ fn run() -> Result<(), &'static str> {
         let report = report.ok_or("self-collision")?;
 
         build_stack(stack, data, &model).ok_or("stack")?;
-        let config = HierarchyConfig { recursion: Recursion::Augmented, weighting: Weighting::Inertia(&factor), shaping, diagnose_last_level: true };
+        let config = HierarchyConfig {
+            recursion: Recursion::Augmented,
+            weighting: Weighting::Inertia(&factor),
+            shaping,
+            diagnose_last_level: true,
+        };
         let sp = paint_stack();
         mark_begin::<2>();
         let torque = wcet_projection(&config, stack, hierarchy);

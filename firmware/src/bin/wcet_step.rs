@@ -14,7 +14,6 @@
 #![no_std]
 #![no_main]
 
-
 use cortex_m_rt::entry;
 use cortex_m_semihosting::hprintln;
 use fixtures::justin;

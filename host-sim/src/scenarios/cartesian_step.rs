@@ -55,10 +55,8 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
     let rest = home.fixed_rows::<UPPER_DOF>(base_dof).into_owned();
 
     let mut sim = Sim::new(model.clone(), SimConfig::default()).map_err(|e| e.to_string())?;
-    sim.set_state(home, nalgebra::SVector::zeros())
-        .map_err(|e| e.to_string())?;
-    sim.push(RIGHT_TCP, Vector3::new(0.0, PUSH_N, 0.0), PUSH_START_S, PUSH_DURATION_S)
-        .map_err(|e| e.to_string())?;
+    sim.set_state(home, nalgebra::SVector::zeros()).map_err(|e| e.to_string())?;
+    sim.push(RIGHT_TCP, Vector3::new(0.0, PUSH_N, 0.0), PUSH_START_S, PUSH_DURATION_S).map_err(|e| e.to_string())?;
     let start = sim.frame_placement(RIGHT_TCP).map_err(|e| e.to_string())?;
     let stepped = Placement::from_parts(
         Translation3::from(start.translation.vector + Vector3::new(STEP_M, 0.0, 0.0)),
@@ -67,28 +65,13 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
     let mut controller =
         Controller::new(model, RIGHT_TCP, CartesianJointGains::default(), rest, start).map_err(|e| e.to_string())?;
 
-    let names: Vec<&str> = JOINT_NAMES
-        .iter()
-        .copied()
-        .skip(JOINT_NAMES.len().saturating_sub(UPPER_DOF))
-        .collect();
+    let names: Vec<&str> = JOINT_NAMES.iter().copied().skip(JOINT_NAMES.len().saturating_sub(UPPER_DOF)).collect();
     let mut columns = vec!["t".to_owned()];
     columns.extend(joint_columns(&names));
     columns.extend(pose_error_columns(1));
     columns.extend(
-        [
-            "x_des.x",
-            "x_des.y",
-            "x_des.z",
-            "tcp.x",
-            "tcp.y",
-            "tcp.z",
-            "push.fx",
-            "push.fy",
-            "push.fz",
-            "tau_ratio_max",
-        ]
-        .map(String::from),
+        ["x_des.x", "x_des.y", "x_des.z", "tcp.x", "tcp.y", "tcp.z", "push.fx", "push.fy", "push.fz", "tau_ratio_max"]
+            .map(String::from),
     );
     columns.extend(["base.x", "base.y", "base.theta"].map(String::from));
     let mut series = TimeSeries::new(columns);
@@ -106,12 +89,7 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         let target = controller.target().translation.vector;
         let push = sim.push_force(RIGHT_TCP, info.time_s);
         let mut row = vec![info.time_s];
-        row.extend(
-            sim.upper_q()
-                .iter()
-                .chain(sim.upper_v().iter())
-                .chain(sim.applied_torque().iter()),
-        );
+        row.extend(sim.upper_q().iter().chain(sim.upper_v().iter()).chain(sim.applied_torque().iter()));
         row.extend(telemetry.error.iter());
         row.extend(target.iter().chain(tcp.iter()).chain(push.iter()));
         row.push(telemetry.torque_ratio);
@@ -138,18 +116,10 @@ fn evaluate(series: &TimeSeries, saturated_steps: u64, duration_s: f64) -> Resul
     let t = column("t")?;
     let (ex, ey, ez) = (column("e1.x")?, column("e1.y")?, column("e1.z")?);
     let (erx, ery, erz) = (column("e1.rx")?, column("e1.ry")?, column("e1.rz")?);
-    let position_error: Vec<f64> = ex
-        .iter()
-        .zip(&ey)
-        .zip(&ez)
-        .map(|((x, y), z)| (x * x + y * y + z * z).sqrt())
-        .collect();
-    let rotation_error: Vec<f64> = erx
-        .iter()
-        .zip(&ery)
-        .zip(&erz)
-        .map(|((x, y), z)| (x * x + y * y + z * z).sqrt())
-        .collect();
+    let position_error: Vec<f64> =
+        ex.iter().zip(&ey).zip(&ez).map(|((x, y), z)| (x * x + y * y + z * z).sqrt()).collect();
+    let rotation_error: Vec<f64> =
+        erx.iter().zip(&ery).zip(&erz).map(|((x, y), z)| (x * x + y * y + z * z).sqrt()).collect();
     let ratio = column("tau_ratio_max")?;
 
     let push_end = PUSH_START_S + PUSH_DURATION_S;
@@ -157,11 +127,7 @@ fn evaluate(series: &TimeSeries, saturated_steps: u64, duration_s: f64) -> Resul
     let settle = settle_time(&t, &position_error, STEP_TIME_S, PUSH_START_S);
     let recovery_time = settle_time(&t, &position_error, push_end, DURATION_S + 1.0);
     let window_max = |from: f64, to: f64, x: &[f64]| {
-        t.iter()
-            .zip(x)
-            .filter(|(ti, _)| **ti >= from && **ti < to)
-            .map(|(_, v)| *v)
-            .fold(0.0, f64::max)
+        t.iter().zip(x).filter(|(ti, _)| **ti >= from && **ti < to).map(|(_, v)| *v).fold(0.0, f64::max)
     };
     let final_error = position_error.last().copied().unwrap_or(f64::NAN);
     let before_push = t
@@ -182,13 +148,8 @@ fn evaluate(series: &TimeSeries, saturated_steps: u64, duration_s: f64) -> Resul
         .flat_map(|(i, _)| series.rows().iter().filter_map(move |r| r.get(i)))
         .fold(0.0_f64, |m, x| m.max(x.abs()));
     let all_finite = series.rows().iter().flatten().all(|x| x.is_finite());
-    let largest = |names: &[&str]| {
-        names
-            .iter()
-            .filter_map(|c| series.column(c))
-            .flatten()
-            .fold(0.0_f64, |m, x| m.max(x.abs()))
-    };
+    let largest =
+        |names: &[&str]| names.iter().filter_map(|c| series.column(c)).flatten().fold(0.0_f64, |m, x| m.max(x.abs()));
     let base_displacement = largest(&["base.x", "base.y"]);
     let base_rotation = largest(&["base.theta"]);
 
@@ -200,10 +161,7 @@ fn evaluate(series: &TimeSeries, saturated_steps: u64, duration_s: f64) -> Resul
         .metric("max_push_deflection_m", deflection)
         .metric("recovery_time_s", recovery_time)
         .metric("final_error_m", final_error)
-        .metric(
-            "final_rotation_error_rad",
-            rotation_error.last().copied().unwrap_or(f64::NAN),
-        )
+        .metric("final_rotation_error_rad", rotation_error.last().copied().unwrap_or(f64::NAN))
         .metric("max_tau_nm", max_tau)
         .metric("max_tau_ratio", max_ratio)
         .metric("max_base_displacement_m", base_displacement)
@@ -218,21 +176,14 @@ fn evaluate(series: &TimeSeries, saturated_steps: u64, duration_s: f64) -> Resul
         &format!("TCP error < 5 mm again after the push (recovered {recovery_time:.3} s after it ended)"),
         recovery_time < DURATION_S - push_end,
     );
-    summary.claim(
-        &format!("final TCP error {:.2} mm < 5 mm", final_error * 1e3),
-        final_error < TOLERANCE_M,
-    );
+    summary.claim(&format!("final TCP error {:.2} mm < 5 mm", final_error * 1e3), final_error < TOLERANCE_M);
     summary.claim("no NaN or infinite value", all_finite);
     summary.claim(
         &format!("torques within limits (max |tau_i|/tau_max,i = {max_ratio:.2} < 1, no clamping)"),
         max_ratio < 1.0 && saturated_steps == 0,
     );
 
-    Ok(Outcome {
-        summary,
-        series: series.clone(),
-        figures: figures(series, &t, &position_error)?,
-    })
+    Ok(Outcome { summary, series: series.clone(), figures: figures(series, &t, &position_error)? })
 }
 
 /// Time after `from` at which `error` entered the tolerance for good (until `to`); infinite if
@@ -258,16 +209,8 @@ fn figures(series: &TimeSeries, t: &[f64], position_error: &[f64]) -> Result<Vec
     let gains = CartesianJointGains::default();
     let events = || {
         vec![
-            Span {
-                label: "target step +0.1 m in x".into(),
-                from: STEP_TIME_S,
-                to: STEP_TIME_S,
-            },
-            Span {
-                label: "20 N push in +y".into(),
-                from: PUSH_START_S,
-                to: PUSH_START_S + PUSH_DURATION_S,
-            },
+            Span { label: "target step +0.1 m in x".into(), from: STEP_TIME_S, to: STEP_TIME_S },
+            Span { label: "20 N push in +y".into(), from: PUSH_START_S, to: PUSH_START_S + PUSH_DURATION_S },
         ]
     };
     let t_end = t.last().copied().unwrap_or(DURATION_S);
@@ -305,12 +248,7 @@ fn figures(series: &TimeSeries, t: &[f64], position_error: &[f64]) -> Result<Vec
         ],
     };
     let torque_lines = |range: std::ops::Range<usize>| -> Result<Vec<Line>, String> {
-        let names: Vec<String> = series
-            .columns()
-            .iter()
-            .filter(|c| c.starts_with("tau."))
-            .cloned()
-            .collect();
+        let names: Vec<String> = series.columns().iter().filter(|c| c.starts_with("tau.")).cloned().collect();
         names
             .get(range)
             .unwrap_or_default()

@@ -29,8 +29,8 @@
 //! whole run, and the static and mean forces stay within it; contact kept during the scrubbing;
 //! the brush circles are executed; the base does not move; no fault.
 
-use fixtures::justin::{self, whole_body};
 use fixtures::justin::whole_body::CLEAN_MUG;
+use fixtures::justin::{self, whole_body};
 use kernel::controller::config::Hand;
 use kernel::model::Placement;
 use nalgebra::{Unit, Vector3};
@@ -137,16 +137,28 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         .metric("base_travel_m", travel)
         .value("faulty_cycles", run.faulty_cycles);
     force_claims(&mut summary, &all, limit);
-    summary.claim(&format!("contact kept while scrubbing: both faces touched in ≥ {:.1} % of the cycles", share * 100.0), share > 0.95);
     summary.claim(
-        &format!("brush circles done: measured range {circle_x:.3} m (x), {circle_z:.3} m (z) of the commanded {:.3} m", 2.0 * CIRCLE_RADIUS_M),
+        &format!("contact kept while scrubbing: both faces touched in ≥ {:.1} % of the cycles", share * 100.0),
+        share > 0.95,
+    );
+    summary.claim(
+        &format!(
+            "brush circles done: measured range {circle_x:.3} m (x), {circle_z:.3} m (z) of the commanded {:.3} m",
+            2.0 * CIRCLE_RADIUS_M
+        ),
         circle_x > 0.6 * 2.0 * CIRCLE_RADIUS_M && circle_z > 0.6 * 2.0 * CIRCLE_RADIUS_M,
     );
     summary.claim(&format!("the base does not move: largest travel {travel:.2e} m"), travel <= MAX_BASE_TRAVEL_M);
     summary.claim(&format!("no fault: {} faulty cycles", run.faulty_cycles), run.faulty_cycles == 0);
     summary.claim("no NaN or infinite value", run.finite);
     let spans = [Span { label: "scrubbing".into(), from: SCRUB_S.0, to: SCRUB_S.1 }];
-    let figures = tool_figures(NAME, &run, limit, &[("x", Vector3::x()), ("y (pressing)", Vector3::y()), ("z", Vector3::z())], &spans);
+    let figures = tool_figures(
+        NAME,
+        &run,
+        limit,
+        &[("x", Vector3::x()), ("y (pressing)", Vector3::y()), ("z", Vector3::z())],
+        &spans,
+    );
     Ok(Outcome { summary, series: run.series, figures })
 }
 

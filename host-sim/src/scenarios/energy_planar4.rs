@@ -48,10 +48,7 @@ struct Run {
 /// Releases the arm from the Table 5.4 pose and records every control period (1 ms).
 fn release(physics_step_s: f64, progress: Progress) -> Result<Run, String> {
     let model = four_dof::<f64>().map_err(|e| format!("planar model: {e}"))?;
-    let config = SimConfig {
-        physics_step_s,
-        ..SimConfig::default()
-    };
+    let config = SimConfig { physics_step_s, ..SimConfig::default() };
     let mut sim = Simulator::<4, 4, 5, 4>::new(model, config).map_err(|e| e.to_string())?;
     let q0 = four_dof_configuration(0.84, 0.96, -1.37, 0.40, false).ok_or("Table 5.4 pose unreachable")?;
     sim.set_state(q0, SVector::zeros()).map_err(|e| e.to_string())?;
@@ -121,10 +118,7 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         .value("physics_steps", run.physics_steps)
         .metric("energy_drift_rel_default_step", coarse_rel)
         .metric("default_physics_step_s", DEFAULT_PHYSICS_STEP_S);
-    summary.claim(
-        &format!("relative total-energy drift {drift_rel:.2e} < {DRIFT_BOUND:.0e}"),
-        drift_rel < DRIFT_BOUND,
-    );
+    summary.claim(&format!("relative total-energy drift {drift_rel:.2e} < {DRIFT_BOUND:.0e}"), drift_rel < DRIFT_BOUND);
 
     let series = run.series;
     let scale = run.scale_j;
@@ -136,10 +130,7 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
     let coarse_total = coarse.series.column("total_energy_j").unwrap_or_default();
     let points = |y: &[f64]| t.iter().copied().zip(y.iter().copied()).collect::<Vec<_>>();
     let drift: Vec<f64> = total.iter().map(|e| (e - e0) / scale * 1e6).collect();
-    let coarse_drift: Vec<f64> = coarse_total
-        .iter()
-        .map(|e| (e - coarse.initial_j) / coarse.scale_j * 1e6)
-        .collect();
+    let coarse_drift: Vec<f64> = coarse_total.iter().map(|e| (e - coarse.initial_j) / coarse.scale_j * 1e6).collect();
     let figure = Figure {
         title: "energy_planar4: unforced planar 4-DOF arm (Fig. 4.1) released from the Table 5.4 pose".into(),
         x_label: "time (s)".into(),
@@ -167,9 +158,5 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
             },
         ],
     };
-    Ok(Outcome {
-        summary,
-        series,
-        figures: vec![("energy.svg", figure)],
-    })
+    Ok(Outcome { summary, series, figures: vec![("energy.svg", figure)] })
 }

@@ -146,7 +146,8 @@ pub const DESIGN: Design = Design { phi0_deg: -175.0, sweep1_deg_s: 27.0 };
 /// (rad/s); the body twist is `(ẋ_b, ẏ_b) = ω (p_y, −p_x)`.
 pub fn design(d: &Design, t: f64) -> (Vector2<f64>, f64) {
     let seg = |rate, a, b, ramp| RateSegment { rate, a, b, ramp };
-    let omega = signal(0.0, &[seg(1.4, 0.5, 2.0, 0.5), seg(-1.4 / 1.5, 4.5, 6.0, 0.5), seg(-0.7 / 1.2, 20.0, 21.2, 0.5)], t);
+    let omega =
+        signal(0.0, &[seg(1.4, 0.5, 2.0, 0.5), seg(-1.4 / 1.5, 4.5, 6.0, 0.5), seg(-0.7 / 1.2, 20.0, 21.2, 0.5)], t);
     let rho = signal(
         0.0,
         &[
@@ -221,12 +222,23 @@ impl BezierSpline {
         let last = self.controls.len().saturating_sub(1);
         let k = self.times.partition_point(|tk| *tk <= t).saturating_sub(1).min(last);
         let (Some(t0), Some(t1), Some(p)) = (self.times.get(k), self.times.get(k + 1), self.controls.get(k)) else {
-            return PlatformReference { pose: Vector3::zeros(), velocity: Vector3::zeros(), acceleration: Vector3::zeros() };
+            return PlatformReference {
+                pose: Vector3::zeros(),
+                velocity: Vector3::zeros(),
+                acceleration: Vector3::zeros(),
+            };
         };
         let h = t1 - t0;
         let s = ((t - t0) / h).clamp(0.0, 1.0);
         let u = 1.0 - s;
-        let b5 = [u.powi(5), 5.0 * s * u.powi(4), 10.0 * s * s * u.powi(3), 10.0 * s.powi(3) * u * u, 5.0 * s.powi(4) * u, s.powi(5)];
+        let b5 = [
+            u.powi(5),
+            5.0 * s * u.powi(4),
+            10.0 * s * s * u.powi(3),
+            10.0 * s.powi(3) * u * u,
+            5.0 * s.powi(4) * u,
+            s.powi(5),
+        ];
         let b4 = [u.powi(4), 4.0 * s * u.powi(3), 6.0 * s * s * u * u, 4.0 * s.powi(3) * u, s.powi(4)];
         let b3 = [u.powi(3), 3.0 * s * u * u, 3.0 * s * s * u, s.powi(3)];
         let pose = p.iter().zip(b5).fold(Vector3::zeros(), |acc, (c, b)| acc + c * b);
@@ -344,12 +356,43 @@ pub struct Sample {
 fn platform_model() -> Result<Model<f64, 4, 4, 1>, String> {
     let mut b = ModelBuilder::<f64, 4, 4, 1>::new(Vector3::new(0.0, 0.0, -9.81));
     let prismatic = |axis| JointKind::Prismatic { axis };
-    let x = b.add_body(None, Placement::identity(), prismatic(Vector3::x_axis()), JointDrive::actuated(0), Inertia::zero()).map_err(|e| e.to_string())?;
-    let y = b.add_body(Some(x), Placement::identity(), prismatic(Vector3::y_axis()), JointDrive::actuated(1), Inertia::zero()).map_err(|e| e.to_string())?;
-    let platform = Inertia { mass: 150.0, com: Vector3::new(0.0, 0.0, 0.3), rotational: Matrix3::from_diagonal(&Vector3::new(7.6, 9.2, 10.6)) };
-    let base = b.add_body(Some(y), Placement::identity(), JointKind::Revolute { axis: Vector3::z_axis() }, JointDrive::actuated(2), platform).map_err(|e| e.to_string())?;
-    let dummy = Inertia { mass: 5.0, com: Vector3::zeros(), rotational: Matrix3::from_diagonal(&Vector3::new(0.1, 0.1, 0.1)) };
-    let top = b.add_body(Some(base), Placement::translation(0.0, 0.0, 0.6), JointKind::Revolute { axis: Vector3::z_axis() }, JointDrive::actuated(3), dummy).map_err(|e| e.to_string())?;
+    let x = b
+        .add_body(None, Placement::identity(), prismatic(Vector3::x_axis()), JointDrive::actuated(0), Inertia::zero())
+        .map_err(|e| e.to_string())?;
+    let y = b
+        .add_body(
+            Some(x),
+            Placement::identity(),
+            prismatic(Vector3::y_axis()),
+            JointDrive::actuated(1),
+            Inertia::zero(),
+        )
+        .map_err(|e| e.to_string())?;
+    let platform = Inertia {
+        mass: 150.0,
+        com: Vector3::new(0.0, 0.0, 0.3),
+        rotational: Matrix3::from_diagonal(&Vector3::new(7.6, 9.2, 10.6)),
+    };
+    let base = b
+        .add_body(
+            Some(y),
+            Placement::identity(),
+            JointKind::Revolute { axis: Vector3::z_axis() },
+            JointDrive::actuated(2),
+            platform,
+        )
+        .map_err(|e| e.to_string())?;
+    let dummy =
+        Inertia { mass: 5.0, com: Vector3::zeros(), rotational: Matrix3::from_diagonal(&Vector3::new(0.1, 0.1, 0.1)) };
+    let top = b
+        .add_body(
+            Some(base),
+            Placement::translation(0.0, 0.0, 0.6),
+            JointKind::Revolute { axis: Vector3::z_axis() },
+            JointDrive::actuated(3),
+            dummy,
+        )
+        .map_err(|e| e.to_string())?;
     b.add_frame(Some(top), Placement::identity()).map_err(|e| e.to_string())?;
     b.try_build().map_err(|e| e.to_string())
 }
@@ -371,7 +414,8 @@ pub fn run_with(
         (true, false) => Mode::On,
         (true, true) => Mode::Legs,
     };
-    let config = SimConfig { physics_step_s: CONTROL_PERIOD_S, initial_leg_length_m: NOMINAL_LEG_M, ..SimConfig::default() };
+    let config =
+        SimConfig { physics_step_s: CONTROL_PERIOD_S, initial_leg_length_m: NOMINAL_LEG_M, ..SimConfig::default() };
     let mut sim = Simulator::<4, 4, 1, 1>::new(platform_model()?, config).map_err(|e| e.to_string())?;
     let mut avoidance = PlatformAvoidance::try_new(avoidance).map_err(|e| e.to_string())?;
     avoidance.reset(&Vector3::zeros(), &[NOMINAL_LEG_M; LEGS]).map_err(|e| e.to_string())?;
@@ -402,7 +446,8 @@ pub fn run_with(
         let twist = BaseTwist::from_world(&Vector3::from(base.velocity), base.pose[2]);
         let icr = instantaneous_center(&twist, 1e-3).position;
         let wheel_positions = avoidance.repulsion().wheel_positions(&base.leg_lengths);
-        let wheel_distance_m = icr.map_or(f64::INFINITY, |p| wheel_positions.iter().map(|w| (p - w).norm()).fold(f64::INFINITY, f64::min));
+        let wheel_distance_m =
+            icr.map_or(f64::INFINITY, |p| wheel_positions.iter().map(|w| (p - w).norm()).fold(f64::INFINITY, f64::min));
         samples.push(Sample {
             t: info.time_s,
             reference: reference.pose,
@@ -468,7 +513,12 @@ pub fn metrics(samples: &[Sample]) -> Metrics {
     }
     let finite = samples.iter().all(|s| {
         let o = &s.output;
-        o.velocity.iter().chain(o.leg_rates.iter()).chain(o.acceleration.iter()).chain(s.pose.iter()).all(|x| x.is_finite())
+        o.velocity
+            .iter()
+            .chain(o.leg_rates.iter())
+            .chain(o.acceleration.iter())
+            .chain(s.pose.iter())
+            .all(|x| x.is_finite())
             && s.steering_rate.iter().chain(s.spin.iter()).chain(s.misalignment.iter()).all(|x| x.is_finite())
     });
     Metrics {
@@ -521,7 +571,9 @@ pub fn evaluate(off: &[Sample], on: &[Sample], legs: &[Sample]) -> Result<Outcom
             .metric(&format!("{tag}_repelling_share"), m.repelling_share);
     }
     let ratio = m_on.peak_steering_rate / m_off.peak_steering_rate;
-    let window = |samples: &[Sample]| metrics(&samples.iter().filter(|x| x.t >= LEG_WINDOW_S.0 && x.t < LEG_WINDOW_S.1).copied().collect::<Vec<_>>());
+    let window = |samples: &[Sample]| {
+        metrics(&samples.iter().filter(|x| x.t >= LEG_WINDOW_S.0 && x.t < LEG_WINDOW_S.1).copied().collect::<Vec<_>>())
+    };
     let (w_on, w_legs) = (window(on), window(legs));
     let translation_reduction = 1.0 - w_legs.max_translation_error_m / w_on.max_translation_error_m;
     let rotation_reduction = 1.0 - w_legs.max_rotation_error_rad / w_on.max_rotation_error_rad;
@@ -593,12 +645,31 @@ pub fn evaluate(off: &[Sample], on: &[Sample], legs: &[Sample]) -> Result<Outcom
 fn series(off: &[Sample], on: &[Sample], legs: &[Sample]) -> Result<TimeSeries, String> {
     let mut columns: Vec<String> = ["t", "ref.x", "ref.y", "ref.theta"].map(String::from).to_vec();
     let per_run = |tag: &str| {
-        let mut c: Vec<String> = ["x", "y", "theta", "e.x", "e.y", "e.theta", "icr.x", "icr.y", "icr_wheel_distance", "repelling", "sap.ax", "sap.ay", "sap.alpha"]
-            .iter()
-            .map(|s| format!("{tag}.{s}"))
-            .collect();
+        let mut c: Vec<String> = [
+            "x",
+            "y",
+            "theta",
+            "e.x",
+            "e.y",
+            "e.theta",
+            "icr.x",
+            "icr.y",
+            "icr_wheel_distance",
+            "repelling",
+            "sap.ax",
+            "sap.ay",
+            "sap.alpha",
+        ]
+        .iter()
+        .map(|s| format!("{tag}.{s}"))
+        .collect();
         for i in 1..=LEGS {
-            c.extend([format!("{tag}.steer_rate.{i}"), format!("{tag}.misalign.{i}"), format!("{tag}.spin.{i}"), format!("{tag}.leg.{i}")]);
+            c.extend([
+                format!("{tag}.steer_rate.{i}"),
+                format!("{tag}.misalign.{i}"),
+                format!("{tag}.spin.{i}"),
+                format!("{tag}.leg.{i}"),
+            ]);
         }
         c
     };
@@ -612,9 +683,26 @@ fn series(off: &[Sample], on: &[Sample], legs: &[Sample]) -> Result<TimeSeries, 
             let e = s.reference - s.pose;
             let icr = s.icr.unwrap_or(Vector2::repeat(f64::NAN));
             let sap = s.output.avoidance_acceleration;
-            row.extend([s.pose.x, s.pose.y, s.pose.z, e.x, e.y, e.z, icr.x, icr.y, s.wheel_distance_m, f64::from(u8::from(s.output.repelling)), sap.x, sap.y, sap.z]);
+            row.extend([
+                s.pose.x,
+                s.pose.y,
+                s.pose.z,
+                e.x,
+                e.y,
+                e.z,
+                icr.x,
+                icr.y,
+                s.wheel_distance_m,
+                f64::from(u8::from(s.output.repelling)),
+                sap.x,
+                sap.y,
+                sap.z,
+            ]);
             for i in 0..LEGS {
-                row.extend([s.steering_rate.get(i), s.misalignment.get(i), s.spin.get(i), s.legs.get(i)].map(|x| x.copied().unwrap_or(f64::NAN)));
+                row.extend(
+                    [s.steering_rate.get(i), s.misalignment.get(i), s.spin.get(i), s.legs.get(i)]
+                        .map(|x| x.copied().unwrap_or(f64::NAN)),
+                );
             }
         }
         table.push(row)?;
@@ -628,7 +716,11 @@ fn figures(off: &[Sample], on: &[Sample], legs: &[Sample]) -> Vec<(&'static str,
         [9.0, 15.0, 18.0]
             .iter()
             .enumerate()
-            .map(|(i, t)| Span { label: if i == 0 { "thesis' critical moments".into() } else { String::new() }, from: *t, to: *t })
+            .map(|(i, t)| Span {
+                label: if i == 0 { "thesis' critical moments".into() } else { String::new() },
+                from: *t,
+                to: *t,
+            })
             .collect::<Vec<_>>()
     };
     let steering = Figure {
@@ -640,25 +732,52 @@ fn figures(off: &[Sample], on: &[Sample], legs: &[Sample]) -> Vec<(&'static str,
                 y_label: "steering rate (rad/s)".into(),
                 lines: runs
                     .iter()
-                    .map(|(label, s)| Line::new(*label, s.iter().map(|x| (x.t, x.steering_rate.get(w).copied().unwrap_or(0.0))).collect()))
+                    .map(|(label, s)| {
+                        Line::new(
+                            *label,
+                            s.iter().map(|x| (x.t, x.steering_rate.get(w).copied().unwrap_or(0.0))).collect(),
+                        )
+                    })
                     .collect(),
                 spans: events(),
             })
             .collect(),
     };
-    let acceleration = |f: fn(&Sample) -> f64| runs.iter().skip(1).map(|(label, s)| Line::new(*label, s.iter().map(|x| (x.t, f(x))).collect())).collect();
+    let acceleration = |f: fn(&Sample) -> f64| {
+        runs.iter().skip(1).map(|(label, s)| Line::new(*label, s.iter().map(|x| (x.t, f(x))).collect())).collect()
+    };
     let accelerations = Figure {
         title: "icr_avoidance: commanded avoidance accelerations, world frame (cf. Fig. 3.12, 3.13)".into(),
         x_label: "time (s)".into(),
         panels: vec![
-            Panel { title: "x-direction".into(), y_label: "acceleration (m/s²)".into(), lines: acceleration(|s| s.output.avoidance_acceleration.x), spans: events() },
-            Panel { title: "y-direction".into(), y_label: "acceleration (m/s²)".into(), lines: acceleration(|s| s.output.avoidance_acceleration.y), spans: events() },
-            Panel { title: "θ-direction".into(), y_label: "acceleration (rad/s²)".into(), lines: acceleration(|s| s.output.avoidance_acceleration.z), spans: events() },
+            Panel {
+                title: "x-direction".into(),
+                y_label: "acceleration (m/s²)".into(),
+                lines: acceleration(|s| s.output.avoidance_acceleration.x),
+                spans: events(),
+            },
+            Panel {
+                title: "y-direction".into(),
+                y_label: "acceleration (m/s²)".into(),
+                lines: acceleration(|s| s.output.avoidance_acceleration.y),
+                spans: events(),
+            },
+            Panel {
+                title: "θ-direction".into(),
+                y_label: "acceleration (rad/s²)".into(),
+                lines: acceleration(|s| s.output.avoidance_acceleration.z),
+                spans: events(),
+            },
             Panel {
                 title: "leg length deviation from nominal (leg motion run)".into(),
                 y_label: "deviation (m)".into(),
                 lines: (0..LEGS)
-                    .map(|w| Line::new(format!("leg {}", w + 1), legs.iter().map(|x| (x.t, x.legs.get(w).copied().unwrap_or(0.0) - NOMINAL_LEG_M)).collect()))
+                    .map(|w| {
+                        Line::new(
+                            format!("leg {}", w + 1),
+                            legs.iter().map(|x| (x.t, x.legs.get(w).copied().unwrap_or(0.0) - NOMINAL_LEG_M)).collect(),
+                        )
+                    })
                     .collect(),
                 spans: events(),
             },
@@ -671,13 +790,26 @@ fn figures(off: &[Sample], on: &[Sample], legs: &[Sample]) -> Vec<(&'static str,
             Panel {
                 title: "translational error".into(),
                 y_label: "error (m)".into(),
-                lines: runs.iter().map(|(label, s)| Line::new(*label, s.iter().map(|x| (x.t, (x.reference - x.pose).fixed_rows::<2>(0).norm())).collect())).collect(),
+                lines: runs
+                    .iter()
+                    .map(|(label, s)| {
+                        Line::new(
+                            *label,
+                            s.iter().map(|x| (x.t, (x.reference - x.pose).fixed_rows::<2>(0).norm())).collect(),
+                        )
+                    })
+                    .collect(),
                 spans: events(),
             },
             Panel {
                 title: "rotational error".into(),
                 y_label: "error (°)".into(),
-                lines: runs.iter().map(|(label, s)| Line::new(*label, s.iter().map(|x| (x.t, (x.reference.z - x.pose.z).to_degrees())).collect())).collect(),
+                lines: runs
+                    .iter()
+                    .map(|(label, s)| {
+                        Line::new(*label, s.iter().map(|x| (x.t, (x.reference.z - x.pose.z).to_degrees())).collect())
+                    })
+                    .collect(),
                 spans: events(),
             },
         ],
@@ -699,7 +831,10 @@ pub fn write_files(out: &std::path::Path, outcome: &Outcome) -> Result<Vec<&'sta
     Ok(vec![ICR_FILE])
 }
 
-fn draw_icr(root: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>, series: &TimeSeries) -> Result<(), Box<dyn std::error::Error>> {
+fn draw_icr(
+    root: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
+    series: &TimeSeries,
+) -> Result<(), Box<dyn std::error::Error>> {
     root.fill(&WHITE)?;
     let mut chart = ChartBuilder::on(root)
         .caption("ICR in the platform frame for t > 6.5 s (cf. Fig. 3.11 top)", ("sans-serif", 20))
@@ -712,17 +847,27 @@ fn draw_icr(root: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>, series: 
     for (i, psi) in fixtures::justin::LEG_DIRECTIONS.iter().enumerate() {
         let (x, y) = (NOMINAL_LEG_M * psi.cos(), NOMINAL_LEG_M * psi.sin());
         chart.draw_series(std::iter::once(Circle::new((x, y), 0, field.filled())))?;
-        let ring: Vec<(f64, f64)> = (0..=64).map(|k| {
-            let a = f64::from(k) * 2.0 * PI / 64.0;
-            (x + MAX_EXTENSION_M * a.cos(), y + MAX_EXTENSION_M * a.sin())
-        }).collect();
+        let ring: Vec<(f64, f64)> = (0..=64)
+            .map(|k| {
+                let a = f64::from(k) * 2.0 * PI / 64.0;
+                (x + MAX_EXTENSION_M * a.cos(), y + MAX_EXTENSION_M * a.sin())
+            })
+            .collect();
         chart.draw_series(std::iter::once(Polygon::new(ring, field.mix(0.5).filled())))?;
         chart.draw_series(std::iter::once(Cross::new((x, y), 6, BLACK.stroke_width(2))))?;
-        chart.draw_series(std::iter::once(Text::new(format!("wheel {}", i + 1), (x + 0.03 * psi.cos().signum(), y + 0.16 * psi.sin().signum()), ("sans-serif", 15))))?;
+        chart.draw_series(std::iter::once(Text::new(
+            format!("wheel {}", i + 1),
+            (x + 0.03 * psi.cos().signum(), y + 0.16 * psi.sin().signum()),
+            ("sans-serif", 15),
+        )))?;
     }
     let colors = [RGBColor(31, 119, 180), RGBColor(214, 39, 40), RGBColor(44, 160, 44)];
     let t = series.column("t").unwrap_or_default();
-    for ((tag, label), color) in [("off", "ICR control OFF"), ("on", "ICR control ON"), ("legs", "ICR control ON, leg motion")].iter().zip(colors) {
+    for ((tag, label), color) in
+        [("off", "ICR control OFF"), ("on", "ICR control ON"), ("legs", "ICR control ON, leg motion")]
+            .iter()
+            .zip(colors)
+    {
         let xs = series.column(&format!("{tag}.icr.x")).unwrap_or_default();
         let ys = series.column(&format!("{tag}.icr.y")).unwrap_or_default();
         // Break the path where it leaves the window (or the ICR is at infinity).
@@ -739,11 +884,18 @@ fn draw_icr(root: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>, series: 
         for segment in segments.into_iter().filter(|s| s.len() > 1) {
             let drawn = chart.draw_series(LineSeries::new(segment, color.stroke_width(2)))?;
             if first {
-                drawn.label(*label).legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2)));
+                drawn
+                    .label(*label)
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2)));
                 first = false;
             }
         }
     }
-    chart.configure_series_labels().position(SeriesLabelPosition::UpperMiddle).background_style(WHITE.mix(0.9)).border_style(BLACK).draw()?;
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperMiddle)
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK)
+        .draw()?;
     Ok(())
 }

@@ -200,9 +200,13 @@ type Sim = Simulator<N, BODIES, FRAMES, UPPER_DOF>;
 type Controller = MobileImpedance<N, BODIES, FRAMES, UPPER_DOF>;
 
 /// The settings of the experiments (Table 5.2 gains and the invented posture terms).
-pub fn settings(admittance: AdmittanceConfig<f64>, compensation: CompensationSwitch) -> Result<MobileImpedanceSettings<UPPER_DOF>, String> {
-    let layout = PlatformLayout::try_new::<N>([PlatformAxis::Admitted(0), PlatformAxis::Locked(1), PlatformAxis::Locked(2)])
-        .map_err(|e| e.to_string())?;
+pub fn settings(
+    admittance: AdmittanceConfig<f64>,
+    compensation: CompensationSwitch,
+) -> Result<MobileImpedanceSettings<UPPER_DOF>, String> {
+    let layout =
+        PlatformLayout::try_new::<N>([PlatformAxis::Admitted(0), PlatformAxis::Locked(1), PlatformAxis::Locked(2)])
+            .map_err(|e| e.to_string())?;
     let home = justin::home_configuration::<f64>();
     let base = N - UPPER_DOF;
     let left = |k: usize| justin::LEFT_ARM_COORDINATES.contains(&(k + base));
@@ -213,7 +217,11 @@ pub fn settings(admittance: AdmittanceConfig<f64>, compensation: CompensationSwi
     let stiffness = SVector::<f64, UPPER_DOF>::from_fn(|k, _| if left(k) { HOLD_STIFFNESS_NM_RAD } else { 0.0 });
     let damping = SVector::<f64, UPPER_DOF>::from_fn(|k, _| {
         let hold = 2.0 * HOLD_DAMPING_RATIO * (HOLD_STIFFNESS_NM_RAD * inertia.get(k).copied().unwrap_or(0.0)).sqrt();
-        if left(k) { hold } else { NULL_SPACE_DAMPING_NMS_RAD }
+        if left(k) {
+            hold
+        } else {
+            NULL_SPACE_DAMPING_NMS_RAD
+        }
     });
     Ok(MobileImpedanceSettings {
         tcp: RIGHT_TCP,
@@ -234,15 +242,17 @@ pub fn settings(admittance: AdmittanceConfig<f64>, compensation: CompensationSwi
 pub fn run(experiment: &Experiment, progress: Progress, label: &str) -> Result<Run, String> {
     let model: JustinModel<f64> = justin::model::<f64>().map_err(|e| format!("Justin model: {e}"))?;
     let home = justin::home_configuration::<f64>();
-    let config = SimConfig { physics_step_s: experiment.physics_step_s, base_lag_s: BASE_LAG_S, ..SimConfig::default() };
+    let config =
+        SimConfig { physics_step_s: experiment.physics_step_s, base_lag_s: BASE_LAG_S, ..SimConfig::default() };
     let mut sim = Sim::new(model.clone(), config).map_err(|e| e.to_string())?;
     sim.set_state(home, SVector::zeros()).map_err(|e| e.to_string())?;
     if let Disturbance::Push { force_n, start_s, duration_s } = experiment.disturbance {
         sim.push(RIGHT_TCP, force_n, start_s, duration_s).map_err(|e| e.to_string())?;
     }
     let start = sim.frame_placement(RIGHT_TCP).map_err(|e| e.to_string())?;
-    let mut controller = Controller::new(model, settings(experiment.admittance, experiment.compensation)?, start, CONTROL_PERIOD_S)
-        .map_err(|e| e.to_string())?;
+    let mut controller =
+        Controller::new(model, settings(experiment.admittance, experiment.compensation)?, start, CONTROL_PERIOD_S)
+            .map_err(|e| e.to_string())?;
     let mut samples = Vec::new();
     let mut stopped_at_s = None;
     let mut failure = None;
@@ -276,7 +286,11 @@ pub fn run(experiment: &Experiment, progress: Progress, label: &str) -> Result<R
             rates: [t.predicted_rate_w, t.passivity.rate],
             growth: t.passivity.growth,
             latched: t.passivity.latched,
-            base: [sim.q().get(0).copied().unwrap_or(f64::NAN), sim.v().get(0).copied().unwrap_or(f64::NAN), t.base_velocity.x],
+            base: [
+                sim.q().get(0).copied().unwrap_or(f64::NAN),
+                sim.v().get(0).copied().unwrap_or(f64::NAN),
+                t.base_velocity.x,
+            ],
             admittance: [t.virtual_force.x, t.base_acceleration.x],
             tcp_x: [tcp.x, desired.translation.vector.x],
             torque_ratio: t.torque_ratio,
@@ -349,15 +363,25 @@ pub fn trajectory_metrics(run: &Run) -> TrajectoryMetrics {
         energy_oscillations += window
             .windows(3)
             .filter(|w| match w {
-                [a, b, c] => b.storage[0] > a.storage[0] && b.storage[0] >= c.storage[0] && b.storage[0] > OSCILLATION_SHARE * peak_kinetic,
+                [a, b, c] => {
+                    b.storage[0] > a.storage[0]
+                        && b.storage[0] >= c.storage[0]
+                        && b.storage[0] > OSCILLATION_SHARE * peak_kinetic
+                }
                 _ => false,
             })
             .count();
     }
     let rate_scale = s.iter().map(|x| x.rates[0].abs()).fold(0.0, f64::max);
-    let rate_mismatch = s.iter().skip(1).map(|x| (x.rates[0] - x.rates[1]).abs()).fold(0.0, f64::max) / rate_scale.max(1e-9);
+    let rate_mismatch =
+        s.iter().skip(1).map(|x| (x.rates[0] - x.rates[1]).abs()).fold(0.0, f64::max) / rate_scale.max(1e-9);
     let finite = s.iter().all(|x| {
-        x.q.iter().chain(x.dq.iter()).chain(x.tau.iter()).chain(x.error.iter()).chain(x.storage.iter()).all(|v| v.is_finite())
+        x.q.iter()
+            .chain(x.dq.iter())
+            .chain(x.tau.iter())
+            .chain(x.error.iter())
+            .chain(x.storage.iter())
+            .all(|v| v.is_finite())
     });
     TrajectoryMetrics {
         energy_settle_s,
@@ -419,7 +443,10 @@ pub fn evaluate(on: &Run, off: &Run) -> Result<Outcome, String> {
             m_on.final_error_m * 1e3,
             m_off.final_error_m * 1e3
         ),
-        m_on.final_error_m < 0.01 && m_off.final_error_m < 0.01 && on.stopped_at_s.is_none() && off.stopped_at_s.is_none(),
+        m_on.final_error_m < 0.01
+            && m_off.final_error_m < 0.01
+            && on.stopped_at_s.is_none()
+            && off.stopped_at_s.is_none(),
     );
     summary.claim(
         &format!(
@@ -455,8 +482,21 @@ pub fn series(on: &Run, off: &Run) -> Result<TimeSeries, String> {
     columns.extend(pose_error_columns(1));
     columns.push("S1".into());
     let signals = [
-        "kinetic", "potential", "v_imp", "rate_predicted", "rate_measured", "passivity_growth", "base.x", "base.vx",
-        "base.vx_cmd", "tau_vir.x", "base.ax_adm", "tcp.x", "x_des.x", "tau_ratio_max", "coupling.torso_joint2",
+        "kinetic",
+        "potential",
+        "v_imp",
+        "rate_predicted",
+        "rate_measured",
+        "passivity_growth",
+        "base.x",
+        "base.vx",
+        "base.vx_cmd",
+        "tau_vir.x",
+        "base.ax_adm",
+        "tcp.x",
+        "x_des.x",
+        "tau_ratio_max",
+        "coupling.torso_joint2",
     ];
     columns.extend(signals.iter().map(|s| (*s).to_owned()));
     columns.extend(["e1.x", "S1", "kinetic", "base.x", "tau.torso_joint2"].iter().map(|s| format!("off.{s}")));
@@ -473,7 +513,13 @@ pub fn series(on: &Run, off: &Run) -> Result<TimeSeries, String> {
         row.extend(s.tcp_x);
         row.extend([s.torque_ratio, s.coupling_torso2]);
         match off.samples.get(k) {
-            Some(o) => row.extend([o.error[0], o.storage[2], o.storage[0], o.base[0], o.tau.get(torso2).copied().unwrap_or(f64::NAN)]),
+            Some(o) => row.extend([
+                o.error[0],
+                o.storage[2],
+                o.storage[0],
+                o.base[0],
+                o.tau.get(torso2).copied().unwrap_or(f64::NAN),
+            ]),
             None => row.extend([f64::NAN; 5]),
         }
         series.push(row)?;
@@ -482,7 +528,9 @@ pub fn series(on: &Run, off: &Run) -> Result<TimeSeries, String> {
 }
 
 fn figures(on: &Run, off: &Run) -> Vec<(&'static str, Figure)> {
-    let line = |label: &str, run: &Run, f: &dyn Fn(&Sample) -> f64| Line::new(label, run.samples.iter().map(|s| (s.t, f(s))).collect());
+    let line = |label: &str, run: &Run, f: &dyn Fn(&Sample) -> f64| {
+        Line::new(label, run.samples.iter().map(|s| (s.t, f(s))).collect())
+    };
     let ramps = || {
         vec![
             Span { label: "forward ramp".into(), from: FORWARD_S.0, to: FORWARD_S.1 },
@@ -519,19 +567,28 @@ fn figures(on: &Run, off: &Run) -> Vec<(&'static str, Figure)> {
             Panel {
                 title: "kinetic energy ½ ẏᵀMẏ (admittance inertia)".into(),
                 y_label: "energy (J)".into(),
-                lines: vec![line("compensation ON", on, &|s| s.storage[0]), line("compensation OFF", off, &|s| s.storage[0])],
+                lines: vec![
+                    line("compensation ON", on, &|s| s.storage[0]),
+                    line("compensation OFF", off, &|s| s.storage[0]),
+                ],
                 spans: ramps(),
             },
             Panel {
                 title: "potential energy V_imp + posture".into(),
                 y_label: "energy (J)".into(),
-                lines: vec![line("compensation ON", on, &|s| s.storage[1]), line("compensation OFF", off, &|s| s.storage[1])],
+                lines: vec![
+                    line("compensation ON", on, &|s| s.storage[1]),
+                    line("compensation OFF", off, &|s| s.storage[1]),
+                ],
                 spans: ramps(),
             },
             Panel {
                 title: "total energy".into(),
                 y_label: "energy (J)".into(),
-                lines: vec![line("compensation ON", on, &|s| s.storage[2]), line("compensation OFF", off, &|s| s.storage[2])],
+                lines: vec![
+                    line("compensation ON", on, &|s| s.storage[2]),
+                    line("compensation OFF", off, &|s| s.storage[2]),
+                ],
                 spans: ramps(),
             },
         ],

@@ -173,32 +173,50 @@ fn series(on: &Run, off: &Run) -> Result<TimeSeries, String> {
 }
 
 fn figures(on: &Run, off: &Run) -> Vec<(&'static str, Figure)> {
-    let line = |label: &str, run: &Run, f: &dyn Fn(&Sample) -> f64| Line::new(label, run.samples.iter().map(|s| (s.t, f(s))).collect());
-    let push = || vec![Span { label: format!("{PUSH_N} N pull at the TCP"), from: PUSH_START_S, to: PUSH_START_S + PUSH_DURATION_S }];
+    let line = |label: &str, run: &Run, f: &dyn Fn(&Sample) -> f64| {
+        Line::new(label, run.samples.iter().map(|s| (s.t, f(s))).collect())
+    };
+    let push = || {
+        vec![Span {
+            label: format!("{PUSH_N} N pull at the TCP"),
+            from: PUSH_START_S,
+            to: PUSH_START_S + PUSH_DURATION_S,
+        }]
+    };
     let stop = |run: &Run| run.stopped_at_s.map(|t| Span { label: "emergency stop (OFF)".into(), from: t, to: t });
     let spans = || push().into_iter().chain(stop(off)).collect::<Vec<_>>();
     vec![(
         "push.svg",
         Figure {
-            title: "mobile_impedance_critical: M_adm = diag(3, 3, 1), D_adm = diag(21, 21, 7) (cf. Fig. 5.8–5.10)".into(),
+            title: "mobile_impedance_critical: M_adm = diag(3, 3, 1), D_adm = diag(21, 21, 7) (cf. Fig. 5.8–5.10)"
+                .into(),
             x_label: "time (s)".into(),
             panels: vec![
                 Panel {
                     title: "TCP deviation in x".into(),
                     y_label: "deviation (m)".into(),
-                    lines: vec![line("compensation ON", on, &|s| s.error[0]), line("compensation OFF", off, &|s| s.error[0])],
+                    lines: vec![
+                        line("compensation ON", on, &|s| s.error[0]),
+                        line("compensation OFF", off, &|s| s.error[0]),
+                    ],
                     spans: spans(),
                 },
                 Panel {
                     title: "platform x".into(),
                     y_label: "x (m)".into(),
-                    lines: vec![line("compensation ON", on, &|s| s.base[0]), line("compensation OFF", off, &|s| s.base[0])],
+                    lines: vec![
+                        line("compensation ON", on, &|s| s.base[0]),
+                        line("compensation OFF", off, &|s| s.base[0]),
+                    ],
                     spans: spans(),
                 },
                 Panel {
                     title: "total energy (5.21)".into(),
                     y_label: "energy (J)".into(),
-                    lines: vec![line("compensation ON", on, &|s| s.storage[2]), line("compensation OFF", off, &|s| s.storage[2])],
+                    lines: vec![
+                        line("compensation ON", on, &|s| s.storage[2]),
+                        line("compensation OFF", off, &|s| s.storage[2]),
+                    ],
                     spans: spans(),
                 },
             ],

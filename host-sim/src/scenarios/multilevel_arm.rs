@@ -49,8 +49,7 @@
 use fixtures::justin;
 use hal::JointTorqueInterface;
 use kernel::dynamics::{
-    coriolis_matrix, crba, forward_kinematics, frame_jacobian, frame_jacobian_derivative, gravity,
-    mass_matrix_cholesky,
+    coriolis_matrix, crba, forward_kinematics, frame_jacobian, frame_jacobian_derivative, gravity, mass_matrix_cholesky,
 };
 use kernel::hierarchy::multilevel::{
     multilevel_control, ComplianceRow, ComplianceStack, DynamicsTerms, MultilevelConfig, MultilevelData,
@@ -131,11 +130,9 @@ pub const ON_OFF_DEVIATION_BOUND: f64 = 0.1;
 pub fn right_arm_model() -> Result<(ArmModel, FrameId), String> {
     let full = justin::model::<f64>().map_err(|e| e.to_string())?;
     let mut data = Data::new(&full);
-    forward_kinematics(&full, &mut data, &justin::home_configuration(), &SVector::zeros()).map_err(|e| e.to_string())?;
-    let first = justin::BODY_NAMES
-        .iter()
-        .position(|n| *n == "right_arm_link1")
-        .ok_or("no right_arm_link1")?;
+    forward_kinematics(&full, &mut data, &justin::home_configuration(), &SVector::zeros())
+        .map_err(|e| e.to_string())?;
+    let first = justin::BODY_NAMES.iter().position(|n| *n == "right_arm_link1").ok_or("no right_arm_link1")?;
     let arm = first..first + ARM_DOF;
     let mut builder = ModelBuilder::<f64, ARM_DOF, ARM_DOF, ARM_FRAMES>::new(full.gravity);
     for (k, body) in full.bodies().iter().enumerate().skip(first).take(ARM_DOF) {
@@ -160,7 +157,9 @@ pub fn right_arm_model() -> Result<(ArmModel, FrameId), String> {
         }
     }
     let coordinates = justin::RIGHT_ARM_COORDINATES;
-    let rows = |v: &SVector<f64, { justin::N }>| SVector::<f64, ARM_DOF>::from_iterator(v.iter().skip(coordinates.start).copied());
+    let rows = |v: &SVector<f64, { justin::N }>| {
+        SVector::<f64, ARM_DOF>::from_iterator(v.iter().skip(coordinates.start).copied())
+    };
     let limits = &full.limits;
     builder.limits(JointLimits {
         position_lower: rows(&limits.position_lower),
@@ -263,7 +262,12 @@ fn cartesian(frame: FrameId, axes: AxisMask, stiffness: f64, xi: f64) -> Result<
 impl<const N: usize, const B: usize, const F: usize> ArmHierarchy<N, B, F> {
     /// The hierarchy of Table 5.6 on `frame` of `model`, with equilibria `target` and
     /// `joint_target`.
-    pub fn new(model: Model<f64, N, B, F>, frame: FrameId, target: Placement<f64>, joint_target: SVector<f64, N>) -> Result<Self, String> {
+    pub fn new(
+        model: Model<f64, N, B, F>,
+        frame: FrameId,
+        target: Placement<f64>,
+        joint_target: SVector<f64, N>,
+    ) -> Result<Self, String> {
         let joints = JointImpedance::try_new(JointImpedanceConfig {
             selected: [true; N],
             stiffness: SVector::repeat(K3),
@@ -315,7 +319,8 @@ impl<const N: usize, const B: usize, const F: usize> ArmHierarchy<N, B, F> {
         self.stack.clear();
 
         self.rows.clear();
-        let report = cartesian_impedance(model, data, &self.translation, &target, &mut self.rows).map_err(|e| e.to_string())?;
+        let report =
+            cartesian_impedance(model, data, &self.translation, &target, &mut self.rows).map_err(|e| e.to_string())?;
         let spring = -(self.translation.stiffness() * report.error);
         for (k, row) in self.rows.rows().iter().enumerate() {
             let rate = jacobian_rate.row(k).into_owned();
@@ -325,9 +330,11 @@ impl<const N: usize, const B: usize, const F: usize> ArmHierarchy<N, B, F> {
         self.errors.translation = report.error.fixed_rows::<3>(0).into_owned();
 
         self.rows.clear();
-        let report = cartesian_impedance(model, data, &self.rotation, &target, &mut self.rows).map_err(|e| e.to_string())?;
+        let report =
+            cartesian_impedance(model, data, &self.rotation, &target, &mut self.rows).map_err(|e| e.to_string())?;
         let spring = -(self.rotation.stiffness() * report.error);
-        let rates = rotation_row_rates(pose.rotation.matrix(), self.target.rotation.matrix(), &jacobian, &jacobian_rate, v);
+        let rates =
+            rotation_row_rates(pose.rotation.matrix(), self.target.rotation.matrix(), &jacobian, &jacobian_rate, v);
         for (k, row) in self.rows.rows().iter().enumerate() {
             let rate: RowSVector<f64, N> = rates.row(k).into_owned();
             let compliance = ComplianceRow::from_task_row(row, rate, spring.get(k + 3).copied().unwrap_or_default());
@@ -345,7 +352,8 @@ impl<const N: usize, const B: usize, const F: usize> ArmHierarchy<N, B, F> {
         }
         self.errors.joint_norm = (q - self.joint_target).norm();
 
-        let terms = DynamicsTerms { mass_matrix: &mass, mass_factor: &factor, coriolis: &coriolis, gravity: &g, velocity: v };
+        let terms =
+            DynamicsTerms { mass_matrix: &mass, mass_factor: &factor, coriolis: &coriolis, gravity: &g, velocity: v };
         multilevel_control(&self.config, &self.stack, &terms, &mut self.out).map_err(|e| e.to_string())
     }
 }
@@ -388,7 +396,8 @@ struct Start {
 }
 
 fn settle(model: &ArmModel, tcp: FrameId) -> Result<Start, String> {
-    let mut sim = Simulator::<ARM_DOF, ARM_DOF, ARM_FRAMES, ARM_DOF>::new(model.clone(), SimConfig::default()).map_err(|e| e.to_string())?;
+    let mut sim = Simulator::<ARM_DOF, ARM_DOF, ARM_FRAMES, ARM_DOF>::new(model.clone(), SimConfig::default())
+        .map_err(|e| e.to_string())?;
     let home = arm_home();
     sim.set_state(home, SVector::zeros()).map_err(|e| e.to_string())?;
     let start = sim.frame_placement(tcp).map_err(|e| e.to_string())?;
@@ -411,8 +420,15 @@ fn settle(model: &ArmModel, tcp: FrameId) -> Result<Start, String> {
 }
 
 /// One recorded run from the settled state, with `τ_μ` on or off.
-fn record(model: &ArmModel, tcp: FrameId, start: &Start, decoupling: bool, progress: Progress) -> Result<TimeSeries, String> {
-    let mut sim = Simulator::<ARM_DOF, ARM_DOF, ARM_FRAMES, ARM_DOF>::new(model.clone(), SimConfig::default()).map_err(|e| e.to_string())?;
+fn record(
+    model: &ArmModel,
+    tcp: FrameId,
+    start: &Start,
+    decoupling: bool,
+    progress: Progress,
+) -> Result<TimeSeries, String> {
+    let mut sim = Simulator::<ARM_DOF, ARM_DOF, ARM_FRAMES, ARM_DOF>::new(model.clone(), SimConfig::default())
+        .map_err(|e| e.to_string())?;
     sim.set_state(arm_home(), SVector::zeros()).map_err(|e| e.to_string())?;
     let home_pose = sim.frame_placement(tcp).map_err(|e| e.to_string())?;
     sim.set_state(start.q, start.v).map_err(|e| e.to_string())?;
@@ -465,7 +481,9 @@ fn record(model: &ArmModel, tcp: FrameId, start: &Start, decoupling: bool, progr
 
 /// Largest `|x|` over the columns `<prefix>.1 … <prefix>.7`.
 fn peak_over(series: &TimeSeries, prefix: &str) -> Result<f64, String> {
-    (1..=ARM_DOF).map(|k| column(series, &format!("{prefix}.{k}")).map(|v| peak(&v))).try_fold(0.0_f64, |m, p| p.map(|p| m.max(p)))
+    (1..=ARM_DOF)
+        .map(|k| column(series, &format!("{prefix}.{k}")).map(|v| peak(&v)))
+        .try_fold(0.0_f64, |m, p| p.map(|p| m.max(p)))
 }
 
 /// Stretches `(start, end)` (s) during which `s` rises by more than `threshold` (J).
@@ -499,12 +517,17 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
     summary.metric("settled_kinetic_energy_j", start.kinetic_j).metric("duration_s", DURATION_S);
 
     // Ṡ₁ ≤ 0 after the step, model-based and sampled.
-    let after = |values: &[f64]| -> Vec<f64> { t.iter().zip(values).filter(|(time, _)| **time >= STEP_TIME_S).map(|(_, v)| *v).collect() };
+    let after = |values: &[f64]| -> Vec<f64> {
+        t.iter().zip(values).filter(|(time, _)| **time >= STEP_TIME_S).map(|(_, v)| *v).collect()
+    };
     let s1 = column(&series, "S1")?;
     let s1_peak = s1.iter().copied().fold(0.0, f64::max);
     let sdot1_max = after(&column(&series, "Sdot1")?).into_iter().fold(f64::NEG_INFINITY, f64::max);
     let s1_rise = largest_rise(&t, &s1, STEP_TIME_S + 1e-9);
-    summary.metric("s1_peak_j", s1_peak).metric("sdot1_max_after_step_w", sdot1_max).metric("s1_largest_rise_after_step_j", s1_rise);
+    summary
+        .metric("s1_peak_j", s1_peak)
+        .metric("sdot1_max_after_step_w", sdot1_max)
+        .metric("s1_largest_rise_after_step_j", s1_rise);
     summary.claim(&format!("model-based Ṡ1 ≤ 0 after the step (max {sdot1_max:.2e} W)"), sdot1_max <= 1e-9);
     summary.claim(
         &format!("sampled S1 does not rise after the step (largest rise {s1_rise:.2e} J ≤ {S1_RISE_TOLERANCE_REL} × {s1_peak:.3} J)"),
@@ -516,14 +539,19 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
     let s2_peak = s2.iter().copied().fold(0.0, f64::max);
     let s2_final = s2.last().copied().unwrap_or(f64::NAN);
     let rises = rising_intervals(&t, &s2, 1e-3 * s2_peak);
-    summary.metric("s2_peak_j", s2_peak).metric("s2_final_j", s2_final).value(
-        "s2_rising_intervals_s",
-        rises.iter().map(|(a, b)| vec![*a, *b]).collect::<Vec<_>>(),
+    summary
+        .metric("s2_peak_j", s2_peak)
+        .metric("s2_final_j", s2_final)
+        .value("s2_rising_intervals_s", rises.iter().map(|(a, b)| vec![*a, *b]).collect::<Vec<_>>());
+    summary.claim(
+        &format!("S2 converges: final {s2_final:.2e} J < 0.01 × peak {s2_peak:.3} J"),
+        s2_final < 0.01 * s2_peak,
     );
-    summary.claim(&format!("S2 converges: final {s2_final:.2e} J < 0.01 × peak {s2_peak:.3} J"), s2_final < 0.01 * s2_peak);
     let late = rises.iter().find(|(from, _)| *from > STEP_TIME_S + 0.1).copied();
     summary.claim(
-        &format!("S2 rises temporarily well after the step ({late:.3?} s; thesis 0.3 s < t < 0.4 s): conditional stability"),
+        &format!(
+            "S2 rises temporarily well after the step ({late:.3?} s; thesis 0.3 s < t < 0.4 s): conditional stability"
+        ),
         late.is_some(),
     );
 
@@ -613,8 +641,25 @@ fn figures(series: &TimeSeries, without: &TimeSeries) -> Result<Vec<(&'static st
         spans: step(),
     };
     Ok(vec![
-        ("storage.svg", Figure { title: format!("{NAME}: storage functions (Figs. 5.21, 5.23)"), x_label: "time (s)".into(), panels: storage }),
-        ("storage_rates.svg", Figure { title: format!("{NAME}: storage rates (Fig. 5.21 right)"), x_label: "time (s)".into(), panels: rates }),
-        ("errors.svg", Figure { title: format!("{NAME}: errors (Fig. 5.22)"), x_label: "time (s)".into(), panels: vec![errors] }),
+        (
+            "storage.svg",
+            Figure {
+                title: format!("{NAME}: storage functions (Figs. 5.21, 5.23)"),
+                x_label: "time (s)".into(),
+                panels: storage,
+            },
+        ),
+        (
+            "storage_rates.svg",
+            Figure {
+                title: format!("{NAME}: storage rates (Fig. 5.21 right)"),
+                x_label: "time (s)".into(),
+                panels: rates,
+            },
+        ),
+        (
+            "errors.svg",
+            Figure { title: format!("{NAME}: errors (Fig. 5.22)"), x_label: "time (s)".into(), panels: vec![errors] },
+        ),
     ])
 }

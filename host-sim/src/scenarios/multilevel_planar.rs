@@ -34,8 +34,7 @@
 use fixtures::planar::{four_dof, four_dof_configuration, Planar4, LINK_LENGTH, PLANAR4_TCP};
 use hal::JointTorqueInterface;
 use kernel::dynamics::{
-    coriolis_matrix, crba, forward_kinematics, frame_jacobian, frame_jacobian_derivative, gravity,
-    mass_matrix_cholesky,
+    coriolis_matrix, crba, forward_kinematics, frame_jacobian, frame_jacobian_derivative, gravity, mass_matrix_cholesky,
 };
 use kernel::hierarchy::multilevel::{
     multilevel_control, ComplianceRow, ComplianceStack, DynamicsTerms, MultilevelConfig, MultilevelData,
@@ -147,12 +146,7 @@ pub struct Setup {
 
 /// Task values and errors of the Table 5.4 hierarchy at `q`: `(x, y, Σq, q₁)` minus the goals.
 fn task_errors(tcp: &Vector3<f64>, q: &SVector<f64, N>) -> [f64; 4] {
-    [
-        tcp.x - TCP_GOAL_M[0],
-        tcp.y - TCP_GOAL_M[1],
-        q.sum() - ORIENTATION_GOAL_RAD,
-        q.x - Q1_GOAL_RAD,
-    ]
+    [tcp.x - TCP_GOAL_M[0], tcp.y - TCP_GOAL_M[1], q.sum() - ORIENTATION_GOAL_RAD, q.x - Q1_GOAL_RAD]
 }
 
 /// The compliance rows of Table 5.4 at the controller's kinematics (`data` after
@@ -167,12 +161,7 @@ fn stack_rows(
     let mut rate = SMatrix::<f64, 6, N>::zeros();
     frame_jacobian(model, data, PLANAR4_TCP, &mut jacobian).map_err(|e| e.to_string())?;
     frame_jacobian_derivative(model, data, PLANAR4_TCP, &data.v, &mut rate).map_err(|e| e.to_string())?;
-    let tcp = data
-        .frame_placements
-        .get(PLANAR4_TCP.0)
-        .ok_or("no TCP frame")?
-        .translation
-        .vector;
+    let tcp = data.frame_placements.get(PLANAR4_TCP.0).ok_or("no TCP frame")?.translation.vector;
     let errors = task_errors(&tcp, &data.q);
     stack.clear();
     let spring = |level: usize,
@@ -236,7 +225,8 @@ pub fn run(setup: &Setup, progress: Progress) -> Result<TimeSeries, String> {
         crba(&plant, &mut plant_data);
         let plant_factor = mass_matrix_cholesky(&plant_data).map_err(err)?;
         let errors = stack_rows(model, &controller_data, &gains, &mut stack)?;
-        let terms = DynamicsTerms { mass_matrix: &mass, mass_factor: &factor, coriolis: &coriolis, gravity: &g, velocity: &v };
+        let terms =
+            DynamicsTerms { mass_matrix: &mass, mass_factor: &factor, coriolis: &coriolis, gravity: &g, velocity: &v };
         let torque = *multilevel_control(&config, &stack, &terms, &mut out).map_err(|e| e.to_string())?;
         JointTorqueInterface::<f64, 4>::write_torque(sim, &torque.into()).map_err(|e| e.to_string())?;
 
@@ -379,7 +369,8 @@ pub fn points(t: &[f64], y: &[f64]) -> Vec<(f64, f64)> {
 /// The two standard figures: errors per level, and storage functions per level.
 pub fn figures(series: &TimeSeries, title: &str) -> Result<Vec<(&'static str, Figure)>, String> {
     let t = column(series, "t")?;
-    let line = |name: &str, label: &str| -> Result<Line, String> { Ok(Line::new(label, points(&t, &column(series, name)?))) };
+    let line =
+        |name: &str, label: &str| -> Result<Line, String> { Ok(Line::new(label, points(&t, &column(series, name)?))) };
     let errors = Figure {
         title: format!("{title}: task errors (Table 5.4 hierarchy)"),
         x_label: "time (s)".into(),
@@ -436,7 +427,9 @@ mod tests {
             forward_kinematics(&fixture, &mut b, &q, &SVector::zeros()).unwrap();
             assert!((crba(&ours, &mut a) - crba(&fixture, &mut b)).amax() < 1e-14);
             assert!((gravity(&ours, &mut a) - gravity(&fixture, &mut b)).amax() < 1e-12);
-            assert!((a.frame_placements[4].translation.vector - b.frame_placements[4].translation.vector).amax() < 1e-15);
+            assert!(
+                (a.frame_placements[4].translation.vector - b.frame_placements[4].translation.vector).amax() < 1e-15
+            );
         }
     }
 

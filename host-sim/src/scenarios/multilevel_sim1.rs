@@ -15,7 +15,7 @@
 //! Reported for comparison: the torque ranges of `τ_1^p`, `τ_2^p`, `τ_3^p` (Fig. 5.17 left, axis
 //! ticks about −50…150, −400…200, −100…200 Nm).
 
-use super::multilevel_planar::{column, figures, peak, run, settle_time, Setup, THESIS_CONTROL_PERIOD_S, SIM1_GAINS};
+use super::multilevel_planar::{column, figures, peak, run, settle_time, Setup, SIM1_GAINS, THESIS_CONTROL_PERIOD_S};
 use super::{Outcome, Progress};
 use crate::output::Summary;
 

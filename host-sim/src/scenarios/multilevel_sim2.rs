@@ -28,7 +28,9 @@
 //! same metrics with the controller at the 1 kHz main-loop rate (suffix `_1khz`; see
 //! [`super::multilevel_planar::THESIS_CONTROL_PERIOD_S`]).
 
-use super::multilevel_planar::{column, figures, largest_rise, settle_time, Setup, CONTROL_PERIOD_S, THESIS_CONTROL_PERIOD_S, SIM2_GAINS};
+use super::multilevel_planar::{
+    column, figures, largest_rise, settle_time, Setup, CONTROL_PERIOD_S, SIM2_GAINS, THESIS_CONTROL_PERIOD_S,
+};
 use super::{Outcome, Progress};
 use crate::output::{Summary, TimeSeries};
 
@@ -87,9 +89,13 @@ pub fn energy_claims(series: &TimeSeries, summary: &mut Summary) -> Result<bool,
         // Model-based rate (5.65) against the central difference of the samples.
         let mut worst: f64 = 0.0;
         for k in 1..values.len().saturating_sub(1) {
-            let (Some(a), Some(b), Some(ta), Some(tb), Some(rate)) =
-                (values.get(k - 1), values.get(k + 1), t.get(k - 1), t.get(k + 1), rates.get(level).and_then(|r| r.get(k)))
-            else {
+            let (Some(a), Some(b), Some(ta), Some(tb), Some(rate)) = (
+                values.get(k - 1),
+                values.get(k + 1),
+                t.get(k - 1),
+                t.get(k + 1),
+                rates.get(level).and_then(|r| r.get(k)),
+            ) else {
                 continue;
             };
             worst = worst.max(((b - a) / (tb - ta) - rate).abs());
@@ -159,11 +165,7 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
     }
     summary.metric("control_period_s", THESIS_CONTROL_PERIOD_S);
     let t = column(&series, "t")?;
-    let e1: Vec<f64> = column(&series, "e1.x")?
-        .iter()
-        .zip(column(&series, "e1.y")?)
-        .map(|(x, y)| x.hypot(y))
-        .collect();
+    let e1: Vec<f64> = column(&series, "e1.x")?.iter().zip(column(&series, "e1.y")?).map(|(x, y)| x.hypot(y)).collect();
     let initial = e1.first().copied().unwrap_or_default();
     summary
         .metric("e1_almost_zero_time_s", settle_time(&t, &e1, ALMOST_ZERO_REL * initial))

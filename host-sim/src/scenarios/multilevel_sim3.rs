@@ -19,7 +19,9 @@
 //!   within about ±6 m/s² and ±1.5 rad/s²); their peaks are reported and claimed above 1e-3.
 //!   The level-2 acceleration in its operational space (`Σq̈`) is reported too.
 
-use super::multilevel_planar::{column, figures, peak, planar_arm, points, run, settle_time, Setup, SIM3_COM_M, SIM3_MASSES_KG};
+use super::multilevel_planar::{
+    column, figures, peak, planar_arm, points, run, settle_time, Setup, SIM3_COM_M, SIM3_MASSES_KG,
+};
 use super::{multilevel_sim2, Outcome, Progress};
 use crate::output::{Figure, Line, Panel, Summary};
 
@@ -45,18 +47,23 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         let s = column(&series, &format!("S{level}"))?;
         let top = s.iter().copied().fold(0.0, f64::max);
         let last = s.last().copied().unwrap_or(f64::NAN);
-        summary
-            .metric(&format!("s{level}_peak_j"), top)
-            .metric(&format!("s{level}_final_j"), last)
-            .metric(&format!("s{level}_almost_zero_time_s"), settle_time(&t, &s, multilevel_sim2::ALMOST_ZERO_REL * top));
+        summary.metric(&format!("s{level}_peak_j"), top).metric(&format!("s{level}_final_j"), last).metric(
+            &format!("s{level}_almost_zero_time_s"),
+            settle_time(&t, &s, multilevel_sim2::ALMOST_ZERO_REL * top),
+        );
         summary.claim(
-            &format!("S{level} converges: final {last:.2e} J < {} of its peak {top:.3} J", multilevel_sim2::ALMOST_ZERO_REL),
+            &format!(
+                "S{level} converges: final {last:.2e} J < {} of its peak {top:.3} J",
+                multilevel_sim2::ALMOST_ZERO_REL
+            ),
             last < multilevel_sim2::ALMOST_ZERO_REL * top,
         );
     }
     let mut worst: f64 = 0.0;
     let mut panels = Vec::new();
-    for (name, key, unit) in [("e1.x", "e1_x", "m"), ("e1.y", "e1_y", "m"), ("e2.rot", "e2_rot", "rad"), ("e3.q1", "e3_q1", "rad")] {
+    for (name, key, unit) in
+        [("e1.x", "e1_x", "m"), ("e1.y", "e1_y", "m"), ("e2.rot", "e2_rot", "rad"), ("e3.q1", "e3_q1", "rad")]
+    {
         let (ours, theirs) = (column(&series, name)?, column(&reference, name)?);
         let initial = theirs.first().copied().unwrap_or(1.0).abs();
         let deviation = ours.iter().zip(theirs.iter()).fold(0.0_f64, |m, (a, b)| m.max((a - b).abs())) / initial;
@@ -73,10 +80,8 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         &format!("transient close to sim #2: largest error deviation {worst:.3} of the initial error < {TRANSIENT_DEVIATION_BOUND}"),
         worst < TRANSIENT_DEVIATION_BOUND,
     );
-    let by3: Vec<f64> = ["acc1.x_by3", "acc1.y_by3"]
-        .iter()
-        .map(|c| column(&series, c).map(|v| peak(&v)))
-        .collect::<Result<_, _>>()?;
+    let by3: Vec<f64> =
+        ["acc1.x_by3", "acc1.y_by3"].iter().map(|c| column(&series, c).map(|v| peak(&v))).collect::<Result<_, _>>()?;
     let level1 = by3.iter().copied().fold(0.0, f64::max);
     let level2 = peak(&column(&series, "acc2_by3")?);
     summary
@@ -114,6 +119,13 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
             ],
         },
     ));
-    figures.push(("comparison.svg", Figure { title: format!("{NAME} vs multilevel_sim2 (Fig. 5.20 vs Fig. 5.18)"), x_label: "time (s)".into(), panels }));
+    figures.push((
+        "comparison.svg",
+        Figure {
+            title: format!("{NAME} vs multilevel_sim2 (Fig. 5.20 vs Fig. 5.18)"),
+            x_label: "time (s)".into(),
+            panels,
+        },
+    ));
     Ok(Outcome { summary, series, figures })
 }

@@ -253,7 +253,12 @@ impl Controller {
             Consistency::Dynamic => Weighting::Inertia(&factor),
             Consistency::Acceleration => Weighting::AccelerationBased(&factor),
         };
-        let config = HierarchyConfig { recursion: self.variant.recursion, weighting, shaping: SHAPING, diagnose_last_level: true };
+        let config = HierarchyConfig {
+            recursion: self.variant.recursion,
+            weighting,
+            shaping: SHAPING,
+            diagnose_last_level: true,
+        };
         let projected = *project(&config, &stack, &mut self.hierarchy).map_err(|e| err(&e))?;
         for diagnostics in self.hierarchy.rows.iter().filter(|r| r.level < 3) {
             self.min_ratio = self.min_ratio.min(diagnostics.projected_norm_ratio);
@@ -269,7 +274,7 @@ impl Controller {
 pub struct VariantRun {
     /// The variant.
     pub variant: Variant,
-    /// `t` and the signals of [`signal_columns`].
+    /// `t` and the signals of `signal_columns`.
     pub series: TimeSeries,
     /// Smallest projected-row norm ratio of the rows of levels 1–3.
     pub min_ratio: f64,

@@ -15,7 +15,7 @@
 //! the kernel's collision rows ([`self_collision_rows`]: distance, pair Jacobian, reflected
 //! mass (3.20), potential (3.8)/(3.10), damping by double diagonalisation (3.23)) as the
 //! controller at 1 kHz. Numbers the thesis does not print:
-//! - mass `m` [derived]: the reflected mass (3.20) of the left palm of the Justin-like robot
+//! - mass `m` (derived): the reflected mass (3.20) of the left palm of the Justin-like robot
 //!   ([`fixtures::justin`]) along the direction to the right palm at the home configuration,
 //!   with only the left arm free (the 7×7 left-arm block of `M`), as in the experiment;
 //! - approach speed `v0` [inferred from Fig. 3.5]: the repulsive-force axis of Fig. 3.5 tops out
@@ -204,7 +204,8 @@ pub fn throw(mass_kg: f64, speed: f64, xi: f64, push_n: f64) -> Result<Run, Stri
             None => (0.0, 0.0, 0.0),
         };
         if run.reflected_mass_kg.is_nan() && !rows.is_empty() {
-            let pair = evaluate_pair(&collision_model, &collision, &model, &data, &factor, &parameters, 0).map_err(fail)?;
+            let pair =
+                evaluate_pair(&collision_model, &collision, &model, &data, &factor, &parameters, 0).map_err(fail)?;
             let (hand, obstacle) = pair.reflected_masses();
             run.reflected_mass_kg = hand.unwrap_or(f64::INFINITY);
             run.obstacle_mass_infinite = obstacle.is_none();
@@ -358,10 +359,8 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         &format!("undamped: the hand returns with its approach speed ({undamped_rebound:.4} vs {speed:.4} m/s, 1 %)"),
         (undamped_rebound - speed).abs() <= 1e-2 * speed,
     );
-    summary.claim(
-        &format!("the returning speed decreases with xi: {rebounds:.3?} m/s"),
-        strictly_decreasing(&rebounds),
-    );
+    summary
+        .claim(&format!("the returning speed decreases with xi: {rebounds:.3?} m/s"), strictly_decreasing(&rebounds));
     for (xi, h) in DAMPING_RATIOS.iter().zip(&hold_numbers).filter(|(xi, _)| **xi >= 1.0) {
         summary.claim(
             &format!(
@@ -382,7 +381,10 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
     }
     if let Some(h) = hold_numbers.first() {
         summary.claim(
-            &format!("hold, xi = 0: undamped oscillation ({} minima, second/first depth {:.3})", h.minima, h.second_minimum_ratio),
+            &format!(
+                "hold, xi = 0: undamped oscillation ({} minima, second/first depth {:.3})",
+                h.minima, h.second_minimum_ratio
+            ),
             h.minima >= 2 && (h.second_minimum_ratio - 1.0).abs() < 0.02,
         );
     }
@@ -393,7 +395,8 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
     let mass_ok = throws.iter().all(|r| (r.reflected_mass_kg - mass).abs() <= 1e-9 * mass && r.obstacle_mass_infinite);
     summary.claim("the pair's reflected mass (3.20) is the hand's mass; the locked side's is infinite", mass_ok);
     let peak = throw_numbers.iter().map(|t| t.peak_repulsive_force_n).fold(0.0, f64::max);
-    summary.claim(&format!("the repulsive force stays below F_max ({peak:.2} N <= {MAX_FORCE_N} N)"), peak <= MAX_FORCE_N);
+    summary
+        .claim(&format!("the repulsive force stays below F_max ({peak:.2} N <= {MAX_FORCE_N} N)"), peak <= MAX_FORCE_N);
 
     let series = time_series(&throws, &holds)?;
     let figures = vec![("sca_damping.svg", figure(&throws, &holds, equilibrium))];
@@ -408,7 +411,10 @@ fn millimetres(values: &[f64]) -> String {
 fn time_series(throws: &[Run], holds: &[Run]) -> Result<TimeSeries, String> {
     let mut columns = vec!["t".to_owned()];
     let signals = ["q", "dq", "tau", "d", "f_repulsive", "f_damping", "a"];
-    for (run, xi) in [("throw", &DAMPING_RATIOS), ("hold", &DAMPING_RATIOS)].iter().flat_map(|(r, x)| x.iter().map(move |x| (*r, *x))) {
+    for (run, xi) in [("throw", &DAMPING_RATIOS), ("hold", &DAMPING_RATIOS)]
+        .iter()
+        .flat_map(|(r, x)| x.iter().map(move |x| (*r, *x)))
+    {
         for s in signals {
             columns.push(format!("{s}.{run}_{}", xi_suffix(xi)));
         }

@@ -26,8 +26,8 @@
 //! `energy_j`.
 
 use fixtures::justin;
-use kernel::controller::messages::{Command, Pose};
 use kernel::controller::config::Hand;
+use kernel::controller::messages::{Command, Pose};
 use nalgebra::{UnitQuaternion, Vector3};
 
 use super::{Outcome, Progress};
@@ -176,7 +176,12 @@ pub fn run(duration: f64, seed: u64, progress: Progress) -> Result<(SoakMetrics,
         rig.cycle(&info).map_err(|e| format!("cycle {cycle}: {e}"))?;
         let output = *rig.controller.output();
         let telemetry = rig.controller.telemetry();
-        let finite = output.torque.iter().chain(output.platform.velocity.iter()).chain(output.platform.leg_rates.iter()).all(|x| x.is_finite())
+        let finite = output
+            .torque
+            .iter()
+            .chain(output.platform.velocity.iter())
+            .chain(output.platform.leg_rates.iter())
+            .all(|x| x.is_finite())
             && rig.sim.q().iter().chain(rig.sim.v().iter()).all(|x| x.is_finite());
         if !finite {
             m.nan_count += 1;
@@ -192,7 +197,9 @@ pub fn run(duration: f64, seed: u64, progress: Progress) -> Result<(SoakMetrics,
         m.max_energy_j = m.max_energy_j.max(energy);
         window[2] = window[2].max(energy);
         for (i, (tau, prev)) in output.torque.iter().zip(previous.iter()).enumerate() {
-            let (Some(e), Some(r)) = (effort.get(i + kernel::controller::PLATFORM_DOF), rate.get(i + kernel::controller::PLATFORM_DOF)) else {
+            let (Some(e), Some(r)) =
+                (effort.get(i + kernel::controller::PLATFORM_DOF), rate.get(i + kernel::controller::PLATFORM_DOF))
+            else {
                 continue;
             };
             let ratio = tau.abs() / e;
@@ -230,7 +237,9 @@ pub fn run(duration: f64, seed: u64, progress: Progress) -> Result<(SoakMetrics,
             let direction = Vector3::new(rng.uniform((-1.0, 1.0)), rng.uniform((-1.0, 1.0)), rng.uniform((-1.0, 1.0)));
             let direction = direction.try_normalize(1e-6).unwrap_or_else(Vector3::x);
             let force = direction * rng.uniform(PUSH_FORCE_N);
-            rig.sim.push(frame, force, t, rng.uniform(PUSH_DURATION_S)).map_err(|e| format!("push at {t:.3} s: {e}"))?;
+            rig.sim
+                .push(frame, force, t, rng.uniform(PUSH_DURATION_S))
+                .map_err(|e| format!("push at {t:.3} s: {e}"))?;
             m.pushes += 1;
             next_push = t + rng.uniform(PUSH_INTERVAL_S);
         }
@@ -258,7 +267,10 @@ pub fn evaluate(m: &SoakMetrics, series: TimeSeries) -> Result<Outcome, String> 
             .metric("min_collision_distance_m", m.min_distance_m)
             .metric("nan_count", m.nan_count as f64)
             .metric("fault_count", m.fault_count as f64)
-            .value("first_fault", m.first_fault.as_ref().map_or_else(|| "none".to_string(), |(t, f)| format!("{f} at t = {t:.3} s")))
+            .value(
+                "first_fault",
+                m.first_fault.as_ref().map_or_else(|| "none".to_string(), |(t, f)| format!("{f} at t = {t:.3} s")),
+            )
             .metric("goal_count", m.goals as f64)
             .metric("push_count", m.pushes as f64)
             .metric("saturated_cycles", m.saturated_cycles as f64)
@@ -283,7 +295,10 @@ pub fn evaluate(m: &SoakMetrics, series: TimeSeries) -> Result<Outcome, String> 
             Panel {
                 title: "guards (window maxima)".into(),
                 y_label: "ratio to limit".into(),
-                lines: vec![Line::new("|τ|/τ_max", column("tau_ratio_max")?), Line::new("|Δτ|/(τ̇_max Δt)", column("rate_ratio_max")?)],
+                lines: vec![
+                    Line::new("|τ|/τ_max", column("tau_ratio_max")?),
+                    Line::new("|Δτ|/(τ̇_max Δt)", column("rate_ratio_max")?),
+                ],
                 spans: vec![],
             },
             Panel {

@@ -77,8 +77,9 @@ impl LinearMobile {
     pub fn new() -> Result<Self, String> {
         let model = three_dof::<f64>().map_err(|e| e.to_string())?;
         let p = table_5_1::<f64>();
-        let layout = PlatformLayout::try_new::<3>([PlatformAxis::Admitted(0), PlatformAxis::Absent, PlatformAxis::Absent])
-            .map_err(|e| e.to_string())?;
+        let layout =
+            PlatformLayout::try_new::<3>([PlatformAxis::Admitted(0), PlatformAxis::Absent, PlatformAxis::Absent])
+                .map_err(|e| e.to_string())?;
         let task = CartesianImpedance::try_new(CartesianImpedanceConfig {
             frame: MOBILE_TCP,
             axes: AxisMask::new([true, false, false, false, false, false]),
@@ -115,7 +116,10 @@ impl LinearMobile {
         // Platform: the admittance (5.1) driven by the platform row of τ_imp (5.12), r̈ (5.15).
         let mut platform = Admittance::try_new(*admittance).map_err(|e| e.to_string())?;
         platform.reset(&Vector3::new(dy.x, 0.0, 0.0)).map_err(|e| e.to_string())?;
-        let r_dd = platform.step(&Vector3::new(tau_imp.x, 0.0, 0.0), &Vector3::zeros(), 1e-3).map_err(|e| e.to_string())?.acceleration;
+        let r_dd = platform
+            .step(&Vector3::new(tau_imp.x, 0.0, 0.0), &Vector3::zeros(), 1e-3)
+            .map_err(|e| e.to_string())?
+            .acceleration;
         // Upper body: (5.11), (5.13)–(5.14).
         let compensation = coupling_compensation(data, &self.layout, &r_dd).map_err(|e| e.to_string())?.torque(switch);
         let damping = Vector2::new(dy.y, dy.z).component_mul(&self.upper_body_damping);
@@ -208,7 +212,10 @@ pub fn evaluate(points: &[GridPoint]) -> Result<Outcome, String> {
         .metric("unstable_fraction_uncompensated", unstable.len() as f64 / points.len().max(1) as f64)
         .metric("unstable_m_adm_max_kg", m_range.1)
         .metric("unstable_d_adm_max_kg_s", d_range.1)
-        .metric("max_real_eig_uncompensated_per_s", points.iter().map(|p| p.uncompensated).fold(f64::NEG_INFINITY, f64::max))
+        .metric(
+            "max_real_eig_uncompensated_per_s",
+            points.iter().map(|p| p.uncompensated).fold(f64::NEG_INFINITY, f64::max),
+        )
         .metric("max_real_eig_compensated_per_s", worst_compensated)
         .metric("stable_tolerance_per_s", STABLE_TOLERANCE);
     summary.claim(
@@ -250,8 +257,18 @@ fn eigenvalue_figure(points: &[GridPoint]) -> Figure {
         title: "stability_map: largest real part of the closed-loop poles (Fig. 5.2 model, Table 5.1)".into(),
         x_label: "admittance inertia m_adm (kg)".into(),
         panels: vec![
-            Panel { title: "without compensation (M_qr ≠ 0, Fig. 5.3b)".into(), y_label: "max Re λ (1/s)".into(), lines: lines(|p| p.uncompensated), spans: vec![] },
-            Panel { title: "with compensation (M_qr cancelled, Fig. 5.3a)".into(), y_label: "max Re λ (1/s)".into(), lines: lines(|p| p.compensated), spans: vec![] },
+            Panel {
+                title: "without compensation (M_qr ≠ 0, Fig. 5.3b)".into(),
+                y_label: "max Re λ (1/s)".into(),
+                lines: lines(|p| p.uncompensated),
+                spans: vec![],
+            },
+            Panel {
+                title: "with compensation (M_qr cancelled, Fig. 5.3a)".into(),
+                y_label: "max Re λ (1/s)".into(),
+                lines: lines(|p| p.compensated),
+                spans: vec![],
+            },
         ],
     }
 }
@@ -273,9 +290,17 @@ pub fn write_files(out: &Path, outcome: &Outcome) -> Result<Vec<&'static str>, S
 
 type DrawResult = Result<(), Box<dyn std::error::Error>>;
 
-fn draw_maps(root: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>, m: &[f64], d: &[f64], cases: [&[f64]; 2]) -> DrawResult {
+fn draw_maps(
+    root: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
+    m: &[f64],
+    d: &[f64],
+    cases: [&[f64]; 2],
+) -> DrawResult {
     root.fill(&WHITE)?;
-    let root = root.titled("Stable and unstable closed-loop poles of the linear mobile robot (cf. Fig. 5.3)", ("sans-serif", 22))?;
+    let root = root.titled(
+        "Stable and unstable closed-loop poles of the linear mobile robot (cf. Fig. 5.3)",
+        ("sans-serif", 22),
+    )?;
     let captions = ["(a) with compensation of M_qr (5.14)", "(b) without compensation, M_qr ≠ 0"];
     let half = GRID_STEP / 2.0;
     for ((area, values), caption) in root.split_evenly((1, 2)).iter().zip(cases).zip(captions) {

@@ -28,8 +28,8 @@
 //! is kept while sweeping; the sweeping motion is executed; the base moves; no fault; no
 //! self-collision.
 
-use fixtures::justin::{self, whole_body};
 use fixtures::justin::whole_body::SWEEP_FLOOR;
+use fixtures::justin::{self, whole_body};
 use kernel::controller::config::Hand;
 use kernel::model::Placement;
 use nalgebra::{Unit, Vector3};
@@ -147,19 +147,32 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         .metric("min_self_collision_distance_m", run.min_distance_m)
         .value("faulty_cycles", run.faulty_cycles);
     force_claims(&mut summary, &all, limit);
-    summary.claim(&format!("contact kept while sweeping: both ends touched in ≥ {:.1} % of the cycles", share * 100.0), share > 0.95);
     summary.claim(
-        &format!("sweeping motion done: measured forward range {range:.3} m of the commanded {:.3} m", STROKE_M + ADVANCE_M * 2.0 / 3.0),
+        &format!("contact kept while sweeping: both ends touched in ≥ {:.1} % of the cycles", share * 100.0),
+        share > 0.95,
+    );
+    summary.claim(
+        &format!(
+            "sweeping motion done: measured forward range {range:.3} m of the commanded {:.3} m",
+            STROKE_M + ADVANCE_M * 2.0 / 3.0
+        ),
         range > 0.8 * (STROKE_M + ADVANCE_M * 2.0 / 3.0),
     );
-    summary.claim(&format!("the base moves: largest planar travel {travel:.3} m ≥ {MIN_BASE_TRAVEL_M} m"), travel >= MIN_BASE_TRAVEL_M);
     summary.claim(
-        &format!("no fault, no self-collision: {} faulty cycles, smallest distance {:.3} m", run.faulty_cycles, run.min_distance_m),
+        &format!("the base moves: largest planar travel {travel:.3} m ≥ {MIN_BASE_TRAVEL_M} m"),
+        travel >= MIN_BASE_TRAVEL_M,
+    );
+    summary.claim(
+        &format!(
+            "no fault, no self-collision: {} faulty cycles, smallest distance {:.3} m",
+            run.faulty_cycles, run.min_distance_m
+        ),
         run.faulty_cycles == 0 && run.min_distance_m > 0.0,
     );
     summary.claim("no NaN or infinite value", run.finite);
     let spans = [Span { label: "sweeping".into(), from: SWEEP_S.0, to: SWEEP_S.1 }];
-    let figures = tool_figures(NAME, &run, limit, &[("x (sweep)", Vector3::x()), ("z (vertical)", Vector3::z())], &spans);
+    let figures =
+        tool_figures(NAME, &run, limit, &[("x (sweep)", Vector3::x()), ("z (vertical)", Vector3::z())], &spans);
     Ok(Outcome { summary, series: run.series, figures })
 }
 

@@ -77,7 +77,8 @@ pub fn table() -> [SweptSphere<f64>; 4] {
     let (y0, y1) = TABLE_Y_M;
     let z = TABLE_HEIGHT_M - TABLE_RADIUS_M;
     let r = TABLE_RADIUS_M;
-    let (a, b, c, d) = (Vector3::new(x0, y0, z), Vector3::new(x1, y0, z), Vector3::new(x1, y1, z), Vector3::new(x0, y1, z));
+    let (a, b, c, d) =
+        (Vector3::new(x0, y0, z), Vector3::new(x1, y0, z), Vector3::new(x1, y1, z), Vector3::new(x0, y1, z));
     let (e, f) = (Vector3::new(x0, y0, 0.05 + r), Vector3::new(x0, y1, 0.05 + r));
     [
         SweptSphere::swept_triangle(a, b, c, r),
@@ -90,7 +91,8 @@ pub fn table() -> [SweptSphere<f64>; 4] {
 /// Runs the scenario.
 pub fn simulate(progress: Progress) -> Result<Outcome, String> {
     let config = whole_body::controller_config::<f64>().map_err(|e| format!("config: {e}"))?;
-    let mut rig = wbc::rig(&justin::home_configuration(), &table(), config, &whole_body::fig_6_3_hierarchy(Hand::Left))?;
+    let mut rig =
+        wbc::rig(&justin::home_configuration(), &table(), config, &whole_body::fig_6_3_hierarchy(Hand::Left))?;
     let mut start = None;
     let mut goal = None;
     let series = rig.run(DURATION_S, |rig, info| {
@@ -120,7 +122,9 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
     let tcp = tcp_columns(&series, Hand::Left)?;
     let to_goal = distance_to(&tcp, &goal);
     let to_start = distance_to(&tcp, &start);
-    let at = |values: &[f64], time: f64| t.iter().zip(values.iter()).find(|(t, _)| **t >= time).map_or(f64::NAN, |(_, v)| *v);
+    let at = |values: &[f64], time: f64| {
+        t.iter().zip(values.iter()).find(|(t, _)| **t >= time).map_or(f64::NAN, |(_, v)| *v)
+    };
     let goal_error = at(&to_goal, RETURN_AT_S - 0.01);
     let orientation_error = ["e1.rx", "e1.ry", "e1.rz"]
         .iter()
@@ -145,7 +149,11 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         .metric("object_x_m", goal.x)
         .metric("object_z_m", goal.z);
     summary.claim(
-        &format!("the left hand reaches the object: {:.1} mm < {:.0} mm at the end of the hold", goal_error * 1e3, GOAL_TOLERANCE_M * 1e3),
+        &format!(
+            "the left hand reaches the object: {:.1} mm < {:.0} mm at the end of the hold",
+            goal_error * 1e3,
+            GOAL_TOLERANCE_M * 1e3
+        ),
         goal_error < GOAL_TOLERANCE_M,
     );
     summary.claim(
@@ -170,9 +178,13 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         let (fx, fy) = (PLATFORM_FRONT_M, 0.3 + 0.125);
         vec![(bx - fx, by - fy), (bx + fx, by - fy), (bx + fx, by + fy), (bx - fx, by + fy), (bx - fx, by - fy)]
     };
-    let closest = bx.iter().zip(by.iter()).fold((f64::NEG_INFINITY, 0.0), |best, (x, y)| if *x > best.0 { (*x, *y) } else { best });
+    let closest = bx
+        .iter()
+        .zip(by.iter())
+        .fold((f64::NEG_INFINITY, 0.0), |best, (x, y)| if *x > best.0 { (*x, *y) } else { best });
     let first = (bx.first().copied().unwrap_or(0.0), by.first().copied().unwrap_or(0.0));
-    let marker = |p: &Vector3<f64>, s: f64| vec![(p.x - s, p.y), (p.x + s, p.y), (p.x, p.y), (p.x, p.y - s), (p.x, p.y + s)];
+    let marker =
+        |p: &Vector3<f64>, s: f64| vec![(p.x - s, p.y), (p.x + s, p.y), (p.x, p.y), (p.x, p.y - s), (p.x, p.y + s)];
     let top = Panel {
         title: "top view: platform centre path, left hand path, table and object".into(),
         y_label: "world y (m)".into(),
@@ -195,8 +207,20 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
                 let (b, f) = (closest.0, PLATFORM_FRONT_M);
                 vec![(b - f, 0.05), (b + f, 0.05), (b + f, 0.55 + 0.125), (b - f, 0.55 + 0.125), (b - f, 0.05)]
             }),
-            Line::dashed("table", vec![(x0, TABLE_HEIGHT_M), (x1, TABLE_HEIGHT_M), (x1, 0.0), (x0, 0.0), (x0, TABLE_HEIGHT_M)]),
-            Line::new("object (goal)", vec![(goal.x - 0.04, goal.z), (goal.x + 0.04, goal.z), (goal.x, goal.z), (goal.x, goal.z - 0.04), (goal.x, goal.z + 0.04)]),
+            Line::dashed(
+                "table",
+                vec![(x0, TABLE_HEIGHT_M), (x1, TABLE_HEIGHT_M), (x1, 0.0), (x0, 0.0), (x0, TABLE_HEIGHT_M)],
+            ),
+            Line::new(
+                "object (goal)",
+                vec![
+                    (goal.x - 0.04, goal.z),
+                    (goal.x + 0.04, goal.z),
+                    (goal.x, goal.z),
+                    (goal.x, goal.z - 0.04),
+                    (goal.x, goal.z + 0.04),
+                ],
+            ),
         ],
         spans: vec![],
     };
@@ -222,7 +246,10 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
             Panel {
                 title: "left hand distance to the object and to its start".into(),
                 y_label: "distance (m)".into(),
-                lines: vec![Line::new("to the object", points(&t, &to_goal, 10, 1.0)), Line::new("to the start", points(&t, &to_start, 10, 1.0))],
+                lines: vec![
+                    Line::new("to the object", points(&t, &to_goal, 10, 1.0)),
+                    Line::new("to the start", points(&t, &to_start, 10, 1.0)),
+                ],
                 spans: spans(),
             },
             Panel {
@@ -232,7 +259,10 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
                     line(&series, "base x", "q.base_x", 1.0)?,
                     line(&series, "base y", "q.base_y", 1.0)?,
                     line(&series, "commanded v_x", "vcmd.x", 1.0)?,
-                    Line::dashed("table edge − platform front", points(&t, &vec![TABLE_EDGE_X_M - PLATFORM_FRONT_M; t.len()], 100, 1.0)),
+                    Line::dashed(
+                        "table edge − platform front",
+                        points(&t, &vec![TABLE_EDGE_X_M - PLATFORM_FRONT_M; t.len()], 100, 1.0),
+                    ),
                 ],
                 spans: spans(),
             },

@@ -76,8 +76,10 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
     let contact = col(&series, "contact")?;
     // Energy relative to the rest state before the first push (the level-1 potentials, e.g. the
     // torso workspace, are not zero at rest).
-    let total: Vec<f64> = col(&series, "kinetic_j")?.iter().zip(col(&series, "potential_j")?.iter()).map(|(k, p)| k + p).collect();
-    let rest_energy = t.iter().zip(total.iter()).take_while(|(t, _)| **t < PUSHES[0].0).map(|(_, e)| *e).last().unwrap_or(0.0);
+    let total: Vec<f64> =
+        col(&series, "kinetic_j")?.iter().zip(col(&series, "potential_j")?.iter()).map(|(k, p)| k + p).collect();
+    let rest_energy =
+        t.iter().zip(total.iter()).take_while(|(t, _)| **t < PUSHES[0].0).map(|(_, e)| *e).last().unwrap_or(0.0);
     let energy: Vec<f64> = total.iter().map(|e| e - rest_energy).collect();
     let peak_energy = energy.iter().copied().fold(0.0, f64::max);
     let final_energy = energy.last().copied().unwrap_or(f64::NAN);
@@ -91,14 +93,23 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         let against: Vec<f64> = along.iter().map(|v| -v).collect();
         let peak = max_in(&t, &against, *at, at + PUSH_S);
         let share = {
-            let window: Vec<f64> = t.iter().zip(contact.iter()).filter(|(t, _)| **t >= *at && **t < at + PUSH_S).map(|(_, c)| *c).collect();
+            let window: Vec<f64> = t
+                .iter()
+                .zip(contact.iter())
+                .filter(|(t, _)| **t >= *at && **t < at + PUSH_S)
+                .map(|(_, c)| *c)
+                .collect();
             window.iter().sum::<f64>() / window.len().max(1) as f64
         };
-        summary.metric(&format!("push{k}_base_velocity_against_m_s"), peak).metric(&format!("push{k}_contact_share"), share);
+        summary
+            .metric(&format!("push{k}_base_velocity_against_m_s"), peak)
+            .metric(&format!("push{k}_contact_share"), share);
         yields &= peak > YIELD_SPEED_M_S;
         contact_during &= share > 0.5;
     }
-    let rest = |from: f64, to: f64| t.iter().zip(contact.iter()).filter(|(t, _)| **t >= from && **t < to).all(|(_, c)| *c == 0.0);
+    let rest = |from: f64, to: f64| {
+        t.iter().zip(contact.iter()).filter(|(t, _)| **t >= from && **t < to).all(|(_, c)| *c == 0.0)
+    };
     let at_rest = rest(0.1, PUSHES[0].0) && rest(DURATION_S - 1.0, DURATION_S);
     let work = PUSH_N * peak_deflection * PUSHES.len() as f64;
     summary
@@ -132,7 +143,8 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
     );
     common_claims(&mut summary, &rig, &series)?;
 
-    let spans = || PUSHES.iter().map(|(at, _)| Span { label: "push".into(), from: *at, to: at + PUSH_S }).collect::<Vec<_>>();
+    let spans =
+        || PUSHES.iter().map(|(at, _)| Span { label: "push".into(), from: *at, to: at + PUSH_S }).collect::<Vec<_>>();
     let deflection = crate::output::Line::new("‖p − p_start‖", super::wbc_step::points(&t, &error, 10, 1e3));
     let main = Figure {
         title: "wbc_phri: 40 N pushes on the right hand, whole-body compliance (cf. Fig. 6.7)".into(),
@@ -142,13 +154,20 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
             Panel {
                 title: "platform velocity command".into(),
                 y_label: "m/s, rad/s".into(),
-                lines: vec![line(&series, "v_x", "vcmd.x", 1.0)?, line(&series, "v_y", "vcmd.y", 1.0)?, line(&series, "ω", "vcmd.theta", 1.0)?],
+                lines: vec![
+                    line(&series, "v_x", "vcmd.x", 1.0)?,
+                    line(&series, "v_y", "vcmd.y", 1.0)?,
+                    line(&series, "ω", "vcmd.theta", 1.0)?,
+                ],
                 spans: spans(),
             },
             Panel {
                 title: "external torque estimate and contact".into(),
                 y_label: "Nm, flag×10".into(),
-                lines: vec![line(&series, "‖τ_ext‖", "tau_ext_norm", 1.0)?, line(&series, "contact ×10", "contact", 10.0)?],
+                lines: vec![
+                    line(&series, "‖τ_ext‖", "tau_ext_norm", 1.0)?,
+                    line(&series, "contact ×10", "contact", 10.0)?,
+                ],
                 spans: spans(),
             },
             Panel {

@@ -71,7 +71,11 @@ pub fn max_in(t: &[f64], y: &[f64], from: f64, to: f64) -> f64 {
 /// World TCP position columns of `hand` (m).
 pub fn tcp_columns(series: &TimeSeries, hand: Hand) -> Result<[Vec<f64>; 3], String> {
     let prefix = if hand == Hand::Right { "right_tcp" } else { "left_tcp" };
-    Ok([col(series, &format!("{prefix}.x"))?, col(series, &format!("{prefix}.y"))?, col(series, &format!("{prefix}.z"))?])
+    Ok([
+        col(series, &format!("{prefix}.x"))?,
+        col(series, &format!("{prefix}.y"))?,
+        col(series, &format!("{prefix}.z"))?,
+    ])
 }
 
 /// Euclidean distance of each row's TCP from `goal` (m).
@@ -202,7 +206,9 @@ fn figures(series: &TimeSeries, goal: &Vector3<f64>) -> Result<Vec<(&'static str
     let y0 = tcp[1].first().copied().unwrap_or(0.0);
     let z0 = tcp[2].first().copied().unwrap_or(0.0);
     let step = vec![Span { label: "goal step".into(), from: STEP_AT_S, to: STEP_AT_S }];
-    let rel = |k: usize, zero: f64| points(&t, &tcp.get(k).map_or_else(Vec::new, |c| c.iter().map(|v| v - zero).collect()), 5, 1.0);
+    let rel = |k: usize, zero: f64| {
+        points(&t, &tcp.get(k).map_or_else(Vec::new, |c| c.iter().map(|v| v - zero).collect()), 5, 1.0)
+    };
     let goal_line: Vec<(f64, f64)> =
         t.iter().step_by(5).map(|t| (*t, if *t >= STEP_AT_S { STEP_M } else { 0.0 })).collect();
     let band = |sign: f64| {
@@ -251,7 +257,12 @@ fn figures(series: &TimeSeries, goal: &Vector3<f64>) -> Result<Vec<(&'static str
         title: "wbc_step: subtask torque norms ‖τ_i‖ and storage per level".into(),
         x_label: "time (s)".into(),
         panels: vec![
-            Panel { title: "subtask torque norms".into(), y_label: "‖τ‖ (Nm)".into(), lines: subtask_lines(series)?, spans: step.clone() },
+            Panel {
+                title: "subtask torque norms".into(),
+                y_label: "‖τ‖ (Nm)".into(),
+                lines: subtask_lines(series)?,
+                spans: step.clone(),
+            },
             Panel {
                 title: "storage (potential) per level".into(),
                 y_label: "energy (J)".into(),

@@ -122,9 +122,15 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
     };
     let rel: Vec<f64> = tcp[0].iter().map(|x| x - start.x).collect();
     let des: Vec<f64> = desired.iter().map(|d| d.x - start.x).collect();
-    let level_line = |l: usize| Line::new(format!("level {l}"), points(&t, &levels.iter().map(|v| v.get(l).copied().unwrap_or(f64::NAN)).collect::<Vec<_>>(), 10, 1.0));
+    let level_line = |l: usize| {
+        Line::new(
+            format!("level {l}"),
+            points(&t, &levels.iter().map(|v| v.get(l).copied().unwrap_or(f64::NAN)).collect::<Vec<_>>(), 10, 1.0),
+        )
+    };
     let main = Figure {
-        title: "wbc_trajectory: right TCP 1 m forward and back, k_tra = 500 N/m, k_rot = 100 Nm/rad (cf. Fig. 6.5)".into(),
+        title: "wbc_trajectory: right TCP 1 m forward and back, k_tra = 500 N/m, k_rot = 100 Nm/rad (cf. Fig. 6.5)"
+            .into(),
         x_label: "time (s)".into(),
         panels: vec![
             Panel {
@@ -159,7 +165,12 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         title: "wbc_trajectory: subtask and level torque norms (cf. Fig. 6.5/6.6)".into(),
         x_label: "time (s)".into(),
         panels: vec![
-            Panel { title: "subtask torque norms ‖τ_i‖ before projection".into(), y_label: "‖τ‖ (Nm)".into(), lines: subtask_lines(&series)?, spans: spans() },
+            Panel {
+                title: "subtask torque norms ‖τ_i‖ before projection".into(),
+                y_label: "‖τ‖ (Nm)".into(),
+                lines: subtask_lines(&series)?,
+                spans: spans(),
+            },
             Panel {
                 title: "level torque norms ‖N_i τ_i‖".into(),
                 y_label: "‖τ‖ (Nm)".into(),

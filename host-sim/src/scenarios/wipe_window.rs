@@ -33,8 +33,8 @@
 //!
 //! The module also holds the machinery the three Table 7.1 scenarios share ([`run_tool`]).
 
-use fixtures::justin::{self, whole_body};
 use fixtures::justin::whole_body::{ServiceTask, WIPE_WINDOW};
+use fixtures::justin::{self, whole_body};
 use kernel::controller::config::{CartesianParameters, ControllerConfig, Hand, JointGroup, TaskKind, TaskSpec};
 use kernel::controller::messages::{Command, Pose};
 use kernel::model::Placement;
@@ -85,7 +85,8 @@ pub const STATIC_S: f64 = 0.3;
 
 /// The platform's joint impedance next to Table 7.1's "joint impedance" (level 3): see the
 /// module docs.
-pub const PLATFORM_IMPEDANCE: [TaskSpec; 1] = [TaskSpec { kind: TaskKind::JointImpedance(JointGroup::Platform), level: 3 }];
+pub const PLATFORM_IMPEDANCE: [TaskSpec; 1] =
+    [TaskSpec { kind: TaskKind::JointImpedance(JointGroup::Platform), level: 3 }];
 
 /// The quintic (minimum-jerk) blend `s(u)`, `s'(u)` on `u ∈ [0, 1]`, clamped outside.
 pub fn quintic(u: f64) -> (f64, f64) {
@@ -131,7 +132,10 @@ pub fn tool_orientation(start: &Rotation3<f64>, axis: usize, direction: &Vector3
     let current = start.matrix().column(axis).into_owned();
     Rotation3::rotation_between(&current, direction).unwrap_or_else(|| {
         // Antiparallel: half a turn about any axis normal to it.
-        let normal = current.cross(&Vector3::x()).try_normalize(1e-6).unwrap_or_else(|| current.cross(&Vector3::y()).normalize());
+        let normal = current
+            .cross(&Vector3::x())
+            .try_normalize(1e-6)
+            .unwrap_or_else(|| current.cross(&Vector3::y()).normalize());
         Rotation3::from_axis_angle(&Unit::new_unchecked(normal), core::f64::consts::PI)
     }) * start
 }
@@ -190,7 +194,13 @@ impl Circles {
 /// error of the fast part stays clear of the surface); by `times.3` at `pressed` (the reference
 /// behind the surface, Sec. 7.3). Touching at rest keeps the impact out of the contact force:
 /// the force grows with the reference's depth.
-pub fn press_path(start: Vector3<f64>, touch: Vector3<f64>, pressed: Vector3<f64>, press: &Vector3<f64>, times: (f64, f64, f64, f64)) -> Vec<(f64, Vector3<f64>)> {
+pub fn press_path(
+    start: Vector3<f64>,
+    touch: Vector3<f64>,
+    pressed: Vector3<f64>,
+    press: &Vector3<f64>,
+    times: (f64, f64, f64, f64),
+) -> Vec<(f64, Vector3<f64>)> {
     vec![(0.0, start), (times.0, start), (times.1, touch - press * CLEARANCE_M), (times.2, touch), (times.3, pressed)]
 }
 
@@ -341,13 +351,16 @@ pub fn run_tool(
             sample.depth_m.push(contact.penetration_m);
         }
         let telemetry = rig.controller.telemetry();
-        let (limited, applied, corrections) = (telemetry.tcp_force_limited, telemetry.contact_wrench, telemetry.force_limit_correction);
+        let (limited, applied, corrections) =
+            (telemetry.tcp_force_limited, telemetry.contact_wrench, telemetry.force_limit_correction);
         for reference in &references {
             let frame = if reference.hand == Hand::Right { justin::RIGHT_TCP } else { justin::LEFT_TCP };
             sample.measured.push(rig.sim.frame_placement(frame).map_err(|e| e.to_string())?.translation.vector);
             sample.reference.push(reference.at(info.time_s).0.translation.vector);
             sample.limited.push(limited.get(reference.hand.index()).is_some_and(|l| l.iter().any(|x| *x)));
-            let forces = |w: &[nalgebra::Vector6<f64>; 2]| w.get(reference.hand.index()).map_or_else(Vector3::zeros, |w| w.fixed_rows::<3>(0).into_owned());
+            let forces = |w: &[nalgebra::Vector6<f64>; 2]| {
+                w.get(reference.hand.index()).map_or_else(Vector3::zeros, |w| w.fixed_rows::<3>(0).into_owned())
+            };
             sample.estimate.push(forces(&applied));
             sample.correction.push(forces(&corrections));
             rig.controller.apply(&reference.command(info.time_s)).map_err(|e| format!("TcpSample: {e}"))?;
@@ -365,7 +378,16 @@ pub fn run_tool(
     let finite = series.rows().iter().all(|r| r.iter().all(|x| x.is_finite() || x.is_nan()))
         && samples.iter().all(|s| s.normal_n.iter().chain(s.base.iter()).all(|x| x.is_finite()));
     let series = extend_series(&series, &samples, &contacts, &references)?;
-    Ok(ToolRun { series, samples, contacts, references, faulty_cycles: rig.faulty_cycles, min_distance_m: rig.min_distance_m, finite, first_fault })
+    Ok(ToolRun {
+        series,
+        samples,
+        contacts,
+        references,
+        faulty_cycles: rig.faulty_cycles,
+        min_distance_m: rig.min_distance_m,
+        finite,
+        first_fault,
+    })
 }
 
 fn hand_name(hand: Hand) -> &'static str {
@@ -379,7 +401,12 @@ fn hand_name(hand: Hand) -> &'static str {
 /// The rig's columns, then per contact `contact.<label>.force`, `.depth`, per reference
 /// `ref.<hand>.x/y/z`, `limited.<hand>`, the estimated applied force `est.<hand>.x/y/z` and the
 /// governor's correction `corr.<hand>.x/y/z` (desired-frame axes).
-fn extend_series(rig: &TimeSeries, samples: &[ToolSample], contacts: &[Contact], references: &[ToolReference]) -> Result<TimeSeries, String> {
+fn extend_series(
+    rig: &TimeSeries,
+    samples: &[ToolSample],
+    contacts: &[Contact],
+    references: &[ToolReference],
+) -> Result<TimeSeries, String> {
     let mut columns = rig.columns().to_vec();
     for c in contacts {
         columns.push(format!("contact.{}.force", c.label));
@@ -398,7 +425,8 @@ fn extend_series(rig: &TimeSeries, samples: &[ToolSample], contacts: &[Contact],
         for (f, d) in s.normal_n.iter().zip(s.depth_m.iter()) {
             row.extend([*f, *d]);
         }
-        for (((p, l), e), c) in s.reference.iter().zip(s.limited.iter()).zip(s.estimate.iter()).zip(s.correction.iter()) {
+        for (((p, l), e), c) in s.reference.iter().zip(s.limited.iter()).zip(s.estimate.iter()).zip(s.correction.iter())
+        {
             row.extend(p.iter());
             row.push(f64::from(u8::from(*l)));
             row.extend(e.iter().chain(c.iter()));
@@ -439,12 +467,21 @@ pub fn contact_metrics(samples: &[ToolSample], index: usize, window: (f64, f64))
     let count = inside.len().max(1) as f64;
     let mean_n = inside.iter().sum::<f64>() / count;
     let window_peak_n = inside.iter().copied().fold(0.0, f64::max);
-    let resting: Vec<f64> = samples.iter().filter(|s| s.t >= window.0 - STATIC_S && s.t < window.0).map(force).collect();
+    let resting: Vec<f64> =
+        samples.iter().filter(|s| s.t >= window.0 - STATIC_S && s.t < window.0).map(force).collect();
     #[allow(clippy::cast_precision_loss, reason = "a few hundred samples")]
     let static_n = resting.iter().sum::<f64>() / resting.len().max(1) as f64;
     #[allow(clippy::cast_precision_loss, reason = "a few thousand samples")]
     let touched = inside.iter().filter(|f| **f > CONTACT_THRESHOLD_N).count() as f64;
-    ContactMetrics { first_touch_s, peak_n, settled_peak_n, mean_n, window_peak_n, static_n, contact_share: touched / count }
+    ContactMetrics {
+        first_touch_s,
+        peak_n,
+        settled_peak_n,
+        mean_n,
+        window_peak_n,
+        static_n,
+        contact_share: touched / count,
+    }
 }
 
 /// [`contact_metrics`] of every contact of `run` over `window`, each recorded in `summary` under
@@ -494,7 +531,10 @@ pub fn force_claims(summary: &mut Summary, metrics: &[ContactMetrics], limit: f6
         ),
         static_n <= limit && static_min >= 0.8 * limit,
     );
-    summary.claim(&format!("mean contact force during the motion within the limit: {mean_n:.2} N ≤ {limit} N"), mean_n <= limit);
+    summary.claim(
+        &format!("mean contact force during the motion within the limit: {mean_n:.2} N ≤ {limit} N"),
+        mean_n <= limit,
+    );
 }
 
 /// Share of the samples in `window` with reference `index`'s force limit active.
@@ -528,7 +568,13 @@ pub fn base_travel(samples: &[ToolSample]) -> f64 {
 
 /// Figures: contact force vs limit per contact; TCP commanded vs measured per reference
 /// (components along `axes`, labelled), as Fig. 7.2–7.4.
-pub fn tool_figures(name: &str, run: &ToolRun, limit_n: f64, axes: &[(&str, Vector3<f64>)], spans: &[Span]) -> Vec<(&'static str, Figure)> {
+pub fn tool_figures(
+    name: &str,
+    run: &ToolRun,
+    limit_n: f64,
+    axes: &[(&str, Vector3<f64>)],
+    spans: &[Span],
+) -> Vec<(&'static str, Figure)> {
     let force_panels = run
         .contacts
         .iter()
@@ -537,8 +583,14 @@ pub fn tool_figures(name: &str, run: &ToolRun, limit_n: f64, axes: &[(&str, Vect
             title: format!("normal contact force on {} ({} TCP)", c.label, hand_name(c.hand)),
             y_label: "force (N)".into(),
             lines: vec![
-                Line::new("simulated contact force", run.samples.iter().map(|s| (s.t, s.normal_n.get(i).copied().unwrap_or(f64::NAN))).collect()),
-                Line::dashed(format!("Table 7.1 limit {limit_n} N"), run.samples.iter().map(|s| (s.t, limit_n)).collect()),
+                Line::new(
+                    "simulated contact force",
+                    run.samples.iter().map(|s| (s.t, s.normal_n.get(i).copied().unwrap_or(f64::NAN))).collect(),
+                ),
+                Line::dashed(
+                    format!("Table 7.1 limit {limit_n} N"),
+                    run.samples.iter().map(|s| (s.t, limit_n)).collect(),
+                ),
             ],
             spans: spans.to_vec(),
         })
@@ -550,16 +602,36 @@ pub fn tool_figures(name: &str, run: &ToolRun, limit_n: f64, axes: &[(&str, Vect
                 title: format!("{} TCP, {label}", hand_name(r.hand)),
                 y_label: "position (m)".into(),
                 lines: vec![
-                    Line::new("measured", run.samples.iter().filter_map(|s| s.measured.get(i).map(|p| (s.t, p.dot(axis)))).collect()),
-                    Line::dashed("commanded", run.samples.iter().filter_map(|s| s.reference.get(i).map(|p| (s.t, p.dot(axis)))).collect()),
+                    Line::new(
+                        "measured",
+                        run.samples.iter().filter_map(|s| s.measured.get(i).map(|p| (s.t, p.dot(axis)))).collect(),
+                    ),
+                    Line::dashed(
+                        "commanded",
+                        run.samples.iter().filter_map(|s| s.reference.get(i).map(|p| (s.t, p.dot(axis)))).collect(),
+                    ),
                 ],
                 spans: spans.to_vec(),
             });
         }
     }
     vec![
-        ("contact_force.svg", Figure { title: format!("{name}: contact force vs Table 7.1 limit"), x_label: "time (s)".into(), panels: force_panels }),
-        ("tcp.svg", Figure { title: format!("{name}: TCP commanded vs measured (cf. Fig. 7.2–7.4)"), x_label: "time (s)".into(), panels: tcp_panels }),
+        (
+            "contact_force.svg",
+            Figure {
+                title: format!("{name}: contact force vs Table 7.1 limit"),
+                x_label: "time (s)".into(),
+                panels: force_panels,
+            },
+        ),
+        (
+            "tcp.svg",
+            Figure {
+                title: format!("{name}: TCP commanded vs measured (cf. Fig. 7.2–7.4)"),
+                x_label: "time (s)".into(),
+                panels: tcp_panels,
+            },
+        ),
     ]
 }
 
@@ -600,7 +672,14 @@ fn plan(start: [Placement<f64>; 2]) -> ToolPlan {
         friction: WINDOW_FRICTION,
     };
     ToolPlan {
-        references: vec![ToolReference { hand: Hand::Right, start: right.rotation, tool, turn_s: (1.5, STROKES_S.0 - HOLD_S), path: Waypoints(points), circles: None }],
+        references: vec![ToolReference {
+            hand: Hand::Right,
+            start: right.rotation,
+            tool,
+            turn_s: (1.5, STROKES_S.0 - HOLD_S),
+            path: Waypoints(points),
+            circles: None,
+        }],
         contacts: vec![Contact { label: "window", hand: Hand::Right, surface: window }],
         cartesian: None,
     }
@@ -627,24 +706,44 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         .value("faulty_cycles", run.faulty_cycles);
     force_claims(&mut summary, &[m], limit);
     summary.claim(
-        &format!("contact maintained during the strokes: touched in {:.1} % of the cycles, mean force {:.2} N", m.contact_share * 100.0, m.mean_n),
+        &format!(
+            "contact maintained during the strokes: touched in {:.1} % of the cycles, mean force {:.2} N",
+            m.contact_share * 100.0,
+            m.mean_n
+        ),
         m.contact_share > 0.99 && m.mean_n > 0.5 * limit,
     );
     summary.claim(
-        &format!("the +10 N force limit is what bounds the pressing: active in {:.0} % of the stroke cycles", limited * 100.0),
+        &format!(
+            "the +10 N force limit is what bounds the pressing: active in {:.0} % of the stroke cycles",
+            limited * 100.0
+        ),
         limited > 0.5,
     );
     summary.claim(
-        &format!("strokes executed in the window plane: measured lateral range {:.3} m of the commanded {:.3} m", stroke_range, 2.0 * STROKE_HALF_WIDTH_M),
+        &format!(
+            "strokes executed in the window plane: measured lateral range {:.3} m of the commanded {:.3} m",
+            stroke_range,
+            2.0 * STROKE_HALF_WIDTH_M
+        ),
         stroke_range > 0.8 * 2.0 * STROKE_HALF_WIDTH_M,
     );
     summary.claim(
-        &format!("no fault, no self-collision: {} faulty cycles, smallest distance {:.3} m", run.faulty_cycles, run.min_distance_m),
+        &format!(
+            "no fault, no self-collision: {} faulty cycles, smallest distance {:.3} m",
+            run.faulty_cycles, run.min_distance_m
+        ),
         run.faulty_cycles == 0 && run.min_distance_m > 0.0,
     );
     summary.claim("no NaN or infinite value", run.finite);
     let spans = [Span { label: "strokes".into(), from: STROKES_S.0, to: STROKES_S.1 }];
-    let figures = tool_figures(NAME, &run, limit, &[("x (window normal)", Vector3::x()), ("y (stroke)", Vector3::y()), ("z", Vector3::z())], &spans);
+    let figures = tool_figures(
+        NAME,
+        &run,
+        limit,
+        &[("x (window normal)", Vector3::x()), ("y (stroke)", Vector3::y()), ("z", Vector3::z())],
+        &spans,
+    );
     Ok(Outcome { summary, series: run.series, figures })
 }
 

@@ -85,8 +85,13 @@ pub enum JointGroup {
 
 impl JointGroup {
     /// Every group.
-    pub const ALL: [JointGroup; 5] =
-        [JointGroup::Platform, JointGroup::Torso, JointGroup::Arm(Hand::Right), JointGroup::Arm(Hand::Left), JointGroup::UpperBody];
+    pub const ALL: [JointGroup; 5] = [
+        JointGroup::Platform,
+        JointGroup::Torso,
+        JointGroup::Arm(Hand::Right),
+        JointGroup::Arm(Hand::Left),
+        JointGroup::UpperBody,
+    ];
 
     /// The group's position in [`Self::ALL`].
     pub const fn index(self) -> usize {
@@ -99,7 +104,6 @@ impl JointGroup {
         }
     }
 }
-
 
 /// The control tasks the controller knows (Ch. 3), as the planner names them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -183,8 +187,7 @@ impl<const N: usize> RobotLayout<N> {
 
 /// Parameters of a TCP's Cartesian impedance as the planner sets them (Table 7.1): diagonal
 /// stiffnesses and force limits in the axes of the desired tool frame.
-#[derive(Clone, Copy, Debug, PartialEq)]
-#[derive(serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct CartesianParameters<T> {
     /// `(k_x, k_y, k_z)` (N/m), `≥ 0`.
     pub translational_stiffness: [T; 3],
@@ -199,8 +202,7 @@ pub struct CartesianParameters<T> {
 }
 
 /// Parameters of one collision-avoidance field (Sec. 3.1, (3.8), (3.23), (4.68)).
-#[derive(Clone, Copy, Debug, PartialEq)]
-#[derive(serde::Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct CollisionFieldParameters<T> {
     /// Repulsive force at contact `F_max > 0` (N).
     pub max_force: T,

@@ -245,7 +245,8 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
         }
         self.relief = SVector::zeros();
         let step = parameters.gain * dt;
-        let wrenches: [Vector6<T>; 2] = [external.fixed_rows::<6>(0).into_owned(), external.fixed_rows::<6>(6).into_owned()];
+        let wrenches: [Vector6<T>; 2] =
+            [external.fixed_rows::<6>(0).into_owned(), external.fixed_rows::<6>(6).into_owned()];
         for (h, ((limits, jacobian), wrench)) in hands.iter().zip(full.iter()).zip(wrenches).enumerate() {
             let applied = -wrench;
             if let Some(a) = self.applied.get_mut(h) {
@@ -295,7 +296,13 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
     /// rigid-contact force onto its bound (with the damping rule of the module docs). Zero
     /// without an enabled limit or if a solve fails.
     /// Cost: 12 solves with `factor`, one 12 × 12 Cholesky.
-    pub fn limit_command(&self, regularisation: T, task_torque: &SVector<T, N>, factor: &Cholesky<T, Const<N>>, damping: &[Vector6<T>; 2]) -> CommandLimit<T, N> {
+    pub fn limit_command(
+        &self,
+        regularisation: T,
+        task_torque: &SVector<T, N>,
+        factor: &Cholesky<T, Const<N>>,
+        damping: &[Vector6<T>; 2],
+    ) -> CommandLimit<T, N> {
         let none = CommandLimit { torque: SVector::zeros(), limited: [[false; 6]; 2] };
         // The limited rows L: an axis of a hand with an enabled limit and a finite bound.
         let mut selected = [false; 12];
@@ -336,7 +343,9 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
         };
         let mut excess = SVector::<T, 12>::zeros();
         let mut limited = [[false; 6]; 2];
-        for (h, ((bounds, flags), damping)) in self.effective.iter().zip(limited.iter_mut()).zip(damping.iter()).enumerate() {
+        for (h, ((bounds, flags), damping)) in
+            self.effective.iter().zip(limited.iter_mut()).zip(damping.iter()).enumerate()
+        {
             let Some((lower, upper)) = bounds else { continue };
             for (axis, flag) in flags.iter_mut().enumerate() {
                 let row = 6 * h + axis;
@@ -426,7 +435,10 @@ mod tests {
         assert_eq!(governor_step(T::zero(), c(-30.0), Some(c(-20.0)), None, step, c(10.0)), c(-1.0));
         // Relaxation stops at zero, never crosses to the other side.
         assert_eq!(governor_step(c(0.5), c(0.0), Some(c(-20.0)), Some(c(20.0)), step, c(10.0)), T::zero());
-        let limiter = ForceLimiter::<T, 3> { correction: [Vector6::new(c(2.0), c(-1.0), T::zero(), T::zero(), T::zero(), T::zero()), Vector6::zeros()], ..ForceLimiter::new() };
+        let limiter = ForceLimiter::<T, 3> {
+            correction: [Vector6::new(c(2.0), c(-1.0), T::zero(), T::zero(), T::zero(), T::zero()), Vector6::zeros()],
+            ..ForceLimiter::new()
+        };
         let (lower, upper) = limiter.bounds(0, &Vector6::repeat(c(-20.0)), &Vector6::repeat(c(20.0)));
         assert_eq!((lower[0], upper[0]), (c(-20.0), c(18.0)));
         assert_eq!((lower[1], upper[1]), (c(-19.0), c(20.0)));
@@ -450,8 +462,14 @@ mod tests {
         let mut parent = None;
         for (i, axis) in [Vector3::x(), Vector3::x(), Vector3::z()].into_iter().enumerate() {
             parent = Some(
-                b.add_body(parent, Placement::identity(), JointKind::Prismatic { axis: Unit::new_normalize(axis) }, JointDrive::actuated(i), Inertia::point_mass(c(1.0), Vector3::zeros()))
-                    .unwrap(),
+                b.add_body(
+                    parent,
+                    Placement::identity(),
+                    JointKind::Prismatic { axis: Unit::new_normalize(axis) },
+                    JointDrive::actuated(i),
+                    Inertia::point_mass(c(1.0), Vector3::zeros()),
+                )
+                .unwrap(),
             );
         }
         let tcp = b.add_frame(parent, Placement::identity()).unwrap();
@@ -459,8 +477,14 @@ mod tests {
         let mut data = Data::new(&model);
         forward_kinematics(&model, &mut data, &SVector::zeros(), &SVector::zeros()).unwrap();
         crba(&model, &mut data);
-        let platform = PlatformLayout::try_new::<3>([PlatformAxis::Admitted(0), PlatformAxis::Absent, PlatformAxis::Absent]).unwrap();
-        (model, data, RobotLayout { tcp: [tcp, tcp], platform, torso: [false; 3], arms: [[false, true, true], [false; 3]] })
+        let platform =
+            PlatformLayout::try_new::<3>([PlatformAxis::Admitted(0), PlatformAxis::Absent, PlatformAxis::Absent])
+                .unwrap();
+        (
+            model,
+            data,
+            RobotLayout { tcp: [tcp, tcp], platform, torso: [false; 3], arms: [[false, true, true], [false; 3]] },
+        )
     }
 
     /// `+10 N` on the right TCP's x, nothing else.
@@ -475,7 +499,13 @@ mod tests {
         // The window pushes back with 30 N along −x on a TCP pressing along +x.
         let residual = SVector::<T, 3>::new(T::zero(), c(-30.0), c(0.0));
         let limits = wiper_limits::<T>();
-        let parameters = ForceLimitParameters { enabled: true, margin: c(0.0), gain: c(12.5), max_correction: c(10.0), regularisation: c(1e-6) };
+        let parameters = ForceLimitParameters {
+            enabled: true,
+            margin: c(0.0),
+            gain: c(12.5),
+            max_correction: c(10.0),
+            regularisation: c(1e-6),
+        };
         let mut limiter = ForceLimiter::<T, 3>::new();
         limiter.update(&parameters, &model, &data, &layout, &residual, &[Some(limits), None], c(1e-3)).unwrap();
         // Both hands share the frame here: the estimate splits the 30 N between them (15 N each, over the 10 N limit).
@@ -509,9 +539,17 @@ mod tests {
         let row = nalgebra::RowVector3::new(T::zero(), T::one(), T::zero());
         let contact = |tau: &SVector<T, 3>| (row * inverse * tau)[0] / (row * inverse * row.transpose())[0];
         let run = |margin: f64, enabled: bool, tau: SVector<T, 3>, damping_x: f64| {
-            let parameters = ForceLimitParameters { enabled, margin: c(margin), gain: c(3.0), max_correction: c(10.0), regularisation: c(1e-6) };
+            let parameters = ForceLimitParameters {
+                enabled,
+                margin: c(margin),
+                gain: c(3.0),
+                max_correction: c(10.0),
+                regularisation: c(1e-6),
+            };
             let mut limiter = ForceLimiter::<T, 3>::new();
-            limiter.update(&parameters, &model, &data, &layout, &SVector::zeros(), &[Some(wiper_limits()), None], c(1e-3)).unwrap();
+            limiter
+                .update(&parameters, &model, &data, &layout, &SVector::zeros(), &[Some(wiper_limits()), None], c(1e-3))
+                .unwrap();
             let mut damping = [Vector6::zeros(); 2];
             damping[0][0] = c(damping_x);
             limiter.limit_command(parameters.regularisation, &tau, &factor, &damping)

@@ -245,7 +245,8 @@ mod tests {
 
     #[test]
     fn the_rate_limit_narrows_the_box_around_the_previous_torque() {
-        let (effort, rate, previous) = (Vector2::new(10.0_f64, 10.0), Vector2::new(1000.0, 1000.0), Vector2::new(9.5, 0.0));
+        let (effort, rate, previous) =
+            (Vector2::new(10.0_f64, 10.0), Vector2::new(1000.0, 1000.0), Vector2::new(9.5, 0.0));
         let (lower, upper) = torque_box(&effort, &rate, &previous, 1e-3, &[true, false]);
         assert_eq!((lower[0], upper[0]), (8.5, 10.0));
         assert_eq!((lower[1], upper[1]), (0.0, 0.0));

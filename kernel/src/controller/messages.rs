@@ -9,10 +9,13 @@
 use core::fmt;
 
 use heapless::Vec;
-use nalgebra::{RealField, Rotation3, SVector, Translation3, UnitQuaternion, Quaternion, Vector3};
+use nalgebra::{Quaternion, RealField, Rotation3, SVector, Translation3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
-use super::config::{CartesianParameters, CollisionFieldParameters, Consistency, Field, Hand, JointGroup, TaskKind, TaskSpec, MAX_LEVELS, MAX_TASKS};
+use super::config::{
+    CartesianParameters, CollisionFieldParameters, Consistency, Field, Hand, JointGroup, TaskKind, TaskSpec,
+    MAX_LEVELS, MAX_TASKS,
+};
 use super::faults::SafeOutput;
 use super::trajectory::{JointTrajectory, PoseTrajectory};
 use super::{cartesian_task, collision_parameters, ActiveTask, Controller, Telemetry, MAX_ACTIVE};
@@ -164,7 +167,9 @@ fn validate_hierarchy(tasks: &[TaskSpec]) -> Result<(), CommandError> {
 }
 
 /// The hierarchy entries of a validated initial hierarchy (no transitions).
-pub(super) fn initial_hierarchy<T: RealField + Copy>(tasks: &[TaskSpec]) -> Result<Vec<ActiveTask<T>, MAX_ACTIVE>, CommandError> {
+pub(super) fn initial_hierarchy<T: RealField + Copy>(
+    tasks: &[TaskSpec],
+) -> Result<Vec<ActiveTask<T>, MAX_ACTIVE>, CommandError> {
     if tasks.len() > MAX_TASKS {
         return Err(CommandError::OutOfRange { field: "hierarchy length" });
     }
@@ -210,8 +215,15 @@ fn placement<T: RealField + Copy>(pose: &Pose<T>) -> Result<Placement<T>, Comman
     Ok(Placement::from_parts(Translation3::new(px, py, pz), rotation))
 }
 
-impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const U: usize, const V: usize, const P: usize>
-    Controller<T, N, B, F, U, V, P>
+impl<
+        T: RealField + Copy,
+        const N: usize,
+        const B: usize,
+        const F: usize,
+        const U: usize,
+        const V: usize,
+        const P: usize,
+    > Controller<T, N, B, F, U, V, P>
 {
     /// Applies a planner command, all or nothing (see the module docs).
     pub fn apply(&mut self, command: &Command<T>) -> Result<(), CommandError> {
@@ -222,8 +234,11 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
                 finite(&p.translational_stiffness, "translational_stiffness")?;
                 finite(&p.rotational_stiffness, "rotational_stiffness")?;
                 finite(&[p.damping_ratio], "damping_ratio")?;
-                let task = cartesian_task(&self.config, *hand, p).map_err(|_| CommandError::OutOfRange { field: "cartesian parameters" })?;
-                if let (Some(slot), Some(config)) = (self.tasks.cartesian.get_mut(hand.index()), self.config.cartesian.get_mut(hand.index())) {
+                let task = cartesian_task(&self.config, *hand, p)
+                    .map_err(|_| CommandError::OutOfRange { field: "cartesian parameters" })?;
+                if let (Some(slot), Some(config)) =
+                    (self.tasks.cartesian.get_mut(hand.index()), self.config.cartesian.get_mut(hand.index()))
+                {
                     *slot = task;
                     *config = *p;
                 }
@@ -231,9 +246,15 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
             }
             Command::SetCollisionField { field, parameters } => {
                 let p = parameters;
-                finite(&[p.max_force, p.influence_distance, p.damping_ratio, p.activation_full, p.activation_zero], "collision parameters")?;
-                let validated = collision_parameters(p).map_err(|_| CommandError::OutOfRange { field: "collision parameters" })?;
-                if let (Some(slot), Some(config)) = (self.tasks.collision.get_mut(field.index()), self.config.collision.get_mut(field.index())) {
+                finite(
+                    &[p.max_force, p.influence_distance, p.damping_ratio, p.activation_full, p.activation_zero],
+                    "collision parameters",
+                )?;
+                let validated =
+                    collision_parameters(p).map_err(|_| CommandError::OutOfRange { field: "collision parameters" })?;
+                if let (Some(slot), Some(config)) =
+                    (self.tasks.collision.get_mut(field.index()), self.config.collision.get_mut(field.index()))
+                {
                     *slot = validated;
                     *config = *p;
                 }
@@ -342,7 +363,10 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
 }
 
 /// Encodes a command into `buffer` (postcard); returns the used prefix.
-pub fn encode_command<'b, T: Serialize>(command: &Command<T>, buffer: &'b mut [u8]) -> Result<&'b mut [u8], CommandError> {
+pub fn encode_command<'b, T: Serialize>(
+    command: &Command<T>,
+    buffer: &'b mut [u8],
+) -> Result<&'b mut [u8], CommandError> {
     postcard::to_slice(command, buffer).map_err(|_| CommandError::Decode)
 }
 

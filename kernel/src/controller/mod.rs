@@ -245,7 +245,6 @@ struct TaskSet<T: RealField, const N: usize> {
     joint: [[JointImpedance<T, N>; 5]; 2],
 }
 
-
 fn cartesian_task<T: RealField + Copy, const N: usize>(
     config: &ControllerConfig<T, N>,
     hand: Hand,
@@ -265,8 +264,16 @@ fn cartesian_task<T: RealField + Copy, const N: usize>(
     })
 }
 
-fn collision_parameters<T: RealField + Copy>(p: &CollisionFieldParameters<T>) -> Result<CollisionParameters<T>, TaskError> {
-    CollisionParameters::try_new(p.max_force, p.influence_distance, p.damping_ratio, p.activation_full, p.activation_zero)
+fn collision_parameters<T: RealField + Copy>(
+    p: &CollisionFieldParameters<T>,
+) -> Result<CollisionParameters<T>, TaskError> {
+    CollisionParameters::try_new(
+        p.max_force,
+        p.influence_distance,
+        p.damping_ratio,
+        p.activation_full,
+        p.activation_zero,
+    )
 }
 
 impl<T: RealField + Copy, const N: usize> TaskSet<T, N> {
@@ -276,7 +283,10 @@ impl<T: RealField + Copy, const N: usize> TaskSet<T, N> {
         self.collision.iter().map(CollisionParameters::emit_distance).fold(T::zero(), |m, d| m.max(d))
     }
 
-    fn try_new<const B: usize, const F: usize>(model: &Model<T, N, B, F>, config: &ControllerConfig<T, N>) -> Result<Self, ConfigError> {
+    fn try_new<const B: usize, const F: usize>(
+        model: &Model<T, N, B, F>,
+        config: &ControllerConfig<T, N>,
+    ) -> Result<Self, ConfigError> {
         let [right, left] = config.cartesian;
         let cartesian = [
             cartesian_task(config, Hand::Right, &right).map_err(ConfigError::Task)?,
@@ -289,7 +299,8 @@ impl<T: RealField + Copy, const N: usize> TaskSet<T, N> {
         ];
         let s = &config.singularity;
         let arm = |hand: Hand| {
-            let frame = config.layout.tcp.get(hand.index()).copied().ok_or(TaskError::InvalidParameter { name: "tcp" })?;
+            let frame =
+                config.layout.tcp.get(hand.index()).copied().ok_or(TaskError::InvalidParameter { name: "tcp" })?;
             Manipulability::try_new(ManipulabilityConfig {
                 frame,
                 rows: s.rows,
@@ -305,19 +316,27 @@ impl<T: RealField + Copy, const N: usize> TaskSet<T, N> {
         let limits = &model.limits;
         let e = &config.end_stops;
         for i in (0..N).filter(|i| !config.layout.platform.is_platform(*i)) {
-            let (Some(&lower), Some(&upper)) = (limits.position_lower.get(i), limits.position_upper.get(i)) else { continue };
+            let (Some(&lower), Some(&upper)) = (limits.position_lower.get(i), limits.position_upper.get(i)) else {
+                continue;
+            };
             let span = upper - lower;
             if !(span.is_finite() && span > e.margin + e.margin) {
                 continue;
             }
             let stop = EndStop::try_new(EndStopConfig::coordinate(i, lower, upper, e.margin, e.stiffness, e.damping))
                 .map_err(ConfigError::Task)?;
-            stops.push(stop).map_err(|_| ConfigError::InvalidParameter { name: "end stops: more than MAX_TASK_ROWS" })?;
+            stops
+                .push(stop)
+                .map_err(|_| ConfigError::InvalidParameter { name: "end stops: more than MAX_TASK_ROWS" })?;
         }
         let torso = config.torso_workspace.map(TorsoWorkspace::try_new).transpose().map_err(ConfigError::Task)?;
         let joint_task = |group: JointGroup, stiffness: SVector<T, N>, damping: SVector<T, N>| {
-            JointImpedance::try_new(JointImpedanceConfig { selected: config.layout.coordinates(group), stiffness, damping })
-                .map_err(ConfigError::Task)
+            JointImpedance::try_new(JointImpedanceConfig {
+                selected: config.layout.coordinates(group),
+                stiffness,
+                damping,
+            })
+            .map_err(ConfigError::Task)
         };
         let mut joint = [[joint_task(JointGroup::Platform, SVector::zeros(), SVector::zeros())?; 5]; 2];
         let [impedance, damping] = &mut joint;
@@ -332,7 +351,15 @@ impl<T: RealField + Copy, const N: usize> TaskSet<T, N> {
 /// The whole-body controller for a robot with `N = 3 + U` coordinates (platform first), `B`
 /// bodies, `F` frames, and a collision model of `V` volumes and `P` pairs. See the module docs.
 #[derive(Clone, Debug)]
-pub struct Controller<T: RealField, const N: usize, const B: usize, const F: usize, const U: usize, const V: usize, const P: usize> {
+pub struct Controller<
+    T: RealField,
+    const N: usize,
+    const B: usize,
+    const F: usize,
+    const U: usize,
+    const V: usize,
+    const P: usize,
+> {
     model: Model<T, N, B, F>,
     collision_model: CollisionModel<T, V, P>,
     config: ControllerConfig<T, N>,
@@ -361,8 +388,15 @@ pub struct Controller<T: RealField, const N: usize, const B: usize, const F: usi
     output: ActuatorFrame<T, U>,
 }
 
-impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const U: usize, const V: usize, const P: usize>
-    Controller<T, N, B, F, U, V, P>
+impl<
+        T: RealField + Copy,
+        const N: usize,
+        const B: usize,
+        const F: usize,
+        const U: usize,
+        const V: usize,
+        const P: usize,
+    > Controller<T, N, B, F, U, V, P>
 {
     /// Validates everything once: the configuration, every task's parameters and the initial
     /// hierarchy. The controller starts (targets at the measured poses) on its first valid
@@ -455,7 +489,9 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
 
     /// The current TCP target of `hand`.
     pub fn tcp_target(&self, hand: Hand) -> CartesianTarget<T> {
-        self.hands.get(hand.index()).map_or_else(|| CartesianTarget::at_rest(Placement::identity()), PoseTrajectory::sample)
+        self.hands
+            .get(hand.index())
+            .map_or_else(|| CartesianTarget::at_rest(Placement::identity()), PoseTrajectory::sample)
     }
 
     /// The telemetry of the last cycle.
@@ -521,7 +557,12 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
             Consistency::Static => Weighting::Identity,
             Consistency::Dynamic => Weighting::Inertia(&factor),
         };
-        let config = HierarchyConfig { recursion: self.config.recursion, weighting, shaping: self.config.shaping, diagnose_last_level: false };
+        let config = HierarchyConfig {
+            recursion: self.config.recursion,
+            weighting,
+            shaping: self.config.shaping,
+            diagnose_last_level: false,
+        };
         project(&config, &self.stack, &mut self.projection).map_err(Fault::Hierarchy)?;
 
         let platform = self.platform_command(frame, dt)?;
@@ -534,7 +575,12 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
     /// Sets every target to the measured state (first valid frame).
     fn start(&mut self, q: &SVector<T, N>, frame: &SensorFrame<T, U>) -> Result<(), Fault> {
         for (trajectory, frame_id) in self.hands.iter_mut().zip(self.config.layout.tcp.iter()) {
-            let pose = self.data.frame_placements.get(frame_id.0).copied().ok_or(Fault::Dynamics(DynamicsError::UnknownFrame))?;
+            let pose = self
+                .data
+                .frame_placements
+                .get(frame_id.0)
+                .copied()
+                .ok_or(Fault::Dynamics(DynamicsError::UnknownFrame))?;
             *trajectory = PoseTrajectory::hold(pose);
         }
         self.joint_goal = JointTrajectory::hold(*q);
@@ -594,7 +640,11 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
         t.manipulability = [T::zero(); 2];
         t.tasks = [None; MAX_ACTIVE];
         t.task_count = self.hierarchy.len();
-        let mut scratch = Scratch { collision: &mut self.collision_data, geometry_current: false, cartesian_damping: [Vector6::zeros(); 2] };
+        let mut scratch = Scratch {
+            collision: &mut self.collision_data,
+            geometry_current: false,
+            cartesian_damping: [Vector6::zeros(); 2],
+        };
         for (index, entry) in self.hierarchy.iter().enumerate() {
             self.rows.clear();
             evaluate(
@@ -642,7 +692,9 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
     fn platform_command(&mut self, frame: &SensorFrame<T, U>, dt: T) -> Result<PlatformStep<T>, Fault> {
         let platform = &self.config.platform;
         let mut force = Vector3::zeros();
-        for ((axis, f), deadband) in self.config.layout.platform.axes().iter().zip(force.iter_mut()).zip(platform.force_deadband.iter()) {
+        for ((axis, f), deadband) in
+            self.config.layout.platform.axes().iter().zip(force.iter_mut()).zip(platform.force_deadband.iter())
+        {
             if let Some(c) = axis.coordinate().filter(|_| axis.is_admitted()) {
                 // The contact-force limiter's platform relief: the estimated reaction along the
                 // limited axes ([`force_limit`]).
@@ -660,14 +712,24 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
         }
         let admitted = self.admittance.step(&force, &Vector3::zeros(), dt).map_err(Fault::Platform)?;
         self.reference_pose += admitted.velocity * dt;
-        let reference = PlatformReference { pose: self.reference_pose, velocity: admitted.velocity, acceleration: admitted.acceleration };
+        let reference = PlatformReference {
+            pose: self.reference_pose,
+            velocity: admitted.velocity,
+            acceleration: admitted.acceleration,
+        };
         let pose = Vector3::from(frame.platform.pose);
         let measured = Vector3::from(frame.platform.velocity);
         let avoidance = self.avoidance.step(&reference, &pose, &measured, dt).map_err(Fault::Platform)?;
         let limits = &self.config.output_limits;
         let mut limited = [false; 3];
-        let velocity =
-            limit_base_velocity(&avoidance.velocity, &self.previous_base_velocity, &limits.base_velocity, &limits.base_acceleration, dt, &mut limited);
+        let velocity = limit_base_velocity(
+            &avoidance.velocity,
+            &self.previous_base_velocity,
+            &limits.base_velocity,
+            &limits.base_acceleration,
+            dt,
+            &mut limited,
+        );
         let mut legs = avoidance.leg_rates;
         let t = &mut self.telemetry;
         t.saturation = Saturation::none();
@@ -687,7 +749,12 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
         let count = self.projection.level_count.min(MAX_LEVELS);
         let levels = self.projection.level_torques.get(..count).unwrap_or(&[]);
         let tasks = levels.iter().fold(SVector::<T, N>::zeros(), |t, l| t + l);
-        let limit = self.force_limiter.limit_command(self.config.force_limit.regularisation, &tasks, factor, &self.cartesian_damping);
+        let limit = self.force_limiter.limit_command(
+            self.config.force_limit.regularisation,
+            &tasks,
+            factor,
+            &self.cartesian_damping,
+        );
         for (flags, limited) in self.telemetry.tcp_force_limited.iter_mut().zip(limit.limited.iter()) {
             for (flag, l) in flags.iter_mut().zip(limited.iter()) {
                 *flag |= *l;
@@ -697,7 +764,8 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
         let desired = compensation + tasks;
         let active = self.config.layout.coordinates(JointGroup::UpperBody);
         let rate = &self.config.output_limits.torque_rate;
-        self.telemetry.saturation.torque_rate_limited = rate_exceeded(&desired, &self.previous_torque, rate, dt, &active);
+        self.telemetry.saturation.torque_rate_limited =
+            rate_exceeded(&desired, &self.previous_torque, rate, dt, &active);
         let mut saturation = self.telemetry.saturation;
         let torque = self.guarded(compensation, levels, dt, &mut saturation);
         self.telemetry.saturation = saturation;
@@ -706,7 +774,13 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
 
     /// `compensation + Σ levels` through the effort and rate box of the upper body with
     /// priority-preserving scaling ([`guard`]); zero on the platform coordinates.
-    fn guarded(&self, compensation: &SVector<T, N>, levels: &[SVector<T, N>], dt: T, saturation: &mut Saturation<T>) -> SVector<T, N> {
+    fn guarded(
+        &self,
+        compensation: &SVector<T, N>,
+        levels: &[SVector<T, N>],
+        dt: T,
+        saturation: &mut Saturation<T>,
+    ) -> SVector<T, N> {
         let active = self.config.layout.coordinates(JointGroup::UpperBody);
         let rate = &self.config.output_limits.torque_rate;
         let (lower, upper) = torque_box(&self.model.limits.effort, rate, &self.previous_torque, dt, &active);
@@ -743,7 +817,9 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
         dt: T,
     ) -> Result<(), Fault> {
         let (velocity, leg_rates) = (&platform.velocity, &platform.leg_rates);
-        let finite = crate::math::all_finite(torque) && crate::math::all_finite(velocity) && leg_rates.iter().all(|x| x.is_finite());
+        let finite = crate::math::all_finite(torque)
+            && crate::math::all_finite(velocity)
+            && leg_rates.iter().all(|x| x.is_finite());
         if !finite {
             return Err(Fault::NonFiniteOutput);
         }
@@ -759,7 +835,8 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
         t.level_count = self.projection.level_count;
         let mut potential = T::zero();
         for level in 0..MAX_LEVELS {
-            let storage = self.stack.rows().iter().filter(|r| r.level == level).fold(T::zero(), |s, r| s + r.row.potential);
+            let storage =
+                self.stack.rows().iter().filter(|r| r.level == level).fold(T::zero(), |s, r| s + r.row.potential);
             potential += storage;
             let diagnostics = self.projection.levels.get(level).filter(|_| level < self.projection.level_count);
             if let (Some(s), Some(rate), Some(norm), Some(conflict)) = (
@@ -780,7 +857,11 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
         t.base_velocity = *velocity;
 
         self.hold_gravity = self.data.gravity_torque;
-        self.write_output(torque, PlatformCommand { velocity: (*velocity).into(), leg_rates: *leg_rates }, SafeOutput::Normal);
+        self.write_output(
+            torque,
+            PlatformCommand { velocity: (*velocity).into(), leg_rates: *leg_rates },
+            SafeOutput::Normal,
+        );
         Ok(())
     }
 
@@ -794,7 +875,8 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
         let brake = t.fault_cycles >= self.config.input_limits.brake_after_cycles;
         let dt = self.config.period_s;
         let (q, v) = Self::state(frame);
-        let positions_valid = crate::math::all_finite(&q) && forward_kinematics(&self.model, &mut self.data, &q, &SVector::zeros()).is_ok();
+        let positions_valid = crate::math::all_finite(&q)
+            && forward_kinematics(&self.model, &mut self.data, &q, &SVector::zeros()).is_ok();
         let gravity_torque = if positions_valid { *gravity(&self.model, &mut self.data) } else { self.hold_gravity };
         let velocity = if crate::math::all_finite(&v) { v } else { SVector::zeros() };
         let hold = gravity_torque - self.config.safe_damping.component_mul(&velocity);
@@ -805,13 +887,21 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
         }
         let limits = &self.config.output_limits;
         let mut limited = [false; 3];
-        let base = limit_base_velocity(&Vector3::zeros(), &self.previous_base_velocity, &limits.base_velocity, &limits.base_acceleration, dt, &mut limited);
+        let base = limit_base_velocity(
+            &Vector3::zeros(),
+            &self.previous_base_velocity,
+            &limits.base_velocity,
+            &limits.base_acceleration,
+            dt,
+            &mut limited,
+        );
         saturation.base_limited = limited;
         self.telemetry.saturation = saturation;
         self.telemetry.base_velocity = base;
         // The platform loop restarts from the commanded (decaying) velocity.
         let _ = self.admittance.reset(&Vector3::zeros());
-        let _ = self.avoidance.reset(&base, &frame.platform.leg_lengths.map(|l| if l.is_finite() { l } else { T::zero() }));
+        let _ =
+            self.avoidance.reset(&base, &frame.platform.leg_lengths.map(|l| if l.is_finite() { l } else { T::zero() }));
         let pose = Vector3::from(frame.platform.pose);
         if crate::math::all_finite(&pose) {
             self.reference_pose = pose;
@@ -833,7 +923,15 @@ struct Scratch<'a, T: RealField, const V: usize, const P: usize> {
 }
 
 /// Read-only inputs of a task evaluation.
-struct EvaluationContext<'a, T: RealField, const N: usize, const B: usize, const F: usize, const V: usize, const P: usize> {
+struct EvaluationContext<
+    'a,
+    T: RealField,
+    const N: usize,
+    const B: usize,
+    const F: usize,
+    const V: usize,
+    const P: usize,
+> {
     model: &'a Model<T, N, B, F>,
     collision_model: &'a CollisionModel<T, V, P>,
     config: &'a ControllerConfig<T, N>,
@@ -854,7 +952,8 @@ fn evaluate<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
 ) -> Result<(), Fault> {
     match kind {
         TaskKind::CartesianImpedance(hand) => {
-            let (Some(task), Some(trajectory)) = (cx.tasks.cartesian.get(hand.index()), cx.hands.get(hand.index())) else {
+            let (Some(task), Some(trajectory)) = (cx.tasks.cartesian.get(hand.index()), cx.hands.get(hand.index()))
+            else {
                 return Ok(());
             };
             // (5.11): no Cartesian damping on the platform coordinates.
@@ -884,7 +983,15 @@ fn evaluate<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
             // other field) reuse it. Same rows as updating twice.
             let (model, data_ref, factor, collision_model) = (cx.model, &*data, cx.factor, cx.collision_model);
             let report = if scratch.geometry_current {
-                collision_rows_from_geometry(collision_model, scratch.collision, model, data_ref, factor, parameters, rows)
+                collision_rows_from_geometry(
+                    collision_model,
+                    scratch.collision,
+                    model,
+                    data_ref,
+                    factor,
+                    parameters,
+                    rows,
+                )
             } else {
                 self_collision_rows(collision_model, scratch.collision, model, data_ref, factor, parameters, rows)
             };
@@ -938,7 +1045,8 @@ fn validate_config<T: RealField + Copy, const N: usize>(config: &ControllerConfi
             "position_tolerance",
         ),
         (
-            config.input_limits.velocity_factor.is_finite() && config.input_limits.velocity_factor >= T::one()
+            config.input_limits.velocity_factor.is_finite()
+                && config.input_limits.velocity_factor >= T::one()
                 && config.input_limits.max_cycle_gap >= 1
                 && config.input_limits.brake_after_cycles >= 1,
             "input limits",

@@ -25,7 +25,13 @@ pub struct MomentumObserver<T, const N: usize> {
 impl<T: RealField + Copy, const N: usize> MomentumObserver<T, N> {
     /// An observer with gain `K_O` (1/s); it starts at the first update.
     pub fn new(gain: T) -> Self {
-        Self { gain, initial_momentum: SVector::zeros(), integral: SVector::zeros(), residual: SVector::zeros(), started: false }
+        Self {
+            gain,
+            initial_momentum: SVector::zeros(),
+            integral: SVector::zeros(),
+            residual: SVector::zeros(),
+            started: false,
+        }
     }
 
     /// Restarts at the next update (after a fault the integral is no longer meaningful).
@@ -50,7 +56,10 @@ impl<T: RealField + Copy, const N: usize> MomentumObserver<T, N> {
         dt: T,
     ) -> &SVector<T, N> {
         let velocity = &data.v;
-        let mask = SVector::<T, N>::from_fn(|i, _| if observed.get(i).copied().unwrap_or(false) { T::one() } else { T::zero() });
+        let mask =
+            SVector::<T, N>::from_fn(
+                |i, _| if observed.get(i).copied().unwrap_or(false) { T::one() } else { T::zero() },
+            );
         let momentum = (data.mass_matrix * velocity).component_mul(&mask);
         if !self.started {
             self.initial_momentum = momentum;
@@ -59,7 +68,8 @@ impl<T: RealField + Copy, const N: usize> MomentumObserver<T, N> {
             self.started = true;
             return &self.residual;
         }
-        let rate = (torque + data.coriolis.transpose() * velocity - data.gravity_torque + self.residual).component_mul(&mask);
+        let rate =
+            (torque + data.coriolis.transpose() * velocity - data.gravity_torque + self.residual).component_mul(&mask);
         self.integral += rate * dt;
         self.residual = (momentum - self.initial_momentum - self.integral) * self.gain;
         &self.residual

@@ -50,7 +50,8 @@ impl<T: RealField + Copy> PoseTrajectory<T> {
         if relative.w < T::zero() {
             relative = UnitQuaternion::new_unchecked(-relative.into_inner());
         }
-        let (axis, angle) = relative.axis_angle().map_or((Vector3::z(), T::zero()), |(a, angle)| (a.into_inner(), angle));
+        let (axis, angle) =
+            relative.axis_angle().map_or((Vector3::z(), T::zero()), |(a, angle)| (a.into_inner(), angle));
         Self { start, goal, axis, angle, duration, elapsed: T::zero(), streamed: None }
     }
 
@@ -80,7 +81,8 @@ impl<T: RealField + Copy> PoseTrajectory<T> {
             return streamed;
         }
         let (s, ds) = cubic(self.elapsed, self.duration);
-        let translation = self.start.translation.vector + (self.goal.translation.vector - self.start.translation.vector) * s;
+        let translation =
+            self.start.translation.vector + (self.goal.translation.vector - self.start.translation.vector) * s;
         let axis = Unit::new_unchecked(self.axis);
         let rotation = self.start.rotation * Rotation3::from_axis_angle(&axis, self.angle * s);
         CartesianTarget {
@@ -137,7 +139,8 @@ mod tests {
     #[test]
     fn pose_cubic_starts_and_ends_at_rest_and_matches_its_derivative() {
         let start = Placement::from_parts(Vector3::new(0.1, 0.2, 0.3).into(), Rotation3::identity());
-        let goal = Placement::from_parts(Vector3::new(1.1, -0.2, 0.5).into(), Rotation3::from_euler_angles(0.3, -0.2, 0.9));
+        let goal =
+            Placement::from_parts(Vector3::new(1.1, -0.2, 0.5).into(), Rotation3::from_euler_angles(0.3, -0.2, 0.9));
         let mut trajectory = PoseTrajectory::towards(start, goal, 2.0_f64);
         assert_eq!(trajectory.sample().linear_velocity, Vector3::zeros());
         let dt = 1e-4;
@@ -162,7 +165,8 @@ mod tests {
 
     #[test]
     fn joint_cubic_reaches_the_goal_in_f32() {
-        let mut trajectory = JointTrajectory::towards(SVector::<f32, 2>::new(0.0, 1.0), SVector::<f32, 2>::new(1.0, -1.0), 0.5);
+        let mut trajectory =
+            JointTrajectory::towards(SVector::<f32, 2>::new(0.0, 1.0), SVector::<f32, 2>::new(1.0, -1.0), 0.5);
         trajectory.advance(0.25);
         let (q, v) = trajectory.sample();
         assert!((q[0] - 0.5).abs() < 1e-6 && (v[0] - 3.0).abs() < 1e-5);

@@ -33,8 +33,7 @@ pub fn coriolis_matrix<'d, T: RealField + Copy, const N: usize, const B: usize, 
         data.composite_coriolis.iter_mut().zip(data.body_inertias.iter()).zip(data.body_velocities.iter())
     {
         let momentum = inertia * v;
-        *b = (force_cross_matrix(v) * inertia + force_bar_matrix(&momentum) - inertia * motion_cross_matrix(v))
-            * half;
+        *b = (force_cross_matrix(v) * inertia + force_bar_matrix(&momentum) - inertia * motion_cross_matrix(v)) * half;
     }
     let per_body = data.composite_coriolis;
     accumulate_composites(model, &per_body, &mut data.composite_coriolis);

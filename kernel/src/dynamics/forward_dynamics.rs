@@ -59,10 +59,7 @@ mod tests {
         let mut q = state(1, 1.0);
         q[2] = f64::NAN;
         let v = SVector::zeros();
-        assert_eq!(
-            forward_kinematics(&model, &mut data, &q, &v),
-            Err(DynamicsError::NonFinite { input: "q" })
-        );
+        assert_eq!(forward_kinematics(&model, &mut data, &q, &v), Err(DynamicsError::NonFinite { input: "q" }));
         forward_kinematics(&model, &mut data, &state(1, 1.0), &v).unwrap();
         let mut tau = SVector::zeros();
         tau[0] = f64::INFINITY;

@@ -118,7 +118,11 @@ mod tests {
     use crate::test_models::{branched, state, N, TCP, WRIST};
     use proptest::prelude::*;
 
-    fn jacobian_at(model: &crate::test_models::Branched<f64>, frame: FrameId, q: &SVector<f64, N>) -> SMatrix<f64, 6, N> {
+    fn jacobian_at(
+        model: &crate::test_models::Branched<f64>,
+        frame: FrameId,
+        q: &SVector<f64, N>,
+    ) -> SMatrix<f64, 6, N> {
         let mut data = Data::new(model);
         forward_kinematics(model, &mut data, q, &SVector::zeros()).unwrap();
         let mut j = SMatrix::zeros();

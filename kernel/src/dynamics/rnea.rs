@@ -30,8 +30,7 @@ pub fn rnea<'d, T: RealField + Copy, const N: usize, const B: usize, const F: us
             continue;
         };
         let joint_rate = body.drive.evaluate(&data.v, false);
-        let acceleration =
-            parent + s * body.drive.evaluate(qdd, false) + motion_cross(v, s) * joint_rate;
+        let acceleration = parent + s * body.drive.evaluate(qdd, false) + motion_cross(v, s) * joint_rate;
         let force = inertia * acceleration + force_cross(v, &(inertia * v));
         if let (Some(a), Some(f)) = (data.body_accelerations.get_mut(i), data.body_forces.get_mut(i)) {
             *a = acceleration;

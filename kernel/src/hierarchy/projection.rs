@@ -58,8 +58,14 @@ impl<T: RealField + Copy, const N: usize, const R: usize, const L: usize> Defaul
             projector: SMatrix::identity(),
             level_projector: SMatrix::identity(),
             torque: SVector::zeros(),
-            rows: [RowDiagnostics { level: 0, activation: T::zero(), projected_norm_ratio: T::zero(), transmission: T::zero() }; R],
-            levels: [LevelDiagnostics { torque_norm: T::zero(), projected_torque_norm: T::zero(), conflict: T::zero() }; L],
+            rows: [RowDiagnostics {
+                level: 0,
+                activation: T::zero(),
+                projected_norm_ratio: T::zero(),
+                transmission: T::zero(),
+            }; R],
+            levels: [LevelDiagnostics { torque_norm: T::zero(), projected_torque_norm: T::zero(), conflict: T::zero() };
+                L],
             level_torques: [SVector::zeros(); L],
             level_count: 0,
         }
@@ -102,7 +108,8 @@ pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS
     {
         let on_level = || stack.rows().iter().filter(move |r| r.level == level);
         let input = data.projector;
-        let torque: SVector<T, N> = on_level().fold(SVector::zeros(), |t, r| t + r.row.jacobian.transpose() * r.row.force);
+        let torque: SVector<T, N> =
+            on_level().fold(SVector::zeros(), |t, r| t + r.row.jacobian.transpose() * r.row.force);
         let projected = apply_projector(&config.weighting, &input, &torque);
         data.torque += projected;
         *level_torque = projected;
@@ -130,7 +137,8 @@ pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS
                 Recursion::Successive => &mut data.level_projector,
                 Recursion::Augmented | Recursion::Unprojected => &mut data.projector,
             };
-            let mut row = update_row(config, &input, working, stack_row.row.jacobian.transpose(), stack_row.row.activation);
+            let mut row =
+                update_row(config, &input, working, stack_row.row.jacobian.transpose(), stack_row.row.activation);
             row.level = level;
             if let Some(slot) = diagnostics.next() {
                 *slot = row;
@@ -195,7 +203,10 @@ fn transmission<T: RealField + Copy, const N: usize>(
 }
 
 /// `W⁻¹ x` (identity for the static and the acceleration-based recursion).
-fn metric_solve<T: RealField + Copy, const N: usize>(weighting: &Weighting<'_, T, N>, x: &SVector<T, N>) -> SVector<T, N> {
+fn metric_solve<T: RealField + Copy, const N: usize>(
+    weighting: &Weighting<'_, T, N>,
+    x: &SVector<T, N>,
+) -> SVector<T, N> {
     match weighting {
         Weighting::Identity | Weighting::AccelerationBased(_) => *x,
         Weighting::Inertia(factor) | Weighting::Stiffness(factor) => factor.solve(x),
@@ -217,7 +228,10 @@ fn apply_projector<T: RealField + Copy, const N: usize>(
     }
 }
 
-fn level_result<T: RealField + Copy, const N: usize>(torque: &SVector<T, N>, projected: &SVector<T, N>) -> LevelDiagnostics<T> {
+fn level_result<T: RealField + Copy, const N: usize>(
+    torque: &SVector<T, N>,
+    projected: &SVector<T, N>,
+) -> LevelDiagnostics<T> {
     let (torque_norm, projected_torque_norm) = (torque.norm(), projected.norm());
     let conflict = if torque_norm > T::zero() {
         (T::one() - projected_torque_norm / torque_norm).max(T::zero()).min(T::one())
@@ -247,9 +261,14 @@ fn validate<T: RealField + Copy, const N: usize, const RS: usize>(
     }
     let band_ok = match config.shaping {
         Shaping::Continuous { singular_full, singular_start } => {
-            singular_full.is_finite() && singular_start.is_finite() && T::zero() < singular_full && singular_full < singular_start
+            singular_full.is_finite()
+                && singular_start.is_finite()
+                && T::zero() < singular_full
+                && singular_full < singular_start
         }
-        Shaping::Discontinuous { singular_threshold } => singular_threshold.is_finite() && singular_threshold >= T::zero(),
+        Shaping::Discontinuous { singular_threshold } => {
+            singular_threshold.is_finite() && singular_threshold >= T::zero()
+        }
     };
     if band_ok {
         Ok(())
@@ -316,12 +335,14 @@ mod tests {
             let factor = mass_factor(seed);
             let m_inv = factor.inverse();
             let stack = random_stack(seed, &[0, 0, 1, 2, 2]);
-            for (weighting, w_inv) in [(Weighting::Identity, SMatrix::identity()), (Weighting::Inertia(&factor), m_inv)] {
+            for (weighting, w_inv) in [(Weighting::Identity, SMatrix::identity()), (Weighting::Inertia(&factor), m_inv)]
+            {
                 let mut data = HierarchyData::<f64, N, 8, 4>::default();
                 let tau = *project(&config(Recursion::Augmented, weighting), &stack, &mut data).unwrap();
                 // Equality holds when no row is near singular: every ρ above the shaping band,
                 // so every activation is exactly 1.
-                let min_ratio = data.rows[..stack.rows().len()].iter().map(|r| r.projected_norm_ratio).fold(f64::MAX, f64::min);
+                let min_ratio =
+                    data.rows[..stack.rows().len()].iter().map(|r| r.projected_norm_ratio).fold(f64::MAX, f64::min);
                 if min_ratio < 0.15 {
                     continue;
                 }
@@ -335,7 +356,11 @@ mod tests {
                     }
                     above.extend(stack.rows().iter().filter(|r| r.level == level).map(|r| r.row.jacobian));
                 }
-                assert!((tau - expected).amax() < 1e-9 * (1.0 + expected.amax()), "seed {seed}: {}", (tau - expected).amax());
+                assert!(
+                    (tau - expected).amax() < 1e-9 * (1.0 + expected.amax()),
+                    "seed {seed}: {}",
+                    (tau - expected).amax()
+                );
                 assert!((data.projector - direct_projector(&above, &w_inv)).amax() < 1e-9, "seed {seed}");
             }
         }
@@ -348,7 +373,11 @@ mod tests {
         let m_inv = factor.inverse();
         let stack = random_stack(3, &[0, 1, 1]);
         let level0: SVector<f64, N> = stack.rows()[0].row.jacobian.transpose();
-        for (weighting, dynamic) in [(Weighting::Identity, false), (Weighting::Inertia(&factor), true), (Weighting::AccelerationBased(&factor), true)] {
+        for (weighting, dynamic) in [
+            (Weighting::Identity, false),
+            (Weighting::Inertia(&factor), true),
+            (Weighting::AccelerationBased(&factor), true),
+        ] {
             let mut data = HierarchyData::<f64, N, 8, 4>::default();
             project(&config(Recursion::Augmented, weighting), &stack, &mut data).unwrap();
             let n = data.projector;
@@ -399,7 +428,12 @@ mod tests {
         stack.push(1, row(b, 1.0)).unwrap();
         stack.push(2, row(RowSVector::from_fn(|_, c| [0.3, 1.0, 0.2, 0.0, 0.0, 0.0][c]), 5.0)).unwrap();
         let mut data = HierarchyData::<f64, N, 8, 4>::default();
-        let cfg = HierarchyConfig { recursion: Recursion::Augmented, weighting: Weighting::Identity, shaping, diagnose_last_level: true };
+        let cfg = HierarchyConfig {
+            recursion: Recursion::Augmented,
+            weighting: Weighting::Identity,
+            shaping,
+            diagnose_last_level: true,
+        };
         *project(&cfg, &stack, &mut data).unwrap()
     }
 
@@ -411,8 +445,10 @@ mod tests {
         for k in 0..steps {
             let t0 = 0.4 * k as f64 / steps as f64;
             let t1 = 0.4 * (k + 1) as f64 / steps as f64;
-            worst_continuous = worst_continuous.max((torque_near_singularity(t1, CONTINUOUS) - torque_near_singularity(t0, CONTINUOUS)).amax());
-            worst_classical = worst_classical.max((torque_near_singularity(t1, classical) - torque_near_singularity(t0, classical)).amax());
+            worst_continuous = worst_continuous
+                .max((torque_near_singularity(t1, CONTINUOUS) - torque_near_singularity(t0, CONTINUOUS)).amax());
+            worst_classical = worst_classical
+                .max((torque_near_singularity(t1, classical) - torque_near_singularity(t0, classical)).amax());
         }
         // Step 1e-4 in t: a continuous torque changes by O(1e-3); the classical one jumps by
         // the full blocked component (5 · 1.0 of the level-2 force along the unlocked axis).
@@ -466,12 +502,27 @@ mod tests {
         let stack = random_stack(5, &[0, 0, 1, 2]);
         let mut stack32 = Stack::<f32, N, 8>::new();
         for r in stack.rows() {
-            stack32.push(r.level, TaskRow { jacobian: r.row.jacobian.cast(), force: r.row.force as f32, potential: 0.0, activation: 1.0 }).unwrap();
+            stack32
+                .push(
+                    r.level,
+                    TaskRow {
+                        jacobian: r.row.jacobian.cast(),
+                        force: r.row.force as f32,
+                        potential: 0.0,
+                        activation: 1.0,
+                    },
+                )
+                .unwrap();
         }
         let mut d64 = HierarchyData::<f64, N, 8, 4>::default();
         let mut d32 = HierarchyData::<f32, N, 8, 4>::default();
         let t64 = *project(&config(Recursion::Augmented, Weighting::Identity), &stack, &mut d64).unwrap();
-        let cfg32 = HierarchyConfig { recursion: Recursion::Augmented, weighting: Weighting::Identity, shaping: Shaping::Continuous { singular_full: 0.05_f32, singular_start: 0.15 }, diagnose_last_level: true };
+        let cfg32 = HierarchyConfig {
+            recursion: Recursion::Augmented,
+            weighting: Weighting::Identity,
+            shaping: Shaping::Continuous { singular_full: 0.05_f32, singular_start: 0.15 },
+            diagnose_last_level: true,
+        };
         let t32 = project(&cfg32, &stack32, &mut d32).unwrap().cast::<f64>();
         assert!((t64 - t32).amax() < 1e-4 * (1.0 + t64.amax()));
     }

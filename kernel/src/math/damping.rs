@@ -1,4 +1,4 @@
-//! Damping design by double diagonalisation ([ASOFH03], used in Sec. 3.1.3 and 5.1.4).
+//! Damping design by double diagonalisation (\[ASOFH03\], used in Sec. 3.1.3 and 5.1.4).
 //!
 //! Given a reflected inertia `Λ ≻ 0` and a stiffness `K ⪰ 0` of a task (or of a collision pair),
 //! find `Q` with `Λ = Q Qᵀ` and `K = Q K₀ Qᵀ`, `K₀ = diag(k₀ᵢ)`. In the coordinates `z = Qᵀ x`
@@ -51,7 +51,7 @@ impl fmt::Display for DampingError {
 impl core::error::Error for DampingError {}
 
 /// Damping matrix `D = Q diag(2 ξᵢ √k₀ᵢ) Qᵀ` with `Λ = Q Qᵀ`, `K = Q K₀ Qᵀ` (double
-/// diagonalisation, [ASOFH03]; (3.23) for collision pairs, Sec. 5.1.4 for Cartesian tasks).
+/// diagonalisation, \[ASOFH03\]; (3.23) for collision pairs, Sec. 5.1.4 for Cartesian tasks).
 ///
 /// With `Λ = L Lᵀ` (Cholesky): `L⁻¹ K L⁻ᵀ = V K₀ Vᵀ`, `Q = L V`. With `Λ⁻¹ = Lₐ Lₐᵀ`:
 /// `Λ = Lₐ⁻ᵀ Lₐ⁻¹`, `Lₐᵀ K Lₐ = V K₀ Vᵀ`, `Q = Lₐ⁻ᵀ V` (a triangular solve). Only triangular
@@ -175,7 +175,8 @@ mod tests {
             let expected = 2.0 * xi * (k * mi * mj / (mi + mj)).sqrt();
             let inverse = Matrix2::new(1.0 / mi, 0.0, 0.0, 1.0 / mj);
             let stiffness = Matrix2::new(k, -k, -k, k);
-            let d = double_diagonalization(ReflectedInertia::Inverse(&inverse), &stiffness, &Vector2::repeat(xi)).unwrap();
+            let d =
+                double_diagonalization(ReflectedInertia::Inverse(&inverse), &stiffness, &Vector2::repeat(xi)).unwrap();
             // Both points moving together (no relative velocity) must not be damped.
             let common = d * Vector2::new(1.0, 1.0);
             assert!(common.amax() < 1e-12 * expected, "ratio {ratio}: common mode damped by {common}");
@@ -196,10 +197,22 @@ mod tests {
         let m = Matrix3::<f32>::identity();
         let k = Matrix3::from_diagonal(&Vector3::new(1.0, -5.0, 1.0));
         let xi = Vector3::repeat(0.7);
-        assert_eq!(double_diagonalization(ReflectedInertia::Inertia(&m), &k, &xi), Err(DampingError::StiffnessNotPositiveSemidefinite));
-        assert_eq!(double_diagonalization(ReflectedInertia::Inertia(&(-m)), &m, &xi), Err(DampingError::InertiaNotPositiveDefinite));
-        assert_eq!(double_diagonalization(ReflectedInertia::Inverse(&m), &m, &Vector3::new(0.7, f32::NAN, 0.7)), Err(DampingError::InvalidDampingRatio));
-        assert_eq!(double_diagonalization(ReflectedInertia::Inertia(&m), &(m * f32::INFINITY), &xi), Err(DampingError::NonFinite));
+        assert_eq!(
+            double_diagonalization(ReflectedInertia::Inertia(&m), &k, &xi),
+            Err(DampingError::StiffnessNotPositiveSemidefinite)
+        );
+        assert_eq!(
+            double_diagonalization(ReflectedInertia::Inertia(&(-m)), &m, &xi),
+            Err(DampingError::InertiaNotPositiveDefinite)
+        );
+        assert_eq!(
+            double_diagonalization(ReflectedInertia::Inverse(&m), &m, &Vector3::new(0.7, f32::NAN, 0.7)),
+            Err(DampingError::InvalidDampingRatio)
+        );
+        assert_eq!(
+            double_diagonalization(ReflectedInertia::Inertia(&m), &(m * f32::INFINITY), &xi),
+            Err(DampingError::NonFinite)
+        );
         let d = double_diagonalization(ReflectedInertia::Inertia(&m), &(m * 4.0), &xi).unwrap();
         assert!((d - m * 2.8).amax() < 1e-5, "f32 isotropic case: 2·0.7·√4 = 2.8");
     }

@@ -92,7 +92,8 @@ mod tests {
     #[test]
     fn reconstructs_random_symmetric_matrices() {
         for seed in 1..50u64 {
-            let b = Matrix6::<f64>::from_fn(|i, j| (((seed * 31 + i as u64 * 7 + j as u64 * 13) % 17) as f64 - 8.0) / 3.0);
+            let b =
+                Matrix6::<f64>::from_fn(|i, j| (((seed * 31 + i as u64 * 7 + j as u64 * 13) % 17) as f64 - 8.0) / 3.0);
             let a = b + b.transpose();
             let (lambda, v) = symmetric_eigen(&a);
             assert!((v.transpose() * v - Matrix6::identity()).amax() < 1e-13);

@@ -49,12 +49,7 @@ pub fn skew<T: RealField + Copy>(a: &Vector3<T>) -> Matrix3<T> {
 
 /// 6×6 matrix from its four 3×3 blocks `[[tl, tr], [bl, br]]`.
 #[inline]
-pub fn blocks<T: RealField + Copy>(
-    tl: &Matrix3<T>,
-    tr: &Matrix3<T>,
-    bl: &Matrix3<T>,
-    br: &Matrix3<T>,
-) -> Matrix6<T> {
+pub fn blocks<T: RealField + Copy>(tl: &Matrix3<T>, tr: &Matrix3<T>, bl: &Matrix3<T>, br: &Matrix3<T>) -> Matrix6<T> {
     let mut m = Matrix6::zeros();
     m.fixed_view_mut::<3, 3>(0, 0).copy_from(tl);
     m.fixed_view_mut::<3, 3>(0, 3).copy_from(tr);

@@ -58,7 +58,9 @@ mod tests {
     fn table_4_4_conditions_hold() {
         let (full, start) = (0.05_f64, 0.13);
         let h = 1e-7;
-        let slope = |t: f64| -(transition_activation(t + h, full, start) - transition_activation(t - h, full, start)) / (2.0 * h);
+        let slope = |t: f64| {
+            -(transition_activation(t + h, full, start) - transition_activation(t - h, full, start)) / (2.0 * h)
+        };
         assert_eq!(transition_activation(full, full, start), 1.0);
         assert_eq!(transition_activation(start, full, start), 0.0);
         // N'_des = 6σ(1 − σ)/Δ: zero at both ends of the band (C¹ junctions), 1.5/Δ mid-band.

@@ -100,8 +100,8 @@ impl<T: RealField + Copy> JointDrive<T> {
     /// Joint value (or, with `offset = false`, rate) for coordinates `q`.
     pub fn evaluate<const N: usize>(&self, q: &nalgebra::SVector<T, N>, with_offset: bool) -> T {
         let base = if with_offset { self.offset } else { T::zero() };
-        self.terms.iter().fold(base, |acc, t| {
-            acc + t.coefficient * q.get(t.coordinate).copied().unwrap_or_else(T::zero)
-        })
+        self.terms
+            .iter()
+            .fold(base, |acc, t| acc + t.coefficient * q.get(t.coordinate).copied().unwrap_or_else(T::zero))
     }
 }

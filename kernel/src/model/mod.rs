@@ -11,15 +11,14 @@ mod error;
 mod inertia;
 mod joint;
 
+pub use crate::math::spatial::Placement;
 pub use data::Data;
 pub use error::ModelError;
 pub use inertia::Inertia;
-pub use crate::math::spatial::Placement;
 pub use joint::{DriveTerm, JointDrive, JointKind, MAX_DRIVE_TERMS};
 
 use heapless::Vec;
 use nalgebra::{RealField, SVector, Vector3};
-
 
 /// Index of a body in [`Model::bodies`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -148,14 +147,7 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize> ModelB
     /// An empty model under gravity `gravity` (m/s², world frame), without limits.
     pub fn new(gravity: Vector3<T>) -> Self {
         let () = Self::SIZES_OK;
-        Self {
-            model: Model {
-                bodies: Vec::new(),
-                frames: Vec::new(),
-                gravity,
-                limits: JointLimits::unlimited(),
-            },
-        }
+        Self { model: Model { bodies: Vec::new(), frames: Vec::new(), gravity, limits: JointLimits::unlimited() } }
     }
 
     /// Appends a body; its parent must already exist. Returns its id.
@@ -205,10 +197,7 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize> ModelB
             return Err(ModelError::NonFinite { what: "frame placement" });
         }
         let id = FrameId(self.model.frames.len());
-        self.model
-            .frames
-            .push(Frame { parent, placement })
-            .map_err(|_| ModelError::TooManyFrames { capacity: F })?;
+        self.model.frames.push(Frame { parent, placement }).map_err(|_| ModelError::TooManyFrames { capacity: F })?;
         Ok(id)
     }
 
@@ -235,7 +224,8 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize> ModelB
         }
         let l = &model.limits;
         for i in 0..N {
-            let ordered = matches!((l.position_lower.get(i), l.position_upper.get(i)), (Some(lo), Some(hi)) if lo <= hi);
+            let ordered =
+                matches!((l.position_lower.get(i), l.position_upper.get(i)), (Some(lo), Some(hi)) if lo <= hi);
             let positive = matches!((l.velocity.get(i), l.effort.get(i)), (Some(v), Some(e)) if *v >= T::zero() && *e >= T::zero());
             if !ordered || !positive {
                 return Err(ModelError::InvalidLimits { coordinate: i });

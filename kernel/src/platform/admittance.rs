@@ -212,7 +212,9 @@ impl<T: RealField + Copy> Admittance<T> {
     fn limited(&self, velocity: &Vector3<T>) -> Vector3<T> {
         let limit = self.config.velocity_limit();
         let mut out = Vector3::zeros();
-        for (((o, v), l), free) in out.iter_mut().zip(velocity.iter()).zip(limit.iter()).zip(self.config.free_axes.iter()) {
+        for (((o, v), l), free) in
+            out.iter_mut().zip(velocity.iter()).zip(limit.iter()).zip(self.config.free_axes.iter())
+        {
             if *free {
                 *o = clamp_symmetric(*v, *l);
             }
@@ -278,14 +280,17 @@ mod tests {
     #[test]
     fn force_limits_bound_the_velocity_and_locked_axes_stay_at_rest() {
         for free_axes in [[true, false, false], [false, true, true]] {
-            let config = AdmittanceConfig { force_limit: Vector3::new(30.0, 30.0, 4.0), free_axes, ..table_5_2::<f64>() };
+            let config =
+                AdmittanceConfig { force_limit: Vector3::new(30.0, 30.0, 4.0), free_axes, ..table_5_2::<f64>() };
             let limit = config.velocity_limit();
             assert_eq!(limit, Vector3::new(1.25, 1.25, 0.5));
             let mut admittance = Admittance::try_new(config).unwrap();
             let mut peak = Vector3::<f64>::zeros();
             for k in 0..5000 {
                 let sign = if (k / 1500) % 2 == 0 { 1.0 } else { -1.0 };
-                let out = admittance.step(&Vector3::new(500.0, -80.0, 9.0 * sign), &Vector3::new(0.0, 0.0, 1.0), 2e-3).unwrap();
+                let out = admittance
+                    .step(&Vector3::new(500.0, -80.0, 9.0 * sign), &Vector3::new(0.0, 0.0, 1.0), 2e-3)
+                    .unwrap();
                 for i in 0..3 {
                     peak[i] = peak[i].max(out.velocity[i].abs());
                     if !free_axes[i] {
@@ -306,19 +311,51 @@ mod tests {
 
     #[test]
     fn gains_and_invalid_input() {
-        let from = AdmittanceConfig::from_gains(Vector3::new(1.0 / 21.0, 1.0 / 21.0, 1.0 / 7.0), Vector3::repeat(1.0 / 7.0_f32), Vector3::repeat(1.0), [true; 3]).unwrap();
+        let from = AdmittanceConfig::from_gains(
+            Vector3::new(1.0 / 21.0, 1.0 / 21.0, 1.0 / 7.0),
+            Vector3::repeat(1.0 / 7.0_f32),
+            Vector3::repeat(1.0),
+            [true; 3],
+        )
+        .unwrap();
         assert!((from.mass - Vector3::new(3.0, 3.0, 1.0)).amax() < 1e-5, "critical set of Sec. 5.1.4");
-        assert_eq!(AdmittanceConfig::from_gains(Vector3::new(0.0, 1.0, 1.0), Vector3::repeat(1.0_f64), Vector3::repeat(1.0), [true; 3]), None);
+        assert_eq!(
+            AdmittanceConfig::from_gains(
+                Vector3::new(0.0, 1.0, 1.0),
+                Vector3::repeat(1.0_f64),
+                Vector3::repeat(1.0),
+                [true; 3]
+            ),
+            None
+        );
         let good = table_5_2::<f64>();
-        assert_eq!(Admittance::try_new(AdmittanceConfig { mass: Vector3::new(1.0, 0.0, 1.0), ..good }), Err(PlatformError::InvalidParameter { name: "mass" }));
-        assert_eq!(Admittance::try_new(AdmittanceConfig { damping: Vector3::new(1.0, f64::NAN, 1.0), ..good }), Err(PlatformError::InvalidParameter { name: "damping" }));
-        assert_eq!(Admittance::try_new(AdmittanceConfig { force_limit: Vector3::new(1.0, -1.0, 1.0), ..good }), Err(PlatformError::InvalidParameter { name: "force_limit" }));
+        assert_eq!(
+            Admittance::try_new(AdmittanceConfig { mass: Vector3::new(1.0, 0.0, 1.0), ..good }),
+            Err(PlatformError::InvalidParameter { name: "mass" })
+        );
+        assert_eq!(
+            Admittance::try_new(AdmittanceConfig { damping: Vector3::new(1.0, f64::NAN, 1.0), ..good }),
+            Err(PlatformError::InvalidParameter { name: "damping" })
+        );
+        assert_eq!(
+            Admittance::try_new(AdmittanceConfig { force_limit: Vector3::new(1.0, -1.0, 1.0), ..good }),
+            Err(PlatformError::InvalidParameter { name: "force_limit" })
+        );
         let mut admittance = Admittance::try_new(good).unwrap();
         admittance.step(&Vector3::new(1.0, 0.0, 0.0), &Vector3::zeros(), 0.01).unwrap();
         let before = admittance;
-        assert_eq!(admittance.step(&Vector3::new(f64::NAN, 0.0, 0.0), &Vector3::zeros(), 0.01), Err(PlatformError::NonFinite { input: "force" }));
-        assert_eq!(admittance.step(&Vector3::zeros(), &Vector3::zeros(), 0.0), Err(PlatformError::InvalidParameter { name: "dt" }));
-        assert_eq!(admittance.reset(&Vector3::new(0.0, f64::INFINITY, 0.0)), Err(PlatformError::NonFinite { input: "velocity" }));
+        assert_eq!(
+            admittance.step(&Vector3::new(f64::NAN, 0.0, 0.0), &Vector3::zeros(), 0.01),
+            Err(PlatformError::NonFinite { input: "force" })
+        );
+        assert_eq!(
+            admittance.step(&Vector3::zeros(), &Vector3::zeros(), 0.0),
+            Err(PlatformError::InvalidParameter { name: "dt" })
+        );
+        assert_eq!(
+            admittance.reset(&Vector3::new(0.0, f64::INFINITY, 0.0)),
+            Err(PlatformError::NonFinite { input: "velocity" })
+        );
         assert_eq!(admittance, before);
     }
 }

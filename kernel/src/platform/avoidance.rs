@@ -169,7 +169,8 @@ impl<T: RealField + Copy> PlatformAvoidance<T> {
             Vector3::zeros()
         };
         let gains = &self.config.return_gains;
-        let feedback = ((reference.pose - pose) * gains.stiffness + (reference.velocity - velocity) * gains.damping) * sigma;
+        let feedback =
+            ((reference.pose - pose) * gains.stiffness + (reference.velocity - velocity) * gains.damping) * sigma;
         let acceleration = reference.acceleration + avoidance_acceleration + feedback;
 
         let mut leg_accelerations = [T::zero(); LEGS];
@@ -178,10 +179,13 @@ impl<T: RealField + Copy> PlatformAvoidance<T> {
             let nearest = repulsion.nearest.map(|w| w.index);
             let rates = self.legs.rates();
             let legs = &self.config.legs;
-            for (i, ((a, length), rate)) in leg_accelerations.iter_mut().zip(lengths.iter()).zip(rates.iter()).enumerate() {
+            for (i, ((a, length), rate)) in
+                leg_accelerations.iter_mut().zip(lengths.iter()).zip(rates.iter()).enumerate()
+            {
                 let f = if nearest == Some(i) { force } else { T::zero() };
                 let deviation = *length - legs.nominal_length;
-                *a = leg_acceleration(legs, deviation, *rate, f) - (deviation * gains.stiffness + *rate * gains.damping) * sigma;
+                *a = leg_acceleration(legs, deviation, *rate, f)
+                    - (deviation * gains.stiffness + *rate * gains.damping) * sigma;
             }
         }
         let next_velocity = self.velocity + acceleration * dt;
@@ -189,11 +193,8 @@ impl<T: RealField + Copy> PlatformAvoidance<T> {
             return Err(PlatformError::NonFinite { input: "commanded velocity" });
         }
         let mut legs = self.legs;
-        let leg_rates = if active && self.config.leg_motion {
-            legs.integrate(&leg_accelerations, dt)?
-        } else {
-            [T::zero(); LEGS]
-        };
+        let leg_rates =
+            if active && self.config.leg_motion { legs.integrate(&leg_accelerations, dt)? } else { [T::zero(); LEGS] };
         self.legs = legs;
         self.velocity = next_velocity;
         Ok(AvoidanceOutput {
@@ -214,8 +215,14 @@ impl<T: RealField + Copy> PlatformAvoidance<T> {
 /// for the body twist, the contact point `p = λ l` and the leg rate: the direction the wheel
 /// must be steered to (Fig. 3.7, "the wheel gets an additional velocity component in leg motion
 /// direction").
-pub fn wheel_velocity<T: RealField + Copy>(twist: &BaseTwist<T>, position: &Vector2<T>, leg_direction: &Vector2<T>, leg_rate: T) -> Vector2<T> {
-    Vector2::new(twist.forward - twist.yaw_rate * position.y, twist.lateral + twist.yaw_rate * position.x) + leg_direction * leg_rate
+pub fn wheel_velocity<T: RealField + Copy>(
+    twist: &BaseTwist<T>,
+    position: &Vector2<T>,
+    leg_direction: &Vector2<T>,
+    leg_rate: T,
+) -> Vector2<T> {
+    Vector2::new(twist.forward - twist.yaw_rate * position.y, twist.lateral + twist.yaw_rate * position.x)
+        + leg_direction * leg_rate
 }
 
 #[cfg(test)]
@@ -234,7 +241,14 @@ mod tests {
                 max_force: c(2.0),
                 min_yaw_rate: c(1e-3),
             },
-            legs: LegAdmittanceConfig { mass: c(0.5), damping: c(4.0), cubic_stiffness: c(1.2e4), nominal_length: c(0.53), min_length: c(0.45), max_length: c(0.7) },
+            legs: LegAdmittanceConfig {
+                mass: c(0.5),
+                damping: c(4.0),
+                cubic_stiffness: c(1.2e4),
+                nominal_length: c(0.53),
+                min_length: c(0.45),
+                max_length: c(0.7),
+            },
             return_gains: ReturnGains::critically_damped(c(2.0), c(0.05)),
             icr_avoidance,
             leg_motion,
@@ -267,7 +281,11 @@ mod tests {
             let body_rate = Vector2::new(omega * direction.y, -omega * direction.x) * c(0.25);
             let turn = to_world(&Vector2::new(-body.y, body.x), reference_pose.z) * omega;
             let planar_rate = to_world(&body_rate, reference_pose.z) + turn;
-            let reference = PlatformReference { pose: reference_pose, velocity, acceleration: Vector3::new(planar_rate.x, planar_rate.y, T::zero()) };
+            let reference = PlatformReference {
+                pose: reference_pose,
+                velocity,
+                acceleration: Vector3::new(planar_rate.x, planar_rate.y, T::zero()),
+            };
             if k == 0 {
                 avoidance.reset(&velocity, &[c(0.53); LEGS]).unwrap();
             }
@@ -276,7 +294,10 @@ mod tests {
             pose += out.velocity * dt;
             reference_pose += velocity * dt;
             let wheel = avoidance.repulsion().wheel_positions(&out.leg_lengths)[2];
-            if let Some(icr) = crate::platform::icr::instantaneous_center(&BaseTwist::from_world(&out.velocity, pose.z), c(1e-6)).position {
+            if let Some(icr) =
+                crate::platform::icr::instantaneous_center(&BaseTwist::from_world(&out.velocity, pose.z), c(1e-6))
+                    .position
+            {
                 let d: f64 = nalgebra::try_convert((icr - wheel).norm()).unwrap();
                 closest = closest.min(d);
             }

@@ -148,7 +148,9 @@ mod tests {
     /// the `C_qq q̇` part, which must be absent: checked as `rnea(q̈=(r̈,0), q̇) − C_qq q̇`.
     fn matches_rnea<T: RealField + Copy>(tolerance: f64) {
         let model = branched::<T>();
-        let layout = PlatformLayout::try_new::<N>([PlatformAxis::Admitted(0), PlatformAxis::Absent, PlatformAxis::Absent]).unwrap();
+        let layout =
+            PlatformLayout::try_new::<N>([PlatformAxis::Admitted(0), PlatformAxis::Absent, PlatformAxis::Absent])
+                .unwrap();
         for seed in 0..10 {
             let q: SVector<T, N> = state(seed, 1.5).cast();
             let v: SVector<T, N> = state(seed + 50, 1.0).cast();
@@ -190,9 +192,14 @@ mod tests {
         forward_kinematics(&model, &mut data, &state(3, 1.0), &state(4, 1.0)).unwrap();
         crba(&model, &mut data);
         coriolis_matrix(&model, &mut data);
-        let locked = PlatformLayout::try_new::<N>([PlatformAxis::Locked(0), PlatformAxis::Absent, PlatformAxis::Absent]).unwrap();
+        let locked =
+            PlatformLayout::try_new::<N>([PlatformAxis::Locked(0), PlatformAxis::Absent, PlatformAxis::Absent])
+                .unwrap();
         let terms = coupling_compensation(&data, &locked, &Vector3::new(3.0, 0.0, 0.0)).unwrap();
         assert_eq!(terms.inertia, SVector::<f64, N>::zeros());
-        assert_eq!(coupling_compensation(&data, &locked, &Vector3::new(f64::NAN, 0.0, 0.0)), Err(PlatformError::NonFinite { input: "base_acceleration" }));
+        assert_eq!(
+            coupling_compensation(&data, &locked, &Vector3::new(f64::NAN, 0.0, 0.0)),
+            Err(PlatformError::NonFinite { input: "base_acceleration" })
+        );
     }
 }

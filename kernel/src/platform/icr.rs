@@ -39,7 +39,7 @@
 //! rotation sits) and never overlaps the field of a neighbouring wheel 90° away (distance
 //! `√2 λ`). `d₀,max` and `κ` are not given by the thesis.
 
-use nalgebra::{RealField, Matrix2, Vector2, Vector3};
+use nalgebra::{Matrix2, RealField, Vector2, Vector3};
 
 use super::{PlatformError, LEGS};
 use crate::math::switching::transition_activation;
@@ -318,14 +318,22 @@ impl<T: RealField + Copy> IcrRepulsion<T> {
         let Some(p) = icr.position else { return Ok(Repulsion::idle(icr, None)) };
         let wheels = self.wheel_positions(leg_lengths);
         let mut nearest: Option<NearestWheel<T>> = None;
-        for (index, ((wheel, leg), lambda)) in wheels.iter().zip(self.leg_units.iter()).zip(leg_lengths.iter()).enumerate() {
+        for (index, ((wheel, leg), lambda)) in
+            wheels.iter().zip(self.leg_units.iter()).zip(leg_lengths.iter()).enumerate()
+        {
             let offset = p - wheel;
             let distance = offset.norm();
             if nearest.is_some_and(|n| n.distance <= distance) {
                 continue;
             }
             let direction = if distance > tiny() { offset / distance } else { *leg };
-            nearest = Some(NearestWheel { index, distance, extension: self.extension(*lambda), direction, leg_direction: *leg });
+            nearest = Some(NearestWheel {
+                index,
+                distance,
+                extension: self.extension(*lambda),
+                direction,
+                leg_direction: *leg,
+            });
         }
         let Some(wheel) = nearest else { return Ok(Repulsion::idle(icr, None)) };
         let (force, potential) = self.field(wheel.distance, wheel.extension);
@@ -345,7 +353,16 @@ impl<T: RealField + Copy> IcrRepulsion<T> {
         let yaw_acceleration = -twist.yaw_rate * radial.dot(&icr_velocity) / radius;
         // (3.36): turn the velocity at constant speed.
         let body_acceleration = Vector2::new(-twist.lateral, twist.forward) * direction_rate;
-        Ok(Repulsion { icr, nearest, force, potential, icr_velocity, direction_rate, yaw_acceleration, body_acceleration })
+        Ok(Repulsion {
+            icr,
+            nearest,
+            force,
+            potential,
+            icr_velocity,
+            direction_rate,
+            yaw_acceleration,
+            body_acceleration,
+        })
     }
 }
 
@@ -385,7 +402,8 @@ mod tests {
             assert!((p - thesis).amax() < c(tolerance), "(3.25) vs (−ẏ, ẋ)/θ̇");
             let j = sap_jacobian(&twist, c(1e-6)).unwrap();
             let position = |gamma: f64, rate: f64, v: f64| Vector2::new(gamma.cos(), gamma.sin()) * (v / rate.abs());
-            let (g, v): (f64, f64) = (nalgebra::try_convert(icr.direction).unwrap(), nalgebra::try_convert(icr.speed).unwrap());
+            let (g, v): (f64, f64) =
+                (nalgebra::try_convert(icr.direction).unwrap(), nalgebra::try_convert(icr.speed).unwrap());
             let h = 1e-6;
             let dg = (position(g + h, omega, v) - position(g - h, omega, v)) / (2.0 * h);
             let dw = (position(g, omega + h, v) - position(g, omega - h, v)) / (2.0 * h);
@@ -414,7 +432,12 @@ mod tests {
         let legs = [c::<T>(0.53); LEGS];
         let wheels = repulsion.wheel_positions(&legs);
         let mut checked = 0;
-        for (k, offset) in [(0, Vector2::new(0.05, 0.03)), (1, Vector2::new(-0.02, -0.1)), (2, Vector2::new(0.12, 0.0)), (3, Vector2::new(-0.01, 0.015))] {
+        for (k, offset) in [
+            (0, Vector2::new(0.05, 0.03)),
+            (1, Vector2::new(-0.02, -0.1)),
+            (2, Vector2::new(0.12, 0.0)),
+            (3, Vector2::new(-0.01, 0.015)),
+        ] {
             for omega in [0.8, -1.3] {
                 let p = wheels[k] + offset.map(c::<T>);
                 let twist = twist_for(p, c(omega));
@@ -431,7 +454,11 @@ mod tests {
                 let p_next = instantaneous_center(&moved, c(1e-6)).position.unwrap();
                 let velocity = (p_next - p) / dt;
                 let scale = T::one() + out.icr_velocity.norm();
-                assert!((velocity - out.icr_velocity).amax() < c::<T>(tolerance) * scale, "{velocity} vs {}", out.icr_velocity);
+                assert!(
+                    (velocity - out.icr_velocity).amax() < c::<T>(tolerance) * scale,
+                    "{velocity} vs {}",
+                    out.icr_velocity
+                );
                 let speed_rate = (moved.forward.hypot(moved.lateral) - twist.forward.hypot(twist.lateral)) / dt;
                 assert!(speed_rate.abs() < c::<T>(tolerance) * scale, "v̇ = {speed_rate}");
                 // (3.33) with the demanded body accelerations.
@@ -491,25 +518,34 @@ mod tests {
         let legs = [0.53; LEGS];
         let wheel = repulsion.wheel_positions(&legs)[2];
         let twists = [
-            BaseTwist { forward: 0.0, lateral: 0.0, yaw_rate: 0.0 },     // standstill
-            BaseTwist { forward: 0.0, lateral: 0.0, yaw_rate: 2.1 },     // pure rotation: ICR at the centre
-            BaseTwist { forward: 1.0, lateral: 0.3, yaw_rate: 0.0 },     // pure translation: ICR at infinity
+            BaseTwist { forward: 0.0, lateral: 0.0, yaw_rate: 0.0 }, // standstill
+            BaseTwist { forward: 0.0, lateral: 0.0, yaw_rate: 2.1 }, // pure rotation: ICR at the centre
+            BaseTwist { forward: 1.0, lateral: 0.3, yaw_rate: 0.0 }, // pure translation: ICR at infinity
             BaseTwist { forward: 1.0, lateral: 0.3, yaw_rate: -1e-300 }, // θ̇ → 0
-            twist_for(wheel, 1.0),                                       // ICR exactly on a wheel
-            twist_for(wheel, 1.5e-3),                                     // … while fading in
+            twist_for(wheel, 1.0),                                   // ICR exactly on a wheel
+            twist_for(wheel, 1.5e-3),                                // … while fading in
             BaseTwist { forward: 1e-300, lateral: 0.0, yaw_rate: 1e-300 },
         ];
         for twist in twists {
             let out = repulsion.repulsion(&twist, &legs).unwrap();
-            let values = [out.force, out.potential, out.direction_rate, out.yaw_acceleration, out.icr.speed, out.icr.direction];
+            let values =
+                [out.force, out.potential, out.direction_rate, out.yaw_acceleration, out.icr.speed, out.icr.direction];
             assert!(values.iter().all(|x| x.is_finite()), "{twist:?}: {out:?}");
             assert!(out.body_acceleration.iter().chain(out.icr_velocity.iter()).all(|x| x.is_finite()));
-            assert!(out.nearest.is_none_or(|n| n.direction.iter().all(|x| x.is_finite()) && (n.direction.norm() - 1.0).abs() < 1e-12));
+            assert!(out
+                .nearest
+                .is_none_or(|n| n.direction.iter().all(|x| x.is_finite()) && (n.direction.norm() - 1.0).abs() < 1e-12));
         }
         let on_wheel = repulsion.repulsion(&twist_for(wheel, 1.0), &legs).unwrap();
         assert_eq!(on_wheel.force, 2.0);
-        assert!((on_wheel.icr_velocity - repulsion.leg_directions()[2] * 2.0).amax() < 1e-12, "pushed outwards along the leg");
-        assert_eq!(repulsion.repulsion(&BaseTwist { forward: 0.0, lateral: 0.0, yaw_rate: 2.1 }, &legs).unwrap().force, 0.0);
+        assert!(
+            (on_wheel.icr_velocity - repulsion.leg_directions()[2] * 2.0).amax() < 1e-12,
+            "pushed outwards along the leg"
+        );
+        assert_eq!(
+            repulsion.repulsion(&BaseTwist { forward: 0.0, lateral: 0.0, yaw_rate: 2.1 }, &legs).unwrap().force,
+            0.0
+        );
         assert!(sap_jacobian(&BaseTwist { forward: 1.0, lateral: 0.0, yaw_rate: 0.0 }, 1e-6).is_none());
         assert!(repulsion.repulsion(&BaseTwist { forward: f64::NAN, lateral: 0.0, yaw_rate: 1.0 }, &legs).is_err());
         assert!(repulsion.repulsion(&twist_for(wheel, 1.0), &[0.5, f64::INFINITY, 0.5, 0.5]).is_err());
@@ -518,7 +554,9 @@ mod tests {
     #[test]
     fn invalid_configurations_are_rejected() {
         let good = config::<f64>();
-        let check = |cfg: IcrRepulsionConfig<f64>, name| assert_eq!(IcrRepulsion::try_new(cfg).err(), Some(PlatformError::InvalidParameter { name }));
+        let check = |cfg: IcrRepulsionConfig<f64>, name| {
+            assert_eq!(IcrRepulsion::try_new(cfg).err(), Some(PlatformError::InvalidParameter { name }))
+        };
         check(IcrRepulsionConfig { max_extension: 0.0, ..good }, "max_extension");
         check(IcrRepulsionConfig { extension_ratio: 0.75, ..good }, "extension_ratio");
         check(IcrRepulsionConfig { max_force: f64::NAN, ..good }, "max_force");
@@ -526,6 +564,11 @@ mod tests {
         check(IcrRepulsionConfig { leg_directions: [0.0, f64::NAN, 0.0, 0.0], ..good }, "leg_directions");
         let twist = BaseTwist::from_world(&Vector3::new(1.0, 0.0, 0.5), core::f64::consts::FRAC_PI_2);
         assert!((twist.forward).abs() < 1e-15 && (twist.lateral + 1.0).abs() < 1e-15);
-        assert!((to_world(&Vector2::new(twist.forward, twist.lateral), core::f64::consts::FRAC_PI_2) - Vector2::new(1.0, 0.0)).amax() < 1e-15);
+        assert!(
+            (to_world(&Vector2::new(twist.forward, twist.lateral), core::f64::consts::FRAC_PI_2)
+                - Vector2::new(1.0, 0.0))
+            .amax()
+                < 1e-15
+        );
     }
 }

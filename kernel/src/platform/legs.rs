@@ -122,7 +122,9 @@ impl<T: RealField + Copy> LegAdmittance<T> {
         if !lengths.iter().chain(rates.iter()).all(|x| x.is_finite()) {
             return Err(PlatformError::NonFinite { input: "leg state" });
         }
-        for (((l, r), new_l), new_r) in self.lengths.iter_mut().zip(self.rates.iter_mut()).zip(lengths.iter()).zip(rates.iter()) {
+        for (((l, r), new_l), new_r) in
+            self.lengths.iter_mut().zip(self.rates.iter_mut()).zip(lengths.iter()).zip(rates.iter())
+        {
             *l = new_l.max(self.config.min_length).min(self.config.max_length);
             *r = *new_r;
         }
@@ -140,7 +142,9 @@ impl<T: RealField + Copy> LegAdmittance<T> {
             return Err(PlatformError::InvalidParameter { name: "dt" });
         }
         let (lo, hi) = (self.config.min_length, self.config.max_length);
-        for ((length, rate), acceleration) in self.lengths.iter_mut().zip(self.rates.iter_mut()).zip(accelerations.iter()) {
+        for ((length, rate), acceleration) in
+            self.lengths.iter_mut().zip(self.rates.iter_mut()).zip(accelerations.iter())
+        {
             *rate += *acceleration * dt;
             let next = *length + *rate * dt;
             if next <= lo || next >= hi {
@@ -199,7 +203,14 @@ mod tests {
 
     fn legs<T: RealField + Copy>() -> LegAdmittanceConfig<T> {
         let c = |x: f64| nalgebra::convert::<f64, T>(x);
-        LegAdmittanceConfig { mass: c(0.5), damping: c(4.0), cubic_stiffness: c(1.2e4), nominal_length: c(0.53), min_length: c(0.45), max_length: c(0.7) }
+        LegAdmittanceConfig {
+            mass: c(0.5),
+            damping: c(4.0),
+            cubic_stiffness: c(1.2e4),
+            nominal_length: c(0.53),
+            min_length: c(0.45),
+            max_length: c(0.7),
+        }
     }
 
     /// A constant leg force settles where the cubic spring balances it: (3.37)–(3.38) statics
@@ -258,7 +269,13 @@ mod tests {
         assert!(admittance.integrate(&[f64::NAN; LEGS], 1e-3).is_err());
         let gains = ReturnGains::critically_damped(2.0, 0.05);
         assert_eq!((gains.stiffness, gains.damping), (4.0, 4.0));
-        let wheel = |distance| NearestWheel { index: 0, distance, extension: 0.2, direction: Vector2::x(), leg_direction: Vector2::x() };
+        let wheel = |distance| NearestWheel {
+            index: 0,
+            distance,
+            extension: 0.2,
+            direction: Vector2::x(),
+            leg_direction: Vector2::x(),
+        };
         assert_eq!(gains.gain(Some(&wheel(0.1))), 0.0);
         assert_eq!(gains.gain(Some(&wheel(0.2))), 0.0);
         assert_eq!(gains.gain(Some(&wheel(0.225))), 0.5);

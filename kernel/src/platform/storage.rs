@@ -170,7 +170,15 @@ impl<T: RealField + Copy> PassivityMonitor<T> {
             return Err(PlatformError::InvalidParameter { name: "tolerance" });
         }
         let zero = T::zero();
-        Ok(Self { config, started: false, initial: zero, previous: zero, supplied: zero, minimum_excess: zero, latched: false })
+        Ok(Self {
+            config,
+            started: false,
+            initial: zero,
+            previous: zero,
+            supplied: zero,
+            minimum_excess: zero,
+            latched: false,
+        })
     }
 
     /// Forgets the history; the next update starts a new record.
@@ -194,7 +202,13 @@ impl<T: RealField + Copy> PassivityMonitor<T> {
             self.previous = storage;
             self.supplied = T::zero();
             self.minimum_excess = T::zero();
-            return Ok(PassivityReport { rate: T::zero(), excess: T::zero(), growth: T::zero(), violated: false, latched: self.latched });
+            return Ok(PassivityReport {
+                rate: T::zero(),
+                excess: T::zero(),
+                growth: T::zero(),
+                violated: false,
+                latched: self.latched,
+            });
         }
         let rate = (storage - self.previous) / dt;
         self.previous = storage;
@@ -222,7 +236,8 @@ mod tests {
         for (d, unstable) in [(1.5_f64, false), (-0.8, true)] {
             let d: T = nalgebra::convert(d);
             let inertia = SMatrix::<T, 1, 1>::new(m);
-            let mut monitor = PassivityMonitor::try_new(PassivityMonitorConfig { tolerance: nalgebra::convert(0.05) }).unwrap();
+            let mut monitor =
+                PassivityMonitor::try_new(PassivityMonitorConfig { tolerance: nalgebra::convert(0.05) }).unwrap();
             let (mut x, mut v): (T, T) = (nalgebra::convert(0.2), T::zero());
             let dt: T = nalgebra::convert(1e-4);
             let mut flagged = false;
@@ -235,10 +250,14 @@ mod tests {
                 // Semi-implicit Euler.
                 v += (-(k * x) - d * v) / m * dt;
                 x += v * dt;
-                let next = storage_function(&inertia, &SVector::<T, 1>::new(v), k * x * x * nalgebra::convert(0.5)).unwrap();
+                let next =
+                    storage_function(&inertia, &SVector::<T, 1>::new(v), k * x * x * nalgebra::convert(0.5)).unwrap();
                 let measured = (next.total - storage.total) / dt;
                 // Symplectic Euler: the rate error is O(Δt ω³ V) ≈ 0.01 W here.
-                assert!((measured - predicted).abs() < nalgebra::convert::<f64, T>(tolerance), "{measured} vs {predicted}");
+                assert!(
+                    (measured - predicted).abs() < nalgebra::convert::<f64, T>(tolerance),
+                    "{measured} vs {predicted}"
+                );
             }
             assert_eq!(flagged, unstable);
         }
@@ -257,7 +276,9 @@ mod tests {
     #[test]
     fn closed_loop_inertia_of_a_locked_axis_keeps_its_diagonal() {
         let physical = Matrix3::new(3.0, 2.0, 1.0, 2.0, 2.0, 1.0, 1.0, 1.0, 1.0_f32);
-        let layout = PlatformLayout::try_new::<3>([PlatformAxis::Locked(0), PlatformAxis::Absent, PlatformAxis::Admitted(2)]).unwrap();
+        let layout =
+            PlatformLayout::try_new::<3>([PlatformAxis::Locked(0), PlatformAxis::Absent, PlatformAxis::Admitted(2)])
+                .unwrap();
         let m = closed_loop_inertia(&physical, &layout, &Vector3::new(7.0, 7.0, 0.5));
         assert_eq!(m, Matrix3::new(3.0, 0.0, 0.0, 0.0, 2.0, 0.0, 0.0, 0.0, 0.5));
         let s = storage_function(&m, &SVector::<f32, 3>::new(0.0, 1.0, 2.0), 0.25).unwrap();
@@ -267,7 +288,10 @@ mod tests {
 
     #[test]
     fn monitor_rejects_bad_input() {
-        assert_eq!(PassivityMonitor::try_new(PassivityMonitorConfig { tolerance: 0.0_f64 }), Err(PlatformError::InvalidParameter { name: "tolerance" }));
+        assert_eq!(
+            PassivityMonitor::try_new(PassivityMonitorConfig { tolerance: 0.0_f64 }),
+            Err(PlatformError::InvalidParameter { name: "tolerance" })
+        );
         let mut monitor = PassivityMonitor::try_new(PassivityMonitorConfig { tolerance: 1.0_f64 }).unwrap();
         assert!(monitor.update(f64::NAN, 0.0, 0.1).is_err());
         assert!(monitor.update(1.0, 0.0, -0.1).is_err());

@@ -337,13 +337,7 @@ fn task_kinematics<T: RealField + Copy, const N: usize>(
 /// assert!((rows.rows()[0].force - 40.0).abs() < 1e-12 && (rows.potential() - 2.0).abs() < 1e-12);
 /// assert_eq!(report.damping_fallback, None);
 /// ```
-pub fn cartesian_impedance<
-    T: RealField + Copy,
-    const N: usize,
-    const B: usize,
-    const F: usize,
-    const R: usize,
->(
+pub fn cartesian_impedance<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const R: usize>(
     model: &Model<T, N, B, F>,
     data: &Data<T, N, B, F>,
     task: &CartesianImpedance<T>,
@@ -353,7 +347,10 @@ pub fn cartesian_impedance<
     let config = &task.config;
     let pose_finite = crate::math::all_finite(target.pose.rotation.matrix())
         && crate::math::all_finite(&target.pose.translation.vector);
-    if !(pose_finite && crate::math::all_finite(&target.linear_velocity) && crate::math::all_finite(&target.angular_velocity)) {
+    if !(pose_finite
+        && crate::math::all_finite(&target.linear_velocity)
+        && crate::math::all_finite(&target.angular_velocity))
+    {
         return Err(TaskError::NonFinite);
     }
     if rows.len().saturating_add(config.axes.count()) > R {
@@ -445,7 +442,11 @@ mod tests {
         nalgebra::convert(x)
     }
 
-    fn config<T: RealField + Copy>(frame: FrameId, axes: AxisMask, stiffness_frame: StiffnessFrame) -> CartesianImpedanceConfig<T> {
+    fn config<T: RealField + Copy>(
+        frame: FrameId,
+        axes: AxisMask,
+        stiffness_frame: StiffnessFrame,
+    ) -> CartesianImpedanceConfig<T> {
         let kt = Matrix3::new(800.0, 100.0, -50.0, 100.0, 500.0, 30.0, -50.0, 30.0, 300.0);
         let kr = Matrix3::new(60.0, 5.0, 0.0, 5.0, 40.0, -8.0, 0.0, -8.0, 30.0);
         CartesianImpedanceConfig {
@@ -462,7 +463,12 @@ mod tests {
     }
 
     /// A target with a sizeable error: the frame pose at `q`, moved and turned.
-    fn offset_target<T: RealField + Copy>(model: &Branched<T>, frame: FrameId, q: &SVector<T, N>, seed: u64) -> CartesianTarget<T> {
+    fn offset_target<T: RealField + Copy>(
+        model: &Branched<T>,
+        frame: FrameId,
+        q: &SVector<T, N>,
+        seed: u64,
+    ) -> CartesianTarget<T> {
         let mut data = Data::new(model);
         forward_kinematics(model, &mut data, q, &SVector::zeros()).unwrap();
         let s = state(seed, 1.0);
@@ -492,12 +498,18 @@ mod tests {
     /// both stiffness frames and several axis masks (a masked axis must not leak into V).
     fn gradient_check<T: RealField + Copy>(h: f64, tolerance: f64) -> f64 {
         let model = branched::<T>();
-        let masks = [AxisMask::ALL, AxisMask::ROTATION, AxisMask::new([true, false, true, false, true, false]), AxisMask::new([false, false, false, false, false, true])];
+        let masks = [
+            AxisMask::ALL,
+            AxisMask::ROTATION,
+            AxisMask::new([true, false, true, false, true, false]),
+            AxisMask::new([false, false, false, false, false, true]),
+        ];
         let mut worst = 0.0_f64;
         for seed in 0..40_u64 {
             let frame = if seed % 2 == 0 { TCP } else { WRIST };
             let stiffness_frame = if seed % 3 == 0 { StiffnessFrame::World } else { StiffnessFrame::Desired };
-            let task = CartesianImpedance::try_new(config::<T>(frame, masks[(seed % 4) as usize], stiffness_frame)).unwrap();
+            let task =
+                CartesianImpedance::try_new(config::<T>(frame, masks[(seed % 4) as usize], stiffness_frame)).unwrap();
             let q: SVector<T, N> = state(seed, 2.0).cast();
             let target = offset_target(&model, frame, &q, seed ^ 77);
             let (rows, _) = evaluate(&model, &task, &target, &q, &SVector::zeros());
@@ -535,7 +547,9 @@ mod tests {
     #[test]
     fn error_rate_includes_the_desired_twist() {
         let model = branched::<f64>();
-        for (seed, stiffness_frame) in [(1_u64, StiffnessFrame::World), (2, StiffnessFrame::Desired), (3, StiffnessFrame::Desired)] {
+        for (seed, stiffness_frame) in
+            [(1_u64, StiffnessFrame::World), (2, StiffnessFrame::Desired), (3, StiffnessFrame::Desired)]
+        {
             let task = CartesianImpedance::try_new(config::<f64>(TCP, AxisMask::ALL, stiffness_frame)).unwrap();
             let (q, v) = (state(seed, 2.0), state(seed ^ 5, 1.0));
             let mut target = offset_target(&model, TCP, &q, seed);
@@ -562,7 +576,12 @@ mod tests {
     /// `M δq̈ + D_q δq̇ + K_q δq = 0` with `K_q = J_xᵀ K J_x` and `D_q` read from the rows'
     /// response to unit velocities. The task modes must have ζ = −Re λ/|λ| = ξ; the remaining
     /// eigenvalues (null-space motion, no stiffness) are zero.
-    fn closed_loop_damping_ratios(frame: FrameId, axes: AxisMask, stiffness_frame: StiffnessFrame, xi: f64) -> std::vec::Vec<f64> {
+    fn closed_loop_damping_ratios(
+        frame: FrameId,
+        axes: AxisMask,
+        stiffness_frame: StiffnessFrame,
+        xi: f64,
+    ) -> std::vec::Vec<f64> {
         let model = branched::<f64>();
         let mut cfg = config::<f64>(frame, axes, stiffness_frame);
         cfg.damping_ratio = xi;
@@ -638,7 +657,11 @@ mod tests {
                 saturations += usize::from(report.saturated[axis]);
             }
             let spring_x = selected[0].force - report.damping_force[0];
-            assert!(report.saturated[0] && (spring_x - 10.0).abs() < 1e-12, "x is pulled towards +∞: {}", report.unsaturated_force[0]);
+            assert!(
+                report.saturated[0] && (spring_x - 10.0).abs() < 1e-12,
+                "x is pulled towards +∞: {}",
+                report.unsaturated_force[0]
+            );
             assert!(report.damping_force.iter().any(|d| d.abs() > 1e-3), "the state moves: the damping acts");
         }
         assert!(saturations > 40);
@@ -647,7 +670,8 @@ mod tests {
     #[test]
     fn singular_mass_matrix_falls_back_to_the_configured_damping() {
         let model = branched::<f64>();
-        let task = CartesianImpedance::try_new(config::<f64>(WRIST, AxisMask::TRANSLATION, StiffnessFrame::World)).unwrap();
+        let task =
+            CartesianImpedance::try_new(config::<f64>(WRIST, AxisMask::TRANSLATION, StiffnessFrame::World)).unwrap();
         let q = state(4, 1.0);
         let v = state(5, 1.0);
         let mut data = Data::new(&model);
@@ -679,9 +703,23 @@ mod tests {
     #[test]
     fn invalid_parameters_and_inputs_are_rejected() {
         let good = config::<f64>(TCP, AxisMask::ALL, StiffnessFrame::World);
-        let check = |cfg: CartesianImpedanceConfig<f64>, name| assert_eq!(CartesianImpedance::try_new(cfg), Err(TaskError::InvalidParameter { name }));
-        check(CartesianImpedanceConfig { translational_stiffness: Matrix3::new(1.0, 2.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0), ..good }, "translational_stiffness");
-        check(CartesianImpedanceConfig { rotational_stiffness: Matrix3::from_diagonal(&Vector3::new(1.0, -1.0, 1.0)), ..good }, "rotational_stiffness");
+        let check = |cfg: CartesianImpedanceConfig<f64>, name| {
+            assert_eq!(CartesianImpedance::try_new(cfg), Err(TaskError::InvalidParameter { name }))
+        };
+        check(
+            CartesianImpedanceConfig {
+                translational_stiffness: Matrix3::new(1.0, 2.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0),
+                ..good
+            },
+            "translational_stiffness",
+        );
+        check(
+            CartesianImpedanceConfig {
+                rotational_stiffness: Matrix3::from_diagonal(&Vector3::new(1.0, -1.0, 1.0)),
+                ..good
+            },
+            "rotational_stiffness",
+        );
         check(CartesianImpedanceConfig { damping_ratio: f64::NAN, ..good }, "damping_ratio");
         check(CartesianImpedanceConfig { force_lower: Vector6::repeat(1.0), ..good }, "force_lower");
         check(CartesianImpedanceConfig { force_upper: Vector6::repeat(f64::NAN), ..good }, "force_upper");
@@ -695,7 +733,10 @@ mod tests {
         let mut rows = TaskRows::<f64, N, 8>::new();
         let mut target = CartesianTarget::at_rest(Placement::identity());
         cartesian_impedance(&model, &data, &task, &target, &mut rows).unwrap();
-        assert_eq!(cartesian_impedance(&model, &data, &task, &target, &mut rows), Err(TaskError::Capacity { capacity: 8 }));
+        assert_eq!(
+            cartesian_impedance(&model, &data, &task, &target, &mut rows),
+            Err(TaskError::Capacity { capacity: 8 })
+        );
         rows.clear();
         target.linear_velocity.x = f64::NAN;
         assert_eq!(cartesian_impedance(&model, &data, &task, &target, &mut rows), Err(TaskError::NonFinite));

@@ -124,8 +124,11 @@ impl<T: RealField + Copy, const N: usize> EndStop<T, N> {
         } else {
             T::zero()
         };
-        let activation = transition_activation(s - c.lower, T::zero(), c.margin)
-            .max(transition_activation(c.upper - s, T::zero(), c.margin));
+        let activation = transition_activation(s - c.lower, T::zero(), c.margin).max(transition_activation(
+            c.upper - s,
+            T::zero(),
+            c.margin,
+        ));
         let two: T = nalgebra::convert(2.0);
         TaskRow {
             jacobian: c.combination,
@@ -280,7 +283,11 @@ mod tests {
         let at = |s: f64| stop.row(&SVector::<f64, 1>::new(s), &SVector::zeros());
         for boundary in [-0.8, 0.8] {
             for delta in [1e-4, 1e-6] {
-                let (inner, outer) = if boundary < 0.0 { (boundary + delta, boundary - delta) } else { (boundary - delta, boundary + delta) };
+                let (inner, outer) = if boundary < 0.0 {
+                    (boundary + delta, boundary - delta)
+                } else {
+                    (boundary - delta, boundary + delta)
+                };
                 let (a, b) = (at(inner), at(outer));
                 assert!((a.potential - b.potential).abs() <= k * delta * delta * 1.000_001);
                 assert!((a.force - b.force).abs() <= 2.0 * k * delta * 1.000_001);
@@ -294,7 +301,8 @@ mod tests {
             assert!((outside.abs() - 2.0 * k).abs() < 1e-6 && inside == 0.0);
         }
         // Activation slope is zero at both ends of the transition (σ = 0 and σ = 1).
-        let slope = |t: f64| (transition_activation(t + 1e-7, 0.0, 0.2) - transition_activation(t - 1e-7, 0.0, 0.2)) / 2e-7;
+        let slope =
+            |t: f64| (transition_activation(t + 1e-7, 0.0, 0.2) - transition_activation(t - 1e-7, 0.0, 0.2)) / 2e-7;
         assert!(slope(0.0).abs() < 1e-5 && slope(0.2).abs() < 1e-5);
         assert!((slope(0.1) + 1.5 / 0.2).abs() < 1e-6, "largest slope N'max = 1.5/(ϑ₂ − ϑ₁) (4.69)");
     }
@@ -312,12 +320,30 @@ mod tests {
         assert_eq!(rows.len(), 2);
         let invalid = |c: EndStopConfig<f64, N>| EndStop::try_new(c).err();
         let good = EndStopConfig::coordinate(0, -1.0, 1.0, 0.2, 1.0, 1.0);
-        assert_eq!(invalid(EndStopConfig::coordinate(N, -1.0, 1.0, 0.2, 1.0, 1.0)), Some(TaskError::InvalidParameter { name: "combination" }));
-        assert_eq!(invalid(EndStopConfig { margin: 0.0, ..good }), Some(TaskError::InvalidParameter { name: "margin" }));
-        assert_eq!(invalid(EndStopConfig { margin: 1.1, ..good }), Some(TaskError::InvalidParameter { name: "limits" }));
+        assert_eq!(
+            invalid(EndStopConfig::coordinate(N, -1.0, 1.0, 0.2, 1.0, 1.0)),
+            Some(TaskError::InvalidParameter { name: "combination" })
+        );
+        assert_eq!(
+            invalid(EndStopConfig { margin: 0.0, ..good }),
+            Some(TaskError::InvalidParameter { name: "margin" })
+        );
+        assert_eq!(
+            invalid(EndStopConfig { margin: 1.1, ..good }),
+            Some(TaskError::InvalidParameter { name: "limits" })
+        );
         assert_eq!(invalid(EndStopConfig { lower: 2.0, ..good }), Some(TaskError::InvalidParameter { name: "limits" }));
-        assert_eq!(invalid(EndStopConfig { upper: f64::NAN, ..good }), Some(TaskError::InvalidParameter { name: "limits" }));
-        assert_eq!(invalid(EndStopConfig { stiffness: -1.0, ..good }), Some(TaskError::InvalidParameter { name: "stiffness" }));
-        assert_eq!(invalid(EndStopConfig { damping: f64::INFINITY, ..good }), Some(TaskError::InvalidParameter { name: "damping" }));
+        assert_eq!(
+            invalid(EndStopConfig { upper: f64::NAN, ..good }),
+            Some(TaskError::InvalidParameter { name: "limits" })
+        );
+        assert_eq!(
+            invalid(EndStopConfig { stiffness: -1.0, ..good }),
+            Some(TaskError::InvalidParameter { name: "stiffness" })
+        );
+        assert_eq!(
+            invalid(EndStopConfig { damping: f64::INFINITY, ..good }),
+            Some(TaskError::InvalidParameter { name: "damping" })
+        );
     }
 }

@@ -29,9 +29,9 @@
 use nalgebra::{RealField, RowSVector, SMatrix, SVector, Vector6};
 
 use super::cartesian_impedance::AxisMask;
-use crate::math::switching::transition_activation;
 use super::{TaskError, TaskRow, TaskRows};
 use crate::dynamics::{frame_jacobian, frame_jacobian_derivative};
+use crate::math::switching::transition_activation;
 use crate::model::{Data, FrameId, Model};
 
 /// Parameters of a manipulator singularity avoidance. Validate with [`Manipulability::try_new`].
@@ -145,13 +145,16 @@ pub fn manipulability<T: RealField + Copy, const N: usize, const B: usize, const
     let mut jacobian = SMatrix::<T, 6, N>::zeros();
     frame_jacobian(model, data, frame, &mut jacobian)?;
     let row_mask = Vector6::from_fn(|i, _| if rows.contains(i) { T::one() } else { T::zero() });
-    let column_mask = SVector::<T, N>::from_fn(|k, _| {
-        if coordinates.get(k).copied().unwrap_or(false) {
-            T::one()
-        } else {
-            T::zero()
-        }
-    });
+    let column_mask =
+        SVector::<T, N>::from_fn(
+            |k, _| {
+                if coordinates.get(k).copied().unwrap_or(false) {
+                    T::one()
+                } else {
+                    T::zero()
+                }
+            },
+        );
     let selected = SMatrix::from_diagonal(&row_mask) * jacobian * SMatrix::from_diagonal(&column_mask);
     let padded = selected * selected.transpose() + SMatrix::from_diagonal(&row_mask.map(|r| T::one() - r));
     let singular = ManipulabilityMeasure { value: T::zero(), gradient: RowSVector::zeros(), singular: true };
@@ -197,13 +200,7 @@ pub struct ManipulabilityReport<T> {
 /// Precondition: [`crate::dynamics::forward_kinematics`] at `(q, q̇)` (reads `data.v`).
 /// Cost O(N·(depth + N)). Errors (the row list is unchanged): [`TaskError::Dynamics`] for an
 /// unknown frame, [`TaskError::NonFinite`], [`TaskError::Capacity`].
-pub fn manipulability_avoidance<
-    T: RealField + Copy,
-    const N: usize,
-    const B: usize,
-    const F: usize,
-    const R: usize,
->(
+pub fn manipulability_avoidance<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const R: usize>(
     model: &Model<T, N, B, F>,
     data: &Data<T, N, B, F>,
     task: &Manipulability<T, N>,
@@ -249,7 +246,11 @@ mod tests {
         ]
     }
 
-    fn measure<T: RealField + Copy>(model: &Branched<T>, q: &SVector<T, N>, s: &(FrameId, AxisMask, [bool; N])) -> ManipulabilityMeasure<T, N> {
+    fn measure<T: RealField + Copy>(
+        model: &Branched<T>,
+        q: &SVector<T, N>,
+        s: &(FrameId, AxisMask, [bool; N]),
+    ) -> ManipulabilityMeasure<T, N> {
         let mut data = Data::new(model);
         forward_kinematics(model, &mut data, q, &SVector::zeros()).unwrap();
         manipulability(model, &data, s.0, s.1, &s.2).unwrap()
@@ -293,7 +294,11 @@ mod tests {
         assert!((measure(&model, &q, &s).value - product).abs() < 1e-12);
     }
 
-    fn task<T: RealField + Copy>(s: &(FrameId, AxisMask, [bool; N]), threshold: f64, damping: f64) -> Manipulability<T, N> {
+    fn task<T: RealField + Copy>(
+        s: &(FrameId, AxisMask, [bool; N]),
+        threshold: f64,
+        damping: f64,
+    ) -> Manipulability<T, N> {
         Manipulability::try_new(ManipulabilityConfig {
             frame: s.0,
             rows: s.1,
@@ -306,7 +311,12 @@ mod tests {
         .unwrap()
     }
 
-    fn row<T: RealField + Copy>(model: &Branched<T>, task: &Manipulability<T, N>, q: &SVector<T, N>, v: &SVector<T, N>) -> TaskRow<T, N> {
+    fn row<T: RealField + Copy>(
+        model: &Branched<T>,
+        task: &Manipulability<T, N>,
+        q: &SVector<T, N>,
+        v: &SVector<T, N>,
+    ) -> TaskRow<T, N> {
         let mut data = Data::new(model);
         forward_kinematics(model, &mut data, q, v).unwrap();
         let mut rows = TaskRows::<T, N, 1>::new();
@@ -379,7 +389,8 @@ mod tests {
             }
             previous = Some((v, g));
         }
-        let slope = |m: f64| (transition_activation(m + 1e-8, 0.5, 1.0) - transition_activation(m - 1e-8, 0.5, 1.0)) / 2e-8;
+        let slope =
+            |m: f64| (transition_activation(m + 1e-8, 0.5, 1.0) - transition_activation(m - 1e-8, 0.5, 1.0)) / 2e-8;
         assert!(slope(0.5).abs() < 1e-6 && slope(1.0).abs() < 1e-6);
     }
 

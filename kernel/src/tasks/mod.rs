@@ -143,7 +143,12 @@ mod tests {
     #[test]
     fn rows_sum_to_a_torque_and_reject_bad_input() {
         let mut rows = TaskRows::<f64, 2, 2>::new();
-        let row = |j: [f64; 2], f| TaskRow { jacobian: RowVector2::new(j[0], j[1]), force: f, potential: 1.5, activation: 1.0 };
+        let row = |j: [f64; 2], f| TaskRow {
+            jacobian: RowVector2::new(j[0], j[1]),
+            force: f,
+            potential: 1.5,
+            activation: 1.0,
+        };
         rows.push(row([1.0, 0.0], 2.0)).unwrap();
         rows.push(row([0.5, 1.0], -4.0)).unwrap();
         assert_eq!(rows.torque(), SVector::<f64, 2>::new(0.0, -4.0));

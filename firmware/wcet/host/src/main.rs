@@ -52,7 +52,12 @@ fn stages_once(case: u32) {
     let report = wcet_self_collision(&collision, &mut collision_data, &model, &data, &factor, &parameters, &mut rows)
         .expect("self-collision");
     build_stack(&mut stack, &data, &model).expect("stack");
-    let config = HierarchyConfig { recursion: Recursion::Augmented, weighting: Weighting::Inertia(&factor), shaping, diagnose_last_level: true };
+    let config = HierarchyConfig {
+        recursion: Recursion::Augmented,
+        weighting: Weighting::Inertia(&factor),
+        shaping,
+        diagnose_last_level: true,
+    };
     let torque = wcet_projection(&config, &stack, &mut hierarchy);
     println!("case {case} candidates={} rows={} torque_sum={torque}", report.candidates, report.rows);
 }
@@ -109,7 +114,13 @@ fn time(reps: u32) {
     let (t0, i0) = (rdtsc(), std::time::Instant::now());
     while i0.elapsed().as_millis() < 200 {}
     let ghz = (rdtsc() - t0) as f64 / i0.elapsed().as_nanos() as f64;
-    let overhead = (0..1000).map(|_| { let a = rdtsc(); rdtsc() - a }).min().unwrap_or(0);
+    let overhead = (0..1000)
+        .map(|_| {
+            let a = rdtsc();
+            rdtsc() - a
+        })
+        .min()
+        .unwrap_or(0);
     let mut samples: std::collections::BTreeMap<&str, Vec<f64>> = Default::default();
     let mut controller = template.clone();
     for _ in 0..reps {
@@ -124,13 +135,22 @@ fn time(reps: u32) {
         }
     }
     println!("TSC {ghz:.3} GHz, overhead {overhead} ticks subtracted, {reps} passes of {} frames", frames.len());
-    println!("{:<12} {:>7} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}", "class", "n", "min", "p50", "p90", "p99", "p99.9", "max");
+    println!(
+        "{:<12} {:>7} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}",
+        "class", "n", "min", "p50", "p90", "p99", "p99.9", "max"
+    );
     for (class, mut v) in samples {
         v.sort_by(f64::total_cmp);
         let p = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize] / 1000.0;
         println!(
             "{class:<12} {:>7} {:>8.1}u {:>8.1}u {:>8.1}u {:>8.1}u {:>8.1}u {:>8.1}u",
-            v.len(), p(0.0), p(0.5), p(0.9), p(0.99), p(0.999), p(1.0)
+            v.len(),
+            p(0.0),
+            p(0.5),
+            p(0.9),
+            p(0.99),
+            p(0.999),
+            p(1.0)
         );
     }
 }
@@ -149,26 +169,35 @@ fn search(samples: u32) {
         state ^= state << 5;
         f64::from(state) / f64::from(u32::MAX)
     };
-    let score = |q: &SVector<f64, N>, data: &mut Data<f64, N, { justin::BODIES }, { justin::FRAMES }>, cd: &mut CollisionData<f64, { justin::collision::VOLUMES }, { justin::collision::PAIRS }>| {
-        kernel::dynamics::forward_kinematics(&model, data, q, &SVector::zeros()).expect("fk");
-        collision.update(data, cd);
-        let (mut strong, mut weak, mut touching) = (0, 0, 0);
-        for p in cd.proximities.iter().take(collision.pairs().len()) {
-            strong += usize::from(p.distance < 0.05 && p.direction.is_some());
-            weak += usize::from(p.distance < 0.15 && p.direction.is_some());
-            touching += usize::from(p.direction.is_none() || p.distance < -0.02);
-        }
-        let stops = (justin::BASE_DOF..N).filter(|&i| q[i] - lo[i] < 0.2 || hi[i] - q[i] < 0.2).count();
-        // Deep penetration gives no rows (no direction): penalise it.
-        ((strong.min(32) * 3 + weak.min(32)) as i64 + stops as i64 - 20 * touching as i64, strong, weak, stops)
-    };
+    let score =
+        |q: &SVector<f64, N>,
+         data: &mut Data<f64, N, { justin::BODIES }, { justin::FRAMES }>,
+         cd: &mut CollisionData<f64, { justin::collision::VOLUMES }, { justin::collision::PAIRS }>| {
+            kernel::dynamics::forward_kinematics(&model, data, q, &SVector::zeros()).expect("fk");
+            collision.update(data, cd);
+            let (mut strong, mut weak, mut touching) = (0, 0, 0);
+            for p in cd.proximities.iter().take(collision.pairs().len()) {
+                strong += usize::from(p.distance < 0.05 && p.direction.is_some());
+                weak += usize::from(p.distance < 0.15 && p.direction.is_some());
+                touching += usize::from(p.direction.is_none() || p.distance < -0.02);
+            }
+            let stops = (justin::BASE_DOF..N).filter(|&i| q[i] - lo[i] < 0.2 || hi[i] - q[i] < 0.2).count();
+            // Deep penetration gives no rows (no direction): penalise it.
+            ((strong.min(32) * 3 + weak.min(32)) as i64 + stops as i64 - 20 * touching as i64, strong, weak, stops)
+        };
     let mut best: Vec<(i64, SVector<f64, N>, usize, usize, usize)> = Vec::new();
     for _ in 0..samples {
         let home = justin::home_configuration::<f64>();
         let mut q = home;
         for i in justin::BASE_DOF..N {
             let r = rnd();
-            q[i] = if r < 0.15 { lo[i] + 0.01 } else if r < 0.3 { hi[i] - 0.01 } else { lo[i] + (hi[i] - lo[i]) * rnd() };
+            q[i] = if r < 0.15 {
+                lo[i] + 0.01
+            } else if r < 0.3 {
+                hi[i] - 0.01
+            } else {
+                lo[i] + (hi[i] - lo[i]) * rnd()
+            };
         }
         let (mut s, mut st, mut wk, mut sp) = score(&q, &mut data, &mut cd);
         // Hill climb.

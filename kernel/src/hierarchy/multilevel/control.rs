@@ -80,7 +80,8 @@ pub fn multilevel_control<'d, T: RealField + Copy, const N: usize, const R: usiz
     let decomposition = &data.decomposition;
     let mut torque = *dynamics.gravity;
     for (level, slot) in data.level_torques.iter_mut().enumerate() {
-        let task: SVector<T, N> = stack.level(level).fold(SVector::zeros(), |t, r| t + r.jacobian.transpose() * r.force());
+        let task: SVector<T, N> =
+            stack.level(level).fold(SVector::zeros(), |t, r| t + r.jacobian.transpose() * r.force());
         *slot = decomposition
             .level_rows(level)
             .iter()
@@ -114,7 +115,12 @@ mod tests {
             let terms = fixture.terms();
             let mut stack = Stack::<f64, N, 16>::new();
             for (level, row) in fixture.stack.rows() {
-                stack.push(*level, TaskRow { jacobian: row.jacobian, force: row.force(), potential: 0.0, activation: 1.0 }).unwrap();
+                stack
+                    .push(
+                        *level,
+                        TaskRow { jacobian: row.jacobian, force: row.force(), potential: 0.0, activation: 1.0 },
+                    )
+                    .unwrap();
             }
             let config = HierarchyConfig {
                 recursion: Recursion::Augmented,
@@ -149,7 +155,10 @@ mod tests {
         let fixture = Fixture::new(1, &[3, 2]);
         let mut data = MultilevelData::<f64, N, 4> { torque: SVector::repeat(7.0), ..Default::default() };
         let bad = MultilevelConfig { singular_threshold: 0.0, ..MultilevelConfig::default() };
-        assert_eq!(multilevel_control(&bad, &fixture.stack, &fixture.terms(), &mut data), Err(MultilevelError::InvalidConfig));
+        assert_eq!(
+            multilevel_control(&bad, &fixture.stack, &fixture.terms(), &mut data),
+            Err(MultilevelError::InvalidConfig)
+        );
         assert_eq!(data.torque, SVector::<f64, N>::repeat(7.0));
     }
 
@@ -157,10 +166,14 @@ mod tests {
     fn f32_agrees_with_f64() {
         let fixture = Fixture::new(8, &[3, 2]);
         let mut data = MultilevelData::<f64, N, 4>::default();
-        let tau = *multilevel_control(&MultilevelConfig::default(), &fixture.stack, &fixture.terms(), &mut data).unwrap();
+        let tau =
+            *multilevel_control(&MultilevelConfig::default(), &fixture.stack, &fixture.terms(), &mut data).unwrap();
         let f32_fixture = fixture.cast_f32();
         let mut data32 = MultilevelData::<f32, N, 4>::default();
-        let tau32 = multilevel_control(&MultilevelConfig::default(), &f32_fixture.stack, &f32_fixture.terms(), &mut data32).unwrap().cast::<f64>();
+        let tau32 =
+            multilevel_control(&MultilevelConfig::default(), &f32_fixture.stack, &f32_fixture.terms(), &mut data32)
+                .unwrap()
+                .cast::<f64>();
         assert!((tau - tau32).amax() < 1e-3 * (1.0 + tau.amax()), "{tau} vs {tau32}");
         for level in 0..3 {
             let (a, b) = (data.storage[level].storage, f64::from(data32.storage[level].storage));

@@ -76,9 +76,12 @@ pub fn coriolis_decoupling<T: RealField + Copy, const N: usize, const L: usize>(
     dynamics: &DynamicsTerms<'_, T, N>,
 ) -> SVector<T, N> {
     let share = |level: usize| {
-        decomposition.level_rows(level).iter().fold((SVector::<T, N>::zeros(), SVector::<T, N>::zeros()), |(a, qd), r| {
-            (a + r.basis_rate.transpose() * r.velocity, qd + r.basis.transpose() * r.velocity)
-        })
+        decomposition
+            .level_rows(level)
+            .iter()
+            .fold((SVector::<T, N>::zeros(), SVector::<T, N>::zeros()), |(a, qd), r| {
+                (a + r.basis_rate.transpose() * r.velocity, qd + r.basis.transpose() * r.velocity)
+            })
     };
     let rate_all: SVector<T, N> =
         decomposition.rows().iter().fold(SVector::zeros(), |a, r| a + r.basis_rate.transpose() * r.velocity);
@@ -141,17 +144,26 @@ mod tests {
             let terms = fixture.terms();
             let out = fixture.decompose().unwrap();
             let h = 1e-6;
-            let jbar_at = |s: f64| Fixture::at(&(fixture.q + fixture.velocity * s), &fixture.velocity, &[3, 2]).decompose().unwrap().extended_jacobian();
+            let jbar_at = |s: f64| {
+                Fixture::at(&(fixture.q + fixture.velocity * s), &fixture.velocity, &[3, 2])
+                    .decompose()
+                    .unwrap()
+                    .extended_jacobian()
+            };
             let jbar_rate = (jbar_at(h) - jbar_at(-h)) / (2.0 * h);
             let jbar = out.extended_jacobian();
             let analytic_rate = -jbar * out.basis_rate().transpose() * jbar;
             let lambda = SMatrix::from_diagonal(&out.inertia());
-            let thesis = lambda * (jbar * fixture.factor.solve(&fixture.coriolis) - jbar_rate) * out.basis().transpose();
+            let thesis =
+                lambda * (jbar * fixture.factor.solve(&fixture.coriolis) - jbar_rate) * out.basis().transpose();
             let mu = task_space_coriolis(&out, &terms);
             let scale = 1.0 + mu.amax();
             // Compare the task-level rows (0..5); the FD of the last row mixes in the pivot basis.
             assert!((thesis.rows(0, 5) - mu.rows(0, 5)).amax() < 1e-5 * scale, "seed {seed}");
-            assert!((analytic_rate.rows(0, 5) - jbar_rate.rows(0, 5)).amax() < 1e-5 * (1.0 + jbar_rate.amax()), "seed {seed}");
+            assert!(
+                (analytic_rate.rows(0, 5) - jbar_rate.rows(0, 5)).amax() < 1e-5 * (1.0 + jbar_rate.amax()),
+                "seed {seed}"
+            );
         }
     }
 

@@ -334,7 +334,8 @@ fn null_space_rows<T: RealField + Copy, const N: usize>(
         }
         let e = SVector::<T, N>::from_fn(|r, _| if r == axis { T::one() } else { T::zero() });
         let min_s = threshold_squared * reference.get(axis).copied().unwrap_or_else(T::zero);
-        let appended = recursion.append(&e, &SVector::zeros(), min_s, level).ok_or(MultilevelError::NullSpaceDeficient)?;
+        let appended =
+            recursion.append(&e, &SVector::zeros(), min_s, level).ok_or(MultilevelError::NullSpaceDeficient)?;
         free -= appended.w * (appended.w.transpose() / appended.row.inertia);
         *slot = appended.row;
     }
@@ -346,7 +347,9 @@ mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
     use super::super::test_support::*;
     use super::*;
-    use crate::hierarchy::{project, HierarchyConfig, HierarchyData, Recursion as ProjectionKind, Shaping, Stack, Weighting};
+    use crate::hierarchy::{
+        project, HierarchyConfig, HierarchyData, Recursion as ProjectionKind, Shaping, Stack, Weighting,
+    };
     use crate::tasks::TaskRow;
     use crate::test_models::N;
     use nalgebra::DMatrix;
@@ -362,7 +365,10 @@ mod tests {
             let lambda = z * fixture.mass * z.transpose();
             let scale = lambda.amax();
             assert!((lambda - SMatrix::from_diagonal(&out.inertia())).amax() < 1e-9 * scale, "seed {seed}");
-            assert_eq!(out.levels(), &[LevelSpan { start: 0, len: 3 }, LevelSpan { start: 3, len: 2 }, LevelSpan { start: 5, len: 1 }]);
+            assert_eq!(
+                out.levels(),
+                &[LevelSpan { start: 0, len: 3 }, LevelSpan { start: 3, len: 2 }, LevelSpan { start: 5, len: 1 }]
+            );
         }
     }
 
@@ -376,7 +382,9 @@ mod tests {
             for level in 0..3 {
                 let mut above = Stack::<f64, N, 16>::new();
                 for (l, row) in fixture.stack.rows().iter().filter(|(l, _)| *l < level) {
-                    above.push(*l, TaskRow { jacobian: row.jacobian, force: 0.0, potential: 0.0, activation: 1.0 }).unwrap();
+                    above
+                        .push(*l, TaskRow { jacobian: row.jacobian, force: 0.0, potential: 0.0, activation: 1.0 })
+                        .unwrap();
                 }
                 let config = HierarchyConfig {
                     recursion: ProjectionKind::Augmented,
@@ -414,17 +422,23 @@ mod tests {
             let mut n = DMatrix::<f64>::identity(N, N);
             for level in 0..2 {
                 let j = DMatrix::from_fn(fixture.rows_on(level).len(), N, |r, c| fixture.rows_on(level)[r].jacobian[c]);
-                let z = if level == 0 { (&j * &m_inv * j.transpose()).try_inverse().unwrap() * &j * &m_inv } else { &j * &m_inv * &n };
+                let z = if level == 0 {
+                    (&j * &m_inv * j.transpose()).try_inverse().unwrap() * &j * &m_inv
+                } else {
+                    &j * &m_inv * &n
+                };
                 let jbar = (&z * &m * z.transpose()).try_inverse().unwrap() * &z * &m;
                 let thesis_map = jbar.transpose() * &z;
-                let ours: SMatrix<f64, N, N> = out.level_rows(level).iter().map(|r| r.jacobian.transpose() * r.basis).sum();
+                let ours: SMatrix<f64, N, N> =
+                    out.level_rows(level).iter().map(|r| r.jacobian.transpose() * r.basis).sum();
                 let diff = (DMatrix::from_fn(N, N, |r, c| ours[(r, c)]) - &thesis_map).amax();
                 assert!(diff < 1e-9, "seed {seed} level {level}: {diff}");
                 // Kinetic energy of the level: ½ v_iᵀ Λ_i v_i with v_i = J̄_i q̇.
                 let qd = DMatrix::from_fn(N, 1, |r, _| fixture.velocity[r]);
                 let v = &jbar * &qd;
                 let thesis_kinetic = 0.5 * (v.transpose() * (&z * &m * z.transpose()) * &v)[(0, 0)];
-                let kinetic: f64 = out.level_rows(level).iter().map(|r| 0.5 * r.inertia * r.velocity * r.velocity).sum();
+                let kinetic: f64 =
+                    out.level_rows(level).iter().map(|r| 0.5 * r.inertia * r.velocity * r.velocity).sum();
                 assert!((kinetic - thesis_kinetic).abs() < 1e-9 * (1.0 + thesis_kinetic), "seed {seed} level {level}");
                 n = &n - j.transpose() * (&j * &m_inv * &n * j.transpose()).try_inverse().unwrap() * &j * &m_inv * &n;
             }
@@ -464,19 +478,31 @@ mod tests {
         let duplicate = stack.rows()[0].1;
         stack.push(1, duplicate).unwrap();
         let mut out = Decomposition::<f64, N, 4>::default();
-        assert_eq!(decompose(&MultilevelConfig::default(), &stack, &fixture.terms(), &mut out), Err(MultilevelError::Singular { level: 1 }));
+        assert_eq!(
+            decompose(&MultilevelConfig::default(), &stack, &fixture.terms(), &mut out),
+            Err(MultilevelError::Singular { level: 1 })
+        );
         assert_eq!(out.level_count(), 0);
         let mut crowded = fixture.stack.clone();
         crowded.push(1, duplicate).unwrap();
         crowded.push(1, duplicate).unwrap();
-        assert_eq!(decompose(&MultilevelConfig::default(), &crowded, &fixture.terms(), &mut out), Err(MultilevelError::TooManyConstraints { rows: 7 }));
+        assert_eq!(
+            decompose(&MultilevelConfig::default(), &crowded, &fixture.terms(), &mut out),
+            Err(MultilevelError::TooManyConstraints { rows: 7 })
+        );
         let bad = MultilevelConfig { singular_threshold: 1.5, ..MultilevelConfig::default() };
         assert_eq!(decompose(&bad, &fixture.stack, &fixture.terms(), &mut out), Err(MultilevelError::InvalidConfig));
         let mut small = Decomposition::<f64, N, 2>::default();
-        assert_eq!(decompose(&MultilevelConfig::default(), &fixture.stack, &fixture.terms(), &mut small), Err(MultilevelError::TooManyLevels { capacity: 2 }));
+        assert_eq!(
+            decompose(&MultilevelConfig::default(), &fixture.stack, &fixture.terms(), &mut small),
+            Err(MultilevelError::TooManyLevels { capacity: 2 })
+        );
         let nan = SVector::<f64, N>::repeat(f64::NAN);
         let terms = DynamicsTerms { velocity: &nan, ..fixture.terms() };
-        assert_eq!(decompose(&MultilevelConfig::default(), &fixture.stack, &terms, &mut out), Err(MultilevelError::NonFinite));
+        assert_eq!(
+            decompose(&MultilevelConfig::default(), &fixture.stack, &terms, &mut out),
+            Err(MultilevelError::NonFinite)
+        );
     }
 
     #[test]
@@ -488,7 +514,8 @@ mod tests {
         let lambda = z * fixture.mass * z.transpose();
         assert!((lambda - SMatrix::from_diagonal(&out.inertia())).amax() < 1e-9);
         let mut empty = Decomposition::<f64, N, 4>::default();
-        decompose(&MultilevelConfig::default(), &ComplianceStack::<f64, N, 4>::new(), &fixture.terms(), &mut empty).unwrap();
+        decompose(&MultilevelConfig::default(), &ComplianceStack::<f64, N, 4>::new(), &fixture.terms(), &mut empty)
+            .unwrap();
         assert_eq!((empty.level_count(), empty.rows().len()), (0, 0));
     }
 
@@ -500,12 +527,22 @@ mod tests {
         let terms = f32_fixture.terms();
         let mut out32 = Decomposition::<f32, N, 4>::default();
         decompose(&MultilevelConfig::default(), &f32_fixture.stack, &terms, &mut out32).unwrap();
-        let map = |rows: &[BasisRow<f64, N>]| -> SMatrix<f64, N, N> { rows.iter().map(|r| r.jacobian.transpose() * r.basis).sum() };
+        let map = |rows: &[BasisRow<f64, N>]| -> SMatrix<f64, N, N> {
+            rows.iter().map(|r| r.jacobian.transpose() * r.basis).sum()
+        };
         for level in 0..3 {
             let rows32: std::vec::Vec<BasisRow<f64, N>> = out32
                 .level_rows(level)
                 .iter()
-                .map(|r| BasisRow { level, basis: r.basis.cast(), basis_rate: r.basis_rate.cast(), jacobian: r.jacobian.cast(), inertia: r.inertia.into(), inertia_rate: r.inertia_rate.into(), velocity: r.velocity.into() })
+                .map(|r| BasisRow {
+                    level,
+                    basis: r.basis.cast(),
+                    basis_rate: r.basis_rate.cast(),
+                    jacobian: r.jacobian.cast(),
+                    inertia: r.inertia.into(),
+                    inertia_rate: r.inertia_rate.into(),
+                    velocity: r.velocity.into(),
+                })
                 .collect();
             let error = (map(&rows32) - map(out.level_rows(level))).amax();
             assert!(error < 2e-3, "level {level}: {error}");

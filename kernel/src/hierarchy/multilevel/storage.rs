@@ -142,7 +142,8 @@ mod tests {
             storage_functions(&MultilevelConfig::default(), &out, &fixture.stack, &terms, &mut storage).unwrap();
             let mut tau = coriolis_decoupling(&out, &terms) + fixture.gravity;
             for level in 0..3 {
-                let task: SVector<f64, N> = fixture.stack.level(level).map(|r| r.jacobian.transpose() * r.force()).sum();
+                let task: SVector<f64, N> =
+                    fixture.stack.level(level).map(|r| r.jacobian.transpose() * r.force()).sum();
                 for r in out.level_rows(level) {
                     tau += r.jacobian.transpose() * r.basis.transpose().dot(&task);
                 }
@@ -156,9 +157,16 @@ mod tests {
                 for (k, r) in out.rows().iter().enumerate().filter(|(_, r)| r.level == level) {
                     rate += r.velocity * r.inertia * vdot[k] + 0.5 * r.velocity * r.inertia_rate * r.velocity;
                 }
-                rate -= fixture.stack.level(level).map(|r| r.stiffness_force * r.jacobian.dot(&fixture.velocity.transpose())).sum::<f64>();
+                rate -= fixture
+                    .stack
+                    .level(level)
+                    .map(|r| r.stiffness_force * r.jacobian.dot(&fixture.velocity.transpose()))
+                    .sum::<f64>();
                 let expected = level_storage.storage_rate;
-                assert!((rate - expected).abs() < 1e-8 * (1.0 + expected.abs()), "seed {seed} level {level}: {rate} vs {expected}");
+                assert!(
+                    (rate - expected).abs() < 1e-8 * (1.0 + expected.abs()),
+                    "seed {seed} level {level}: {rate} vs {expected}"
+                );
             }
         }
     }

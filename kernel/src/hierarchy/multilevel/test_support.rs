@@ -5,7 +5,9 @@
 
 use nalgebra::{Cholesky, RowSVector, SMatrix, SVector};
 
-use super::{decompose, ComplianceRow, ComplianceStack, Decomposition, DynamicsTerms, MultilevelConfig, MultilevelError};
+use super::{
+    decompose, ComplianceRow, ComplianceStack, Decomposition, DynamicsTerms, MultilevelConfig, MultilevelError,
+};
 use crate::dynamics::{coriolis_matrix, crba, forward_kinematics, frame_jacobian, frame_jacobian_derivative, gravity};
 use crate::math::CholeskyFactor;
 use crate::test_models::{branched, state, N, TCP, WRIST};

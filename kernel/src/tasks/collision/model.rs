@@ -203,7 +203,8 @@ impl<T: RealField + Copy, const V: usize, const P: usize> CollisionData<T, V, P>
         Self {
             world_volumes: [SweptSphere { core: Core::Point(origin), radius: T::zero() }; V],
             bounding_spheres: [(origin, T::zero()); V],
-            proximities: [Proximity { distance: T::zero(), core_first: origin, core_second: origin, direction: None }; P],
+            proximities: [Proximity { distance: T::zero(), core_first: origin, core_second: origin, direction: None };
+                P],
             exact_within: None,
         }
     }
@@ -311,8 +312,7 @@ pub fn exclusion_rule<T: RealField + Copy, const N: usize, const B: usize, const
     let at_parent_origin =
         |x: BodyId| model.body(x).is_some_and(|body| body.joint_placement.translation.vector == Vector3::zeros());
     let adjacent = |child: BodyId, ancestor: BodyId| {
-        parent(child) == Some(ancestor)
-            || (at_parent_origin(child) && parent(child).and_then(parent) == Some(ancestor))
+        parent(child) == Some(ancestor) || (at_parent_origin(child) && parent(child).and_then(parent) == Some(ancestor))
     };
     (adjacent(a, b) || adjacent(b, a)).then_some(Exclusion::Adjacent)
 }

@@ -27,8 +27,8 @@ use nalgebra::{convert, Cholesky, Const, Matrix1, Matrix2, RealField, RowSVector
 use super::model::{CollisionData, CollisionModel, CollisionPair};
 use super::volumes::Proximity;
 use crate::dynamics::DynamicsError;
-use crate::math::spatial::linear_at_point;
 use crate::math::damping::{double_diagonalization, DampingError, ReflectedInertia};
+use crate::math::spatial::linear_at_point;
 use crate::model::{BodyId, Data, Model};
 use crate::tasks::{TaskError, TaskRow, TaskRows};
 
@@ -105,7 +105,13 @@ impl<T: RealField + Copy> CollisionParameters<T> {
 
     /// The same parameters with damping ratio `ξ` (validated).
     pub fn with_damping_ratio(&self, damping_ratio: T) -> Result<Self, TaskError> {
-        Self::try_new(self.max_force, self.influence_distance, damping_ratio, self.activation_full, self.activation_zero)
+        Self::try_new(
+            self.max_force,
+            self.influence_distance,
+            damping_ratio,
+            self.activation_full,
+            self.activation_zero,
+        )
     }
 
     /// Distance below which a pair emits a row: `max(d0, ϑ2)` (m).
@@ -318,7 +324,14 @@ pub fn pair_damping<T: RealField + Copy>(
 /// Cost: two point Jacobians O(depth·N), two triangular solves O(N²), one 2×2 damping design.
 /// Errors: unknown pair or body, cores touching (no direction: [`TaskError::Singular`]),
 /// non-finite values.
-pub fn evaluate_pair<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const V: usize, const P: usize>(
+pub fn evaluate_pair<
+    T: RealField + Copy,
+    const N: usize,
+    const B: usize,
+    const F: usize,
+    const V: usize,
+    const P: usize,
+>(
     collision_model: &CollisionModel<T, V, P>,
     collision: &CollisionData<T, V, P>,
     model: &Model<T, N, B, F>,
@@ -530,10 +543,18 @@ mod tests {
         let mut c = CollisionModelBuilder::<T, V, P>::new();
         let r = |x: f64| convert::<f64, T>(x);
         c.add_volume(Some(BodyId(4)), SweptSphere::capsule(v3(0.0, 0.0, 0.0), v3(0.15, 0.02, 0.0), r(0.05))).unwrap();
-        c.add_volume(Some(BodyId(6)), SweptSphere::swept_triangle(v3(0.0, 0.0, 0.0), v3(0.1, 0.0, 0.05), v3(0.0, 0.12, 0.1), r(0.03))).unwrap();
+        c.add_volume(
+            Some(BodyId(6)),
+            SweptSphere::swept_triangle(v3(0.0, 0.0, 0.0), v3(0.1, 0.0, 0.05), v3(0.0, 0.12, 0.1), r(0.03)),
+        )
+        .unwrap();
         c.add_volume(Some(BodyId(5)), SweptSphere::sphere(v3(0.05, -0.02, 0.1), r(0.06))).unwrap();
         c.add_volume(Some(BodyId(2)), SweptSphere::capsule(v3(0.05, 0.0, 0.0), v3(0.25, 0.0, 0.0), r(0.04))).unwrap();
-        c.add_volume(None, SweptSphere::swept_triangle(v3(-5.0, -5.0, -0.2), v3(10.0, -5.0, -0.2), v3(-5.0, 10.0, -0.2), r(0.0))).unwrap();
+        c.add_volume(
+            None,
+            SweptSphere::swept_triangle(v3(-5.0, -5.0, -0.2), v3(10.0, -5.0, -0.2), v3(-5.0, 10.0, -0.2), r(0.0)),
+        )
+        .unwrap();
         c.add_volume(None, SweptSphere::sphere(v3(0.4, 0.3, 0.5), r(0.1))).unwrap();
         c.try_build(robot, &[]).unwrap()
     }
@@ -567,7 +588,10 @@ mod tests {
         for h in [1e-3, 1e-4] {
             let left = (p.potential(d0) - 2.0 * p.potential(d0 - h) + p.potential(d0 - 2.0 * h)) / (h * h);
             let right = (p.potential(d0 + 2.0 * h) - 2.0 * p.potential(d0 + h) + p.potential(d0)) / (h * h);
-            assert!(right == 0.0 && left.abs() <= 2.0 * 25.0 / (0.15 * 0.15) * 3.0 * h, "V'' left {left} right {right}");
+            assert!(
+                right == 0.0 && left.abs() <= 2.0 * 25.0 / (0.15 * 0.15) * 3.0 * h,
+                "V'' left {left} right {right}"
+            );
         }
         assert_eq!((p.potential(d0), p.force(d0), p.stiffness(d0)), (0.0, 0.0, 0.0));
         // Activation band [0, d0]: 1 at contact, ½ in the middle, 0 beyond.
@@ -582,9 +606,18 @@ mod tests {
         assert_eq!(p32.force(0.0), 25.0);
         assert!((p32.potential(0.05) - 25.0 / (3.0 * 0.0225) * 0.001).abs() < 1e-6);
         // Validation.
-        assert_eq!(CollisionParameters::try_new(0.0_f64, 0.1, 0.5, 0.0, 0.1), Err(TaskError::InvalidParameter { name: "max_force" }));
-        assert_eq!(CollisionParameters::try_new(1.0_f64, 0.1, -0.5, 0.0, 0.1), Err(TaskError::InvalidParameter { name: "damping_ratio" }));
-        assert_eq!(CollisionParameters::try_new(1.0_f64, 0.1, 0.5, 0.2, 0.1), Err(TaskError::InvalidParameter { name: "activation band" }));
+        assert_eq!(
+            CollisionParameters::try_new(0.0_f64, 0.1, 0.5, 0.0, 0.1),
+            Err(TaskError::InvalidParameter { name: "max_force" })
+        );
+        assert_eq!(
+            CollisionParameters::try_new(1.0_f64, 0.1, -0.5, 0.0, 0.1),
+            Err(TaskError::InvalidParameter { name: "damping_ratio" })
+        );
+        assert_eq!(
+            CollisionParameters::try_new(1.0_f64, 0.1, 0.5, 0.2, 0.1),
+            Err(TaskError::InvalidParameter { name: "activation band" })
+        );
         assert_eq!(CollisionParameters::try_new(1.0_f64, f64::NAN, 0.5, 0.0, 0.1), Err(TaskError::NonFinite));
     }
 
@@ -592,7 +625,8 @@ mod tests {
     fn pair_damping_matches_the_closed_form() {
         for seed in 7..207 {
             let s = state(seed, 1.0);
-            let (mi, mj, k, xi) = (0.5 + 10.0 * s[0].abs(), 0.5 + 10.0 * s[1].abs(), 400.0 * s[2].abs(), 1.5 * s[3].abs());
+            let (mi, mj, k, xi) =
+                (0.5 + 10.0 * s[0].abs(), 0.5 + 10.0 * s[1].abs(), 400.0 * s[2].abs(), 1.5 * s[3].abs());
             let (c, d) = pair_damping(&Vector2::new(1.0 / mi, 1.0 / mj), k, xi).unwrap();
             let expected = 2.0 * xi * (k * mi * mj / (mi + mj)).sqrt();
             assert!((c - expected).abs() <= 1e-12 * (1.0 + expected), "{c} vs {expected}");
@@ -674,7 +708,8 @@ mod tests {
                 cm.update(data, cd);
                 cd.proximities.map(|x| x.distance)
             };
-            let (plus, minus) = (distances(&mut data, &mut cd, &(q + v * h)), distances(&mut data, &mut cd, &(q - v * h)));
+            let (plus, minus) =
+                (distances(&mut data, &mut cd, &(q + v * h)), distances(&mut data, &mut cd, &(q - v * h)));
             forward_kinematics(&robot, &mut data, &q, &v).unwrap();
             crba(&robot, &mut data);
             cm.update(&data, &mut cd);

@@ -4,7 +4,7 @@
 //! (sphere), a segment (capsule, "rounded cylinder") or a triangle (a sphere "unrolled on a
 //! triangle"). The distance of two volumes is the distance of their cores minus both radii, and
 //! the closest surface points lie on the line through the closest core points. The thesis uses
-//! GJK on these spherically extended convex hulls ([GJK88], [TBF11]); here every core pair has
+//! GJK on these spherically extended convex hulls (\[GJK88\], \[TBF11\]); here every core pair has
 //! an exact closed-form solution, so the cost is fixed per pair kind (no iteration):
 //!
 //! | cores | method |
@@ -172,11 +172,8 @@ pub fn proximity<T: RealField + Copy>(a: &SweptSphere<T>, b: &SweptSphere<T>) ->
     let (core_first, core_second) = closest_points(&a.core, &b.core);
     let delta = core_second - core_first;
     let core_distance = delta.norm();
-    let direction = if core_distance > direction_threshold() {
-        Some(Unit::new_unchecked(delta / core_distance))
-    } else {
-        None
-    };
+    let direction =
+        if core_distance > direction_threshold() { Some(Unit::new_unchecked(delta / core_distance)) } else { None };
     Proximity { distance: core_distance - a.radius - b.radius, core_first, core_second, direction }
 }
 
@@ -349,7 +346,10 @@ fn closest_segment_triangle<T: RealField + Copy>(
 }
 
 /// Closest points of two triangles: the nearest of the six edge–triangle pairs.
-fn closest_triangle_triangle<T: RealField + Copy>(s: &[Vector3<T>; 3], t: &[Vector3<T>; 3]) -> (Vector3<T>, Vector3<T>) {
+fn closest_triangle_triangle<T: RealField + Copy>(
+    s: &[Vector3<T>; 3],
+    t: &[Vector3<T>; 3],
+) -> (Vector3<T>, Vector3<T>) {
     let [a, b, c] = s;
     let [d, e, f] = t;
     let swap = |(x, y): (Vector3<T>, Vector3<T>)| (y, x);
@@ -407,7 +407,10 @@ mod tests {
                         };
                         let shift = rng.point() * 0.5;
                         let s = rng.range(-0.5, 1.0);
-                        return Core::Segment([p + shift + (q - p) * s, p + shift + (q - p) * (s + rng.range(0.2, 1.5))]);
+                        return Core::Segment([
+                            p + shift + (q - p) * s,
+                            p + shift + (q - p) * (s + rng.range(0.2, 1.5)),
+                        ]);
                     }
                 }
                 Core::Segment([a, b])
@@ -536,7 +539,8 @@ mod tests {
     fn certified(a: &Core<f64>, b: &Core<f64>, p: &Vector3<f64>, q: &Vector3<f64>) -> bool {
         let w = q - p;
         let tolerance = 1e-12 * (1.0 + w.norm());
-        a.points().iter().all(|x| w.dot(&(x - p)) <= tolerance) && b.points().iter().all(|y| w.dot(&(y - q)) >= -tolerance)
+        a.points().iter().all(|x| w.dot(&(x - p)) <= tolerance)
+            && b.points().iter().all(|y| w.dot(&(y - q)) >= -tolerance)
     }
 
     #[test]
@@ -544,7 +548,14 @@ mod tests {
         let mut rng = Rng(0x5EED_0001);
         let mut worst = [0.0_f64; 6];
         let mut errors = Vec::new();
-        let cases = [(0, 0, 1000, 1), (0, 1, 2000, 200), (1, 1, 2000, 100), (0, 2, 2000, 40), (1, 2, 1000, 60), (2, 2, 300, 24)];
+        let cases = [
+            (0, 0, 1000, 1),
+            (0, 1, 2000, 200),
+            (1, 1, 2000, 100),
+            (0, 2, 2000, 40),
+            (1, 2, 1000, 60),
+            (2, 2, 300, 24),
+        ];
         for (case, &(ka, kb, count, n)) in cases.iter().enumerate() {
             for _ in 0..count {
                 let a = random_core(&mut rng, ka, None);
@@ -582,21 +593,27 @@ mod tests {
     fn parallel_and_degenerate_cases() {
         let v = |x: f64, y: f64, z: f64| Vector3::new(x, y, z);
         // Parallel overlapping segments: the midpoint of the overlap, distance 0.3.
-        let (p, q) = closest_segment_segment(&v(0.0, 0.0, 0.0), &v(1.0, 0.0, 0.0), &v(0.5, 0.3, 0.0), &v(2.0, 0.3, 0.0));
+        let (p, q) =
+            closest_segment_segment(&v(0.0, 0.0, 0.0), &v(1.0, 0.0, 0.0), &v(0.5, 0.3, 0.0), &v(2.0, 0.3, 0.0));
         assert!((p - v(0.75, 0.0, 0.0)).norm() < 1e-15 && (q - v(0.75, 0.3, 0.0)).norm() < 1e-15);
         // Anti-parallel, disjoint along the line: nearest ends.
-        let (p, q) = closest_segment_segment(&v(0.0, 0.0, 0.0), &v(1.0, 0.0, 0.0), &v(3.0, 0.3, 0.0), &v(1.5, 0.3, 0.0));
+        let (p, q) =
+            closest_segment_segment(&v(0.0, 0.0, 0.0), &v(1.0, 0.0, 0.0), &v(3.0, 0.3, 0.0), &v(1.5, 0.3, 0.0));
         assert!((p - v(1.0, 0.0, 0.0)).norm() < 1e-15 && (q - v(1.5, 0.3, 0.0)).norm() < 1e-15);
         // Collinear overlapping: distance 0.
-        let (p, q) = closest_segment_segment(&v(0.0, 0.0, 0.0), &v(1.0, 0.0, 0.0), &v(0.5, 0.0, 0.0), &v(2.0, 0.0, 0.0));
+        let (p, q) =
+            closest_segment_segment(&v(0.0, 0.0, 0.0), &v(1.0, 0.0, 0.0), &v(0.5, 0.0, 0.0), &v(2.0, 0.0, 0.0));
         assert!((p - q).norm() < 1e-15);
         // Zero-length segments.
-        let (p, q) = closest_segment_segment(&v(0.2, 1.0, 0.0), &v(0.2, 1.0, 0.0), &v(0.0, 0.0, 0.0), &v(1.0, 0.0, 0.0));
+        let (p, q) =
+            closest_segment_segment(&v(0.2, 1.0, 0.0), &v(0.2, 1.0, 0.0), &v(0.0, 0.0, 0.0), &v(1.0, 0.0, 0.0));
         assert!((p - v(0.2, 1.0, 0.0)).norm() < 1e-15 && (q - v(0.2, 0.0, 0.0)).norm() < 1e-15);
-        let (p, q) = closest_segment_segment(&v(0.0, 0.0, 0.0), &v(0.0, 0.0, 0.0), &v(1.0, 1.0, 1.0), &v(1.0, 1.0, 1.0));
+        let (p, q) =
+            closest_segment_segment(&v(0.0, 0.0, 0.0), &v(0.0, 0.0, 0.0), &v(1.0, 1.0, 1.0), &v(1.0, 1.0, 1.0));
         assert_eq!((p, q), (v(0.0, 0.0, 0.0), v(1.0, 1.0, 1.0)));
         // Crossing segments.
-        let (p, q) = closest_segment_segment(&v(-1.0, 0.0, 0.0), &v(1.0, 0.0, 0.0), &v(0.3, -1.0, 0.0), &v(0.3, 1.0, 0.0));
+        let (p, q) =
+            closest_segment_segment(&v(-1.0, 0.0, 0.0), &v(1.0, 0.0, 0.0), &v(0.3, -1.0, 0.0), &v(0.3, 1.0, 0.0));
         assert!((p - v(0.3, 0.0, 0.0)).norm() < 1e-15 && (q - p).norm() < 1e-15);
 
         let tri = [v(0.0, 0.0, 0.0), v(1.0, 0.0, 0.0), v(0.0, 1.0, 0.0)];

@@ -64,8 +64,8 @@ use nalgebra::{Cholesky, Const, RealField, RowSVector, SVector, Vector2};
 
 use self::distance::ArcBoundary;
 use self::kinematics::{wrap_from, wrap_to_pi};
-use crate::math::switching::transition_activation;
 use super::{TaskError, TaskRow, TaskRows};
+use crate::math::switching::transition_activation;
 
 /// Number of workspace boundaries (rows) of the torso.
 pub const BOUNDARIES: usize = 12;
