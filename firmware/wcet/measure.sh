@@ -32,7 +32,8 @@ plugin="$out/wcet_insn.so"
 gcc -O2 -shared -fPIC -fvisibility=hidden $api -o "$plugin" "$here/wcet_insn.c"
 
 # --- build and run --------------------------------------------------------------------------
-variants=(m7-f32 m7-f64 m4-f32)
+# VARIANTS="m7-f32" limits the run to some variants (default: all three).
+read -r -a variants <<< "${VARIANTS:-m7-f32 m7-f64 m4-f32}"
 declare -A cpu=([m7-f32]=cortex-m7 [m7-f64]=cortex-m7 [m4-f32]=cortex-m4)
 declare -A machine=([m7-f32]=mps2-an500 [m7-f64]=mps2-an500 [m4-f32]=mps2-an386)
 declare -A features=([m7-f32]="" [m7-f64]="--features wcet-f64" [m4-f32]="")
@@ -87,15 +88,42 @@ echo
 echo "Full Controller::step per input class (wcet-step image; insns min / median / max; frames of stages.rs)"
 printf '%-8s %-12s %6s %12s %12s %12s\n' variant class frames min median max
 for v in "${variants[@]}"; do
-    # per-sample counts (plugin: 'wcet region=3 sample=K insns=X') joined with the classes of the log
+    # per-sample counts (plugin: 'wcet region=0 sample=K insns=X fp_div_sqrt=D') joined with the
+    # classes of the log: "insns class fp_div_sqrt"
     paste -d' ' <(sed -n 's/^wcet region=0 sample=[0-9]* insns=\([0-9]*\).*/\1/p' "$out/$v.step-counts.1") \
-                <(sed -n 's/^step [0-9]* class=\([a-z]*\).*/\1/p' "$out/$v.step-log.1") > "$out/$v.step"
-    for class in nominal adversarial fault recovery all; do
+                <(sed -n 's/^step [0-9]* class=\([a-z]*\).*/\1/p' "$out/$v.step-log.1") \
+                <(sed -n 's/^wcet region=0 sample=[0-9]* insns=[0-9]* fp_div_sqrt=\([0-9]*\).*/\1/p' "$out/$v.step-counts.1") \
+        > "$out/$v.step"
+    for class in nominal adversarial fault recovery capacity all; do
         awk -v cl="$class" '$2 == cl || cl == "all" { print $1 }' "$out/$v.step" | sort -n \
             | awk -v v="$v" -v cl="$class" '{ a[NR] = $1 } END { if (NR) printf "%-8s %-12s %6d %12d %12d %12d\n", v, cl, NR, a[1], a[int((NR + 1) / 2)], a[NR] }'
     done
     sed -n 's/^wcet-stack \(step=[0-9]*\).*/  stack: \1/p; s/^wcet-stack \(whole-run.*\)/  stack: \1/p' "$out/$v.step-log.1"
 done
+
+# One line per variant for scripts. bound = the most expensive capacity frame (every capacity of
+# the step filled, BENCHMARKS.md argues why no input costs more); worst = the most expensive
+# sampled frame (nominal, adversarial, fault, recovery), which may not exceed the bound;
+# fp_div_sqrt = VDIV/VSQRT in the bound frame; cycles_est = bound + 13 per VDIV/VSQRT (14 cycles
+# each on the M4 and M7, one cycle per other instruction: a planning figure, not a measurement).
+echo
+status=0
+for v in "${variants[@]}"; do
+    median=$(awk '$2 == "nominal" { print $1 }' "$out/$v.step" | sort -n | awk '{ a[NR] = $1 } END { print a[int((NR + 1) / 2)] }')
+    line=$(awk -v v="$v" -v median="$median" '
+        $2 != "capacity" && $1 > worst { worst = $1 }
+        $2 == "capacity" && $1 > bound { bound = $1; slow = $3 }
+        END {
+            printf "step %s nominal_median=%d worst=%d bound=%d fp_div_sqrt=%d cycles_est=%d", v, median, worst, bound, slow, bound + 13 * slow
+            if (worst > bound) printf " ERROR=worst-exceeds-bound"
+        }' "$out/$v.step")
+    echo "$line"
+    case "$line" in *ERROR*) status=1 ;; esac
+done
+if [ "$status" -ne 0 ]; then
+    echo "error: a sampled frame costs more than the capacity frame (the bound)" >&2
+    exit 1
+fi
 echo
 echo "Image sizes (size: text = flash code+rodata, data = flash+RAM, bss = RAM; stack not included)"
 size "$out"/wcet-*.elf   # wcet-step-*: the full-step image (controller in .bss)

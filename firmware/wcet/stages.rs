@@ -7,7 +7,8 @@ use fixtures::justin::collision::JustinCollisionModel;
 use fixtures::justin::whole_body;
 use fixtures::justin::JustinModel;
 use hal::{JointSample, PlatformSample};
-use kernel::controller::config::Hand;
+use kernel::controller::config::{Field, Hand};
+use kernel::controller::messages::Command;
 use kernel::controller::{Controller, SensorFrame};
 use kernel::dynamics::{coriolis_matrix, crba, forward_kinematics, frame_jacobian, gravity, mass_matrix_cholesky};
 use kernel::hierarchy::{project, HierarchyConfig, HierarchyData, Stack};
@@ -187,8 +188,42 @@ pub fn wcet_step(controller: &mut JustinController, frame: &Frame) -> S {
 pub const NOMINAL_FRAMES: u32 = 24;
 /// Adversarial configurations (see [`ADVERSARIAL`]).
 pub const ADVERSARIAL_FRAMES: u32 = ADVERSARIAL.len() as u32;
-/// All frames: nominal, adversarial, one faulty (NaN) frame, one valid frame after it.
-pub const STEP_FRAMES: u32 = NOMINAL_FRAMES + ADVERSARIAL_FRAMES + 2;
+/// First capacity frame (see [`capacity_commands`]).
+pub const CAPACITY_START: u32 = NOMINAL_FRAMES + ADVERSARIAL_FRAMES + 2;
+/// Capacity frames: every adversarial configuration and the home pose again, with both
+/// collision fields widened by [`capacity_commands`].
+pub const CAPACITY_FRAMES: u32 = ADVERSARIAL_FRAMES + 1;
+/// All frames: nominal, adversarial, one faulty (NaN) frame, one valid frame after it, then the
+/// capacity frames.
+pub const STEP_FRAMES: u32 = CAPACITY_START + CAPACITY_FRAMES;
+
+/// Influence distance (m) of both collision fields in the capacity frames: larger than any
+/// distance between two of Justin's volumes, so the broad phase skips no pair, all 214 pairs are
+/// evaluated exactly in every capacity frame, and both fields fill their 32 rows and drop the
+/// rest (the drop path over all 214 candidates).
+pub const CAPACITY_FIELD_M: f64 = 10.0;
+
+/// The planner commands applied before frame `k` (the capacity frames start by widening both
+/// collision fields to [`CAPACITY_FIELD_M`]; the hierarchy, the tasks and every other parameter
+/// stay those of [`new_controller`]).
+pub fn capacity_commands(k: u32) -> Option<[Command<S>; 2]> {
+    if k != CAPACITY_START {
+        return None;
+    }
+    let config = whole_body::controller_config::<S>().ok()?;
+    let widened = |field: Field| {
+        let mut parameters = *config.collision.get(field.index())?;
+        parameters.influence_distance = c(CAPACITY_FIELD_M);
+        parameters.activation_zero = c(CAPACITY_FIELD_M);
+        Some(Command::SetCollisionField { field, parameters })
+    };
+    Some([widened(Field::Strong)?, widened(Field::Weak)?])
+}
+
+/// Applies the planner commands of frame `k` ([`capacity_commands`]); `false` if one is refused.
+pub fn prepare(controller: &mut JustinController, k: u32) -> bool {
+    capacity_commands(k).is_none_or(|commands| commands.iter().all(|command| controller.apply(command).is_ok()))
+}
 
 /// Which input class frame `k` belongs to.
 pub fn frame_class(k: u32) -> &'static str {
@@ -198,8 +233,10 @@ pub fn frame_class(k: u32) -> &'static str {
         "adversarial"
     } else if k == NOMINAL_FRAMES + ADVERSARIAL_FRAMES {
         "fault"
-    } else {
+    } else if k < CAPACITY_START {
         "recovery"
+    } else {
+        "capacity"
     }
 }
 
@@ -273,7 +310,11 @@ pub fn step_frame(k: u32, speed: &SVector<S, N>) -> Frame {
         v[0] = c(0.1);
         return frame(cycle, &q, &v);
     }
-    let a = k - NOMINAL_FRAMES;
+    // Capacity frames repeat the adversarial configurations (then the home pose).
+    let a = if k >= CAPACITY_START { k - CAPACITY_START } else { k - NOMINAL_FRAMES };
+    if k >= CAPACITY_START && a == ADVERSARIAL_FRAMES {
+        return frame(cycle, &home, &SVector::zeros());
+    }
     let Some(upper) = ADVERSARIAL.get(a as usize) else {
         let mut f = frame(cycle, &home, &SVector::zeros());
         if a == ADVERSARIAL_FRAMES {

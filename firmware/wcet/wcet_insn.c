@@ -26,6 +26,10 @@
  * Run:   qemu-system-arm ... -plugin ./wcet_insn.so,out=counts.txt
  * (No -d plugin needed: results are written with stdio, not qemu_plugin_outs.)
  *
+ * Every sample line also reports fp_div_sqrt=<n>: the VDIV and VSQRT instructions executed
+ * in the region (14 cycles each on the Cortex-M4 and M7, where most instructions take one),
+ * so a cycle estimate can charge their latency.
+ *
  * Counting uses per-instruction exec callbacks (not TB-level counts), which
  * stays exact when a TB is cut short (I/O under -icount, exceptions).
  */
@@ -76,7 +80,8 @@ EXPORT int qemu_plugin_version = QEMU_PLUGIN_API_VERSION;
 #define MAXMN 1024
 
 static uint64_t total;                 /* all guest insns executed */
-static uint64_t start[NREG];
+static uint64_t slow;                  /* VDIV/VSQRT executed (all of them) */
+static uint64_t start[NREG], slow_start[NREG];
 static int depth[NREG];                /* >0 while inside region r */
 static int inside;                     /* number of open regions */
 static struct { uint64_t n, min, max, sum; } st[NREG];
@@ -92,6 +97,7 @@ typedef struct {
     uint16_t lo, hi;          /* cycles if not a taken branch */
     uint8_t branch;           /* may change control flow */
     uint8_t tlo, thi;         /* extra cycles when taken (pipeline refill P) */
+    uint8_t slow;             /* VDIV or VSQRT */
     int mn;                   /* mnemonic index (hist) */
 } insn_info;
 static const insn_info *pending;   /* last executed branch, resolved by the next insn */
@@ -128,6 +134,12 @@ static void count_cb(unsigned int vcpu, void *udata)
     total++;
 }
 
+/* VDIV / VSQRT (single or double precision) */
+static bool is_div_sqrt(const char *disas)
+{
+    return strncmp(disas, "vdiv", 4) == 0 || strncmp(disas, "vsqrt", 5) == 0;
+}
+
 /* taken-branch penalty of the previous instruction, now that we know where we went */
 static inline void resolve_pending(uint64_t vaddr)
 {
@@ -145,6 +157,7 @@ static void info_cb(unsigned int vcpu, void *udata)
     (void)vcpu;
     const insn_info *in = udata;
     total++;
+    slow += in->slow;
     resolve_pending(in->vaddr);
     cyc_lo += in->lo;
     cyc_hi += in->hi;
@@ -247,6 +260,7 @@ static void marker_cb(unsigned int vcpu, void *udata)
     resolve_pending(in->vaddr);
     if ((code & 1) == 0) {                  /* begin */
         start[r] = total;                   /* first insn after the marker */
+        slow_start[r] = slow;
         cstart_lo[r] = cyc_lo;
         cstart_hi[r] = cyc_hi;
         depth[r] = 1;
@@ -265,8 +279,9 @@ static void marker_cb(unsigned int vcpu, void *udata)
         st[r].sum += d;
         st[r].n++;
         if (each) {
-            fprintf(out, "wcet region=%d sample=%llu insns=%llu", r,
-                    (unsigned long long)st[r].n - 1, (unsigned long long)d);
+            fprintf(out, "wcet region=%d sample=%llu insns=%llu fp_div_sqrt=%llu", r,
+                    (unsigned long long)st[r].n - 1, (unsigned long long)d,
+                    (unsigned long long)(slow - slow_start[r]));
             if (model) {
                 fprintf(out, " m4_cycles_est=[%llu, %llu]", (unsigned long long)lo,
                         (unsigned long long)hi);
@@ -304,7 +319,11 @@ static void tb_trans(qemu_plugin_id_t id, struct qemu_plugin_tb *tb)
     for (size_t i = 0; i < n; i++) {
         struct qemu_plugin_insn *insn = qemu_plugin_tb_get_insn(tb, i);
         int code = dbg_code(insn);
-        if (code < 0 && !hist && !model) {
+        char *d = code < 0 ? qemu_plugin_insn_disas(insn) : NULL;
+        const char *ds = d ? d : "?";
+        bool div_sqrt = is_div_sqrt(ds);
+        if (code < 0 && !hist && !model && !div_sqrt) {
+            free(d);
             qemu_plugin_register_vcpu_insn_exec_cb(insn, count_cb, QEMU_PLUGIN_CB_NO_REGS, NULL);
             continue;
         }
@@ -318,8 +337,7 @@ static void tb_trans(qemu_plugin_id_t id, struct qemu_plugin_tb *tb)
             qemu_plugin_register_vcpu_insn_exec_cb(insn, marker_cb, QEMU_PLUGIN_CB_NO_REGS, in);
             continue;
         }
-        char *d = qemu_plugin_insn_disas(insn);
-        const char *ds = d ? d : "?";
+        in->slow = div_sqrt;
         char m[32];
         size_t k = 0;
         while (ds[k] && ds[k] != ' ' && k < sizeof(m) - 1) { m[k] = ds[k]; k++; }

@@ -7,7 +7,9 @@
 //! `wcet/wcet_insn.c` counts the instructions between them), called once per frame of
 //! `stages::step_frame`: a nominal sequence (home pose, small motion), adversarial
 //! configurations (many pairs in both collision fields, joints at stops, torso at its boundary,
-//! stretched arms, fast joints), a faulty (NaN) frame and a frame after it. Separate from
+//! stretched arms, fast joints), a faulty (NaN) frame and a frame after it, then the capacity
+//! frames (both collision fields widened so every pair is exact and both fields are full: the
+//! bound of BENCHMARKS.md). Separate from
 //! `wcet.rs` so that the controller (136 KB in f64) and the stack its construction needs fit the
 //! 512 KiB RAM of `memory.x` together. The scalar is `f32`, or `f64` with `wcet-f64`.
 //! Run by `wcet/measure.sh`; `cargo run --release --bin wcet-step` also works.
@@ -87,6 +89,9 @@ fn run_step() -> Result<(), &'static str> {
     let controller = unsafe { init(&mut *core::ptr::addr_of_mut!(CONTROLLER)) }.ok_or("controller")?;
     let mut max_stack = 0usize;
     for k in 0..STEP_FRAMES {
+        if !prepare(controller, k) {
+            return Err("capacity commands refused");
+        }
         let frame = step_frame(k, &speed);
         let sp = paint_stack();
         mark_begin::<0>();

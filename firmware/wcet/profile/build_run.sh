@@ -12,9 +12,10 @@ elf=target/wcet-m7-f32/thumbv7em-none-eabihf/release/wcet-step
 cp "$elf" "$out/wcet-step.elf"
 QEMU_MACHINE=mps2-an500 QEMU_TIMEOUT=600 ./run-qemu.sh "$elf" -plugin "$here/wcet_prof.so,dir=$out,samples=$samples" > "$out/log.txt"
 # per-sample totals with classes (nominal median = sample 13, worst adversarial = sample 24 in the base build)
-paste -d' ' <(for k in $(seq 0 33); do head -1 "$out/sample-$k.txt" | awk '{print $3}'; done) \
+frames=$(ls "$out"/sample-*.txt | wc -l)
+paste -d' ' <(for k in $(seq 0 $((frames - 1))); do head -1 "$out/sample-$k.txt" | awk '{print $3}'; done) \
             <(sed -n 's/^step [0-9]* class=\([a-z]*\).*/\1/p' "$out/log.txt") > "$out/step.txt"
-for class in nominal adversarial; do
+for class in nominal adversarial capacity; do
   awk -v cl="$class" '$2 == cl { print $1 }' "$out/step.txt" | sort -n \
     | awk -v cl="$class" '{ a[NR] = $1 } END { printf "%-12s min %9d  median %9d  max %9d\n", cl, a[1], a[int((NR + 1) / 2)], a[NR] }'
 done

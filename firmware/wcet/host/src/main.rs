@@ -79,8 +79,10 @@ fn step_once(k: u32) {
     let mut controller = Box::new(new_controller().expect("controller"));
     let speed = speed();
     for j in 0..k {
+        assert!(prepare(&mut controller, j), "capacity commands refused");
         std::hint::black_box(warm_step(&mut controller, &step_frame(j, &speed)));
     }
+    assert!(prepare(&mut controller, k), "capacity commands refused");
     let frame = step_frame(k, &speed);
     let sum = wcet_step(&mut controller, std::hint::black_box(&frame));
     let t = controller.telemetry();
@@ -126,6 +128,7 @@ fn time(reps: u32) {
     for _ in 0..reps {
         controller.clone_from(&template);
         for (k, frame) in frames.iter().enumerate() {
+            assert!(prepare(&mut controller, k as u32), "capacity commands refused");
             let a = rdtsc();
             std::hint::black_box(wcet_step(&mut controller, std::hint::black_box(frame)));
             let ticks = rdtsc() - a - overhead;
