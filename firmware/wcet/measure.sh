@@ -9,7 +9,7 @@
 # process per case and precision; the bench in wcet/host shares wcet/stages.rs with the image).
 # With --time (implied by --callgrind), also host wall-clock percentiles of the full step.
 # Usage: bash firmware/wcet/measure.sh [--callgrind|--time]   (raw outputs in firmware/target/wcet/)
-# Recipe: /work/shared/wcet/RECIPE.md (sections 3.3 and 5.1).
+# Method and its limits: firmware/wcet/README.md.
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 fw="$(dirname "$here")"
@@ -179,7 +179,7 @@ if [ "${1:-}" = "--callgrind" ]; then
 fi
 
 # --- host wall clock (optional) ---------------------------------------------------------------
-# rdtsc per step, pinned to CPU 1, no ASLR (RECIPE §4.2); numbers, not assertions.
+# rdtsc per step, pinned to CPU 1, no ASLR (README.md, "Host"); numbers, not assertions.
 if [ "${1:-}" = "--callgrind" ] || [ "${1:-}" = "--time" ]; then
     for prec in f32 f64; do
         feat=""; [ "$prec" = f64 ] && feat="--features wcet-f64"

@@ -1,4 +1,4 @@
-//! Region markers and stack painting shared by the measurement images (RECIPE §3.3, §5.1).
+//! Region markers and stack painting shared by the measurement images (wcet/README.md).
 //!
 //! `mark_begin::<R>()` / `mark_end::<R>()` emit `dbg #2R` / `dbg #2R+1`, which the TCG plugin
 //! `wcet_insn.c` turns into exact instruction counts of region `R`. `paint_stack::<W>()` fills

@@ -1,7 +1,7 @@
 /*
  * wcet_insn.c - QEMU TCG plugin: exact guest-instruction counts between
  * marker instructions, per call.  From the project's WCET recipe
- * (/work/shared/wcet/RECIPE.md); built and run by firmware/wcet/measure.sh, which
+ * (firmware/wcet/README.md); built and run by firmware/wcet/measure.sh, which
  * uses regions 0..2 = dynamics, self_collision, projection (src/bin/wcet.rs).  Self-contained (declares the few plugin
  * API symbols it uses, API v1 as in QEMU 7.2, so no qemu-plugin.h needed).
  *

@@ -7,7 +7,7 @@
 //!   goes through `wcet_step` (the earlier ones through `warm_step`, the same code), so
 //!   `--toggle-collect=wcet_step` counts exactly frame `K`.
 //! * `wcet-host time REPS` times every `step` of the sequence with `rdtsc` (REPS passes, a fresh
-//!   controller each) and prints percentiles per input class (RECIPE §4.2: run it under
+//!   controller each) and prints percentiles per input class (wcet/README.md: run it under
 //!   `setarch x86_64 -R taskset -c 1`).
 //! * `wcet-host search SAMPLES` is the seeded random search that produced
 //!   `stages::ADVERSARIAL`.
