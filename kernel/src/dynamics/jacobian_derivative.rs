@@ -75,7 +75,9 @@ pub fn point_jacobian_derivative<T: RealField + Copy, const N: usize, const B: u
 /// of `frame` (its origin moves with its body); see [`point_jacobian_derivative`]. Zero for a
 /// world-fixed frame.
 ///
-/// Used by the manipulability gradient (3.55)–(3.57), `∂m/∂q_k = m tr((J Jᵀ)⁻¹ (∂J/∂q_k) Jᵀ)`.
+/// The plain reference of the manipulability gradient (3.55)–(3.57),
+/// `∂m/∂q_k = m tr((J Jᵀ)⁻¹ (∂J/∂q_k) Jᵀ)` with `u = e_k` (the task itself evaluates all `k` in
+/// one walk, see [`crate::tasks::manipulability::manipulability`]).
 ///
 /// ```
 /// # use kernel::model::{Data, Inertia, JointDrive, JointKind, ModelBuilder, Placement};

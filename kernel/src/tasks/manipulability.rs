@@ -8,8 +8,9 @@
 //! **Row.** The row's coordinate is `m` itself: `j = ∂m/∂q` (1×N, **not** unit-normalised),
 //! `f = −∂V/∂m − a d ṁ = −2 k_msa (m − m_kin,0) − a d ṁ`, so `jᵀ f = −(∂V/∂q)ᵀ − a d jᵀ j q̇`
 //! is exactly (3.57) with `D_msa = a d jᵀ j`. The gradient is analytic,
-//! `∂m/∂q_k = m tr((J Jᵀ)⁻¹ (∂J/∂q_k) Jᵀ)`, with `∂J/∂q_k` from
-//! [`crate::dynamics::frame_jacobian_derivative`] (no finite differences). It covers every
+//! `∂m/∂q_k = m tr((J Jᵀ)⁻¹ (∂J/∂q_k) Jᵀ)`, with `∂J/∂q_k` taken from the structure of the
+//! kinematic tree for all `k` in one walk over the frame's support path (see [`manipulability`];
+//! no finite differences, no N directional derivatives). It covers every
 //! coordinate, including those outside the selected columns (they move the frame and can change
 //! `m`, e.g. through the world orientation when only some rows are selected). The unit-norm
 //! direction `J_{1×n} = j/‖j‖` of (4.70) is left to the hierarchy: its scalar-inverse projectors
@@ -351,7 +352,7 @@ pub struct ManipulabilityReport<T> {
 /// `τ = jᵀ f = −(∂V_msa/∂q)ᵀ − D_msa q̇`.
 ///
 /// Precondition: [`crate::dynamics::forward_kinematics`] at `(q, q̇)` (reads `data.v`).
-/// Cost O(N·(depth + N)). Errors (the row list is unchanged): [`TaskError::Dynamics`] for an
+/// Cost O(depth + N r²) (`r` selected rows). Errors (the row list is unchanged): [`TaskError::Dynamics`] for an
 /// unknown frame, [`TaskError::NonFinite`], [`TaskError::Capacity`].
 pub fn manipulability_avoidance<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const R: usize>(
     model: &Model<T, N, B, F>,
