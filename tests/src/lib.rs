@@ -13,6 +13,8 @@ mod fixtures_models;
 #[cfg(test)]
 mod hierarchy;
 #[cfg(test)]
+mod manipulability;
+#[cfg(test)]
 mod multilevel;
 #[cfg(test)]
 mod platform;

@@ -1,7 +1,7 @@
 //! Configuration derivative of point and frame Jacobians, `Σ_k (∂J/∂q_k) u_k`, analytically
 //! from the joint motion subspaces.
 
-use nalgebra::{RealField, SMatrix, SVector, Vector3, Vector6};
+use nalgebra::{RealField, SMatrix, SVector, Vector3};
 
 use super::{check_finite, DynamicsError};
 use crate::math::spatial::{angular, linear, linear_at_point, motion_cross, Motion};
@@ -45,7 +45,7 @@ pub fn point_jacobian_derivative<T: RealField + Copy, const N: usize, const B: u
         }
     }
     let point_rate = linear_at_point(&total, point);
-    derivative.fill(T::zero());
+    *derivative = SMatrix::zeros();
     // Walking from the body to the root, `below` holds the joints between `body` and `j`, so
     // `total − below` is W_j (it includes S_j itself, which drops out of S_j × S_j = 0).
     let mut below = Motion::<T>::zeros();
@@ -57,10 +57,14 @@ pub fn point_jacobian_derivative<T: RealField + Copy, const N: usize, const B: u
         below += s * joint.drive.evaluate(direction, false);
         let (ds_ang, s_ang) = (angular(&ds), angular(s));
         let lin = linear(&ds) + ds_ang.cross(point) + s_ang.cross(&point_rate);
-        let column = Vector6::new(lin.x, lin.y, lin.z, ds_ang.x, ds_ang.y, ds_ang.z);
+        let column = [lin.x, lin.y, lin.z, ds_ang.x, ds_ang.y, ds_ang.z];
         for term in joint.drive.terms() {
-            if let Some(mut c) = derivative.column_iter_mut().nth(term.coordinate) {
-                c += column * term.coefficient;
+            // Column-major storage: column `k` is entries `6k..6k + 6` (O(1), no panic path).
+            let start = term.coordinate.saturating_mul(6);
+            if let Some(c) = derivative.as_mut_slice().get_mut(start..start.saturating_add(6)) {
+                for (x, v) in c.iter_mut().zip(column.iter()) {
+                    *x += *v * term.coefficient;
+                }
             }
         }
     }
@@ -71,7 +75,9 @@ pub fn point_jacobian_derivative<T: RealField + Copy, const N: usize, const B: u
 /// of `frame` (its origin moves with its body); see [`point_jacobian_derivative`]. Zero for a
 /// world-fixed frame.
 ///
-/// Used by the manipulability gradient (3.55)–(3.57), `∂m/∂q_k = m tr((J Jᵀ)⁻¹ (∂J/∂q_k) Jᵀ)`.
+/// The plain reference of the manipulability gradient (3.55)–(3.57),
+/// `∂m/∂q_k = m tr((J Jᵀ)⁻¹ (∂J/∂q_k) Jᵀ)` with `u = e_k` (the task itself evaluates all `k` in
+/// one walk, see [`crate::tasks::manipulability::manipulability`]).
 ///
 /// ```
 /// # use kernel::model::{Data, Inertia, JointDrive, JointKind, ModelBuilder, Placement};
@@ -104,7 +110,7 @@ pub fn frame_jacobian_derivative<T: RealField + Copy, const N: usize, const B: u
         Some(body) => point_jacobian_derivative(model, data, body, &origin, direction, derivative),
         None => {
             check_finite(direction, "direction")?;
-            derivative.fill(T::zero());
+            *derivative = SMatrix::zeros();
             Ok(())
         }
     }

@@ -8,8 +8,9 @@
 //! **Row.** The row's coordinate is `m` itself: `j = ∂m/∂q` (1×N, **not** unit-normalised),
 //! `f = −∂V/∂m − a d ṁ = −2 k_msa (m − m_kin,0) − a d ṁ`, so `jᵀ f = −(∂V/∂q)ᵀ − a d jᵀ j q̇`
 //! is exactly (3.57) with `D_msa = a d jᵀ j`. The gradient is analytic,
-//! `∂m/∂q_k = m tr((J Jᵀ)⁻¹ (∂J/∂q_k) Jᵀ)`, with `∂J/∂q_k` from
-//! [`crate::dynamics::frame_jacobian_derivative`] (no finite differences). It covers every
+//! `∂m/∂q_k = m tr((J Jᵀ)⁻¹ (∂J/∂q_k) Jᵀ)`, with `∂J/∂q_k` taken from the structure of the
+//! kinematic tree for all `k` in one walk over the frame's support path (see [`manipulability`];
+//! no finite differences, no N directional derivatives). It covers every
 //! coordinate, including those outside the selected columns (they move the frame and can change
 //! `m`, e.g. through the world orientation when only some rows are selected). The unit-norm
 //! direction `J_{1×n} = j/‖j‖` of (4.70) is left to the hierarchy: its scalar-inverse projectors
@@ -26,11 +27,12 @@
 //! `singular = true` and the row's Jacobian is zero (`m` is not differentiable there); the
 //! force and potential keep their values at `m = 0`.
 
-use nalgebra::{RealField, RowSVector, SMatrix, SVector, Vector6};
+use nalgebra::{RealField, RowSVector, Vector3};
 
 use super::cartesian_impedance::AxisMask;
 use super::{TaskError, TaskRow, TaskRows};
-use crate::dynamics::{frame_jacobian, frame_jacobian_derivative};
+use crate::dynamics::DynamicsError;
+use crate::math::spatial::{angular, linear_at_point};
 use crate::math::switching::transition_activation;
 use crate::model::{Data, FrameId, Model};
 
@@ -106,13 +108,29 @@ pub struct ManipulabilityMeasure<T, const N: usize> {
 /// Manipulability (3.55) of the rows `rows` and coordinates `coordinates` of the world-aligned
 /// Jacobian of `frame`, and its analytic gradient over all N coordinates.
 ///
-/// With `J̃` the selected Jacobian padded with zeros (6×N) and `A = J̃ J̃ᵀ + (I − S)` (identity
-/// on unselected rows, so `det A = det(J Jᵀ)`), `A = L Lᵀ` gives `m = Π L_ii` and, with
-/// `W = A⁻¹ J̃`, `∂m/∂q_k = m ⟨∂J̃/∂q_k, W⟩_F` (the trace form of the module docs; `W`
-/// vanishes outside the selection, so the full `∂J/∂q_k` can be used).
+/// **Value.** With `J̃` the selected Jacobian (its `r` selected rows, zero columns outside the
+/// selected coordinates) and the `r×r` Cholesky factor `J̃ J̃ᵀ = L Lᵀ`, `m = Π L_ii` (3.55).
 ///
-/// Precondition: [`crate::dynamics::forward_kinematics`] at `q`. Cost O(N·(depth + N)).
-/// Errors: [`TaskError::Dynamics`] for an unknown frame.
+/// **Gradient.** With `W = (J̃ J̃ᵀ)⁻¹ J̃`, `∂m/∂q_k = m ⟨∂J̃/∂q_k, W⟩_F` (the trace form of the
+/// module docs; `W` vanishes outside the selection, so the full `∂J/∂q_k` can be used). It is
+/// evaluated for all `k` in one walk over the frame's support path instead of N directional
+/// Jacobian derivatives. With the world motion subspace `S_i = (a_i; b_i)` of a joint `i` on
+/// the path and `v_i = b_i + a_i × p` the velocity it gives the frame origin `p`, the tree column
+/// of (2.6) is `c_j = (v_j; a_j)` (linear rows first), and a tree joint `i` changes it by
+/// - `∂c_j/∂θ_i = (a_i × v_j; a_i × a_j)` if `i` is `j` or one of its ancestors (axis and point
+///   move rigidly with `S_i`: `∂S_j/∂θ_i = S_i × S_j`, `∂p/∂θ_i = v_i`, and the Jacobi identity),
+/// - `∂c_j/∂θ_i = (a_j × v_i; 0)` if `i` is below `j` (only the point moves).
+///
+/// With the drive map `q_tree = G q + offset` ([`crate::model::JointDrive`]), `J = J_tree G`, so
+/// `∂m/∂q_k = m Σ_i G_ik g_i` with `V_j = Σ_k G_jk W_k = (V_j,lin; V_j,ang)` and
+/// `g_i = a_i · Σ_{j at or below i} (v_j × V_j,lin + a_j × V_j,ang)
+///      + v_i · Σ_{j above i} (V_j,lin × a_j)`.
+/// The first sum is a running sum from the frame's body towards the root; the second is the total
+/// minus the running sum, and its total part sums to `J_lin,k · Σ_j (V_j,lin × a_j)` over `i`.
+/// Coordinates that drive no joint of the path get gradient 0.
+///
+/// Precondition: [`crate::dynamics::forward_kinematics`] at `q`. Cost O(depth + N r²) small
+/// 3-vector operations. Errors: [`TaskError::Dynamics`] for an unknown frame.
 ///
 /// ```
 /// # use kernel::model::{Data, Inertia, JointDrive, JointKind, ModelBuilder, Placement};
@@ -142,45 +160,181 @@ pub fn manipulability<T: RealField + Copy, const N: usize, const B: usize, const
     rows: AxisMask,
     coordinates: &[bool; N],
 ) -> Result<ManipulabilityMeasure<T, N>, TaskError> {
-    let mut jacobian = SMatrix::<T, 6, N>::zeros();
-    frame_jacobian(model, data, frame, &mut jacobian)?;
-    let row_mask = Vector6::from_fn(|i, _| if rows.contains(i) { T::one() } else { T::zero() });
-    let column_mask =
-        SVector::<T, N>::from_fn(
-            |k, _| {
-                if coordinates.get(k).copied().unwrap_or(false) {
-                    T::one()
-                } else {
-                    T::zero()
-                }
-            },
-        );
-    let selected = SMatrix::from_diagonal(&row_mask) * jacobian * SMatrix::from_diagonal(&column_mask);
-    let padded = selected * selected.transpose() + SMatrix::from_diagonal(&row_mask.map(|r| T::one() - r));
+    let parent = model.frame(frame).ok_or(DynamicsError::UnknownFrame)?.parent;
+    let point = data.frame_placements.get(frame.0).ok_or(DynamicsError::UnknownFrame)?.translation.vector;
+    if let Some(body) = parent {
+        model.body(body).ok_or(DynamicsError::UnknownBody)?;
+    }
     let singular = ManipulabilityMeasure { value: T::zero(), gradient: RowSVector::zeros(), singular: true };
-    let Some(factor) = nalgebra::Cholesky::new(padded) else {
+    let axes = rows.axes();
+    let r = rows.count();
+    let path = || {
+        parent.into_iter().flat_map(|body| model.support(body)).filter_map(|id| {
+            let (joint, s) = (model.body(id)?, data.motion_subspaces.get(id.0)?);
+            Some((joint.drive.terms(), angular(s), linear_at_point(s, &point)))
+        })
+    };
+
+    // The full Jacobian (2.6), one `(v; a)` column per coordinate: `J_k = Σ_i G_ik c_i`.
+    let mut columns = [[T::zero(); 6]; N];
+    for (terms, a, v) in path() {
+        let column = [v.x, v.y, v.z, a.x, a.y, a.z];
+        for term in terms {
+            if let Some(c) = columns.get_mut(term.coordinate) {
+                for (x, y) in c.iter_mut().zip(column.iter()) {
+                    *x += *y * term.coefficient;
+                }
+            }
+        }
+    }
+
+    // A = J̃ J̃ᵀ (lower triangle of the selected rows, packed to the first `r` entries).
+    let mut gram = [[T::zero(); 6]; 6];
+    for (column, _) in columns.iter().zip(coordinates.iter()).filter(|(_, s)| **s) {
+        let packed = pack(&axes, column);
+        for (i, (row, x)) in gram.iter_mut().zip(packed.iter()).enumerate().take(r) {
+            for (entry, y) in row.iter_mut().zip(packed.iter()).take(i + 1) {
+                *entry += *x * *y;
+            }
+        }
+    }
+    let Some(factor) = cholesky(&gram, r) else {
         return Ok(singular);
     };
     // A pivot at rounding level means a rank-deficient J (e.g. more rows than joints on the
-    // frame's path): treat it as singular rather than differentiate rounding noise.
-    let pivots = factor.l_dirty().diagonal();
-    let floor = nalgebra::convert::<f64, T>(100.0) * T::default_epsilon() * padded.diagonal().amax();
-    if pivots.iter().any(|l| *l * *l <= floor) {
+    // frame's path): treat it as singular rather than differentiate rounding noise. The floor is
+    // taken relative to the largest diagonal entry of `J̃ J̃ᵀ + (I − S)` (1 on unselected rows).
+    let largest = gram.iter().enumerate().take(r).fold(if r < 6 { T::one() } else { T::zero() }, |m, (i, row)| {
+        m.max(row.get(i).copied().unwrap_or_else(T::zero))
+    });
+    let floor = nalgebra::convert::<f64, T>(100.0) * T::default_epsilon() * largest;
+    let pivots = factor.diagonal.iter().take(r);
+    if pivots.clone().any(|l| *l * *l <= floor) || (r < 6 && T::one() <= floor) {
         return Ok(singular);
     }
-    let value = pivots.iter().fold(T::one(), |m, l| m * *l);
-    let weights = factor.solve(&selected);
-    let mut derivative = SMatrix::<T, 6, N>::zeros();
-    let mut gradient = RowSVector::<T, N>::zeros();
-    for (k, entry) in gradient.iter_mut().enumerate() {
-        let direction = SVector::<T, N>::from_fn(|r, _| if r == k { T::one() } else { T::zero() });
-        frame_jacobian_derivative(model, data, frame, &direction, &mut derivative)?;
-        *entry = value * derivative.dot(&weights);
+    let value = pivots.fold(T::one(), |m, l| m * *l);
+
+    // W_k = A⁻¹ J̃_k of the selected coordinates, unpacked to the six rows (0 on unselected rows).
+    let mut weights = [[T::zero(); 6]; N];
+    for ((w, column), _) in weights.iter_mut().zip(columns.iter()).zip(coordinates.iter()).filter(|(_, s)| **s) {
+        *w = unpack(&axes, &factor.solve(&pack(&axes, column), r));
     }
-    if !(value.is_finite() && crate::math::all_finite(&gradient)) {
+
+    // One walk from the body to the root: `at_or_below` = Σ (v_j × V_j,lin + a_j × V_j,ang) and
+    // `moment` = Σ V_j,lin × a_j over the joints at or below the current one.
+    let mut gradient = RowSVector::<T, N>::zeros();
+    let (mut at_or_below, mut moment) = (Vector3::<T>::zeros(), Vector3::<T>::zeros());
+    for (terms, a, v) in path() {
+        let mut weight = [T::zero(); 6];
+        for term in terms {
+            if let Some(w) = weights.get(term.coordinate) {
+                for (x, y) in weight.iter_mut().zip(w.iter()) {
+                    *x += *y * term.coefficient;
+                }
+            }
+        }
+        let [l0, l1, l2, a0, a1, a2] = weight;
+        let (w_lin, w_ang) = (Vector3::new(l0, l1, l2), Vector3::new(a0, a1, a2));
+        at_or_below += v.cross(&w_lin) + a.cross(&w_ang);
+        moment += w_lin.cross(&a);
+        let g = a.dot(&at_or_below) - v.dot(&moment);
+        for term in terms {
+            if let Some(x) = gradient.as_mut_slice().get_mut(term.coordinate) {
+                *x += term.coefficient * g;
+            }
+        }
+    }
+    // The joints above `i` contribute v_i · (moment_total − moment_i); the total part summed
+    // over the path with the drive coefficients is J_lin,k · moment_total.
+    for (x, column) in gradient.as_mut_slice().iter_mut().zip(columns.iter()) {
+        let [l0, l1, l2, ..] = *column;
+        *x = value * (*x + l0 * moment.x + l1 * moment.y + l2 * moment.z);
+    }
+    if !(value.is_finite() && gradient.as_slice().iter().all(|x| x.is_finite())) {
         return Ok(singular);
     }
     Ok(ManipulabilityMeasure { value, gradient, singular: false })
+}
+
+/// The selected entries of a 6-vector, in order, in the first `rows.count()` places.
+fn pack<T: RealField + Copy>(axes: &[bool; 6], full: &[T; 6]) -> [T; 6] {
+    let mut packed = [T::zero(); 6];
+    for (p, x) in packed.iter_mut().zip(full.iter().zip(axes.iter()).filter(|(_, s)| **s).map(|(x, _)| x)) {
+        *p = *x;
+    }
+    packed
+}
+
+/// Inverse of [`pack`]: the first `rows.count()` entries back in the selected places, 0 elsewhere.
+fn unpack<T: RealField + Copy>(axes: &[bool; 6], packed: &[T; 6]) -> [T; 6] {
+    let mut full = [T::zero(); 6];
+    for (f, p) in full.iter_mut().zip(axes.iter()).filter(|(_, s)| **s).map(|(f, _)| f).zip(packed.iter()) {
+        *f = *p;
+    }
+    full
+}
+
+/// Lower Cholesky factor `A = L Lᵀ` of a small symmetric matrix (its leading `r×r` block).
+struct SmallCholesky<T> {
+    /// Rows of `L` (strictly lower part; the upper part is 0).
+    lower: [[T; 6]; 6],
+    /// `L_ii`.
+    diagonal: [T; 6],
+    /// `1 / L_ii`.
+    inverse: [T; 6],
+}
+
+/// Cholesky factor of the leading `r×r` block of `a` (lower triangle read); `None` if a pivot
+/// is not positive (or not a number), like [`nalgebra::Cholesky::new`].
+fn cholesky<T: RealField + Copy>(a: &[[T; 6]; 6], r: usize) -> Option<SmallCholesky<T>> {
+    let mut f = SmallCholesky { lower: [[T::zero(); 6]; 6], diagonal: [T::one(); 6], inverse: [T::one(); 6] };
+    for (i, a_row) in a.iter().enumerate().take(r) {
+        let (done, rest) = f.lower.split_at_mut(i);
+        let row = rest.first_mut()?;
+        for (j, (prev, inverse)) in done.iter().zip(f.inverse.iter()).enumerate() {
+            let dot = row.iter().zip(prev.iter()).take(j).fold(T::zero(), |s, (x, y)| s + *x * *y);
+            let entry = (a_row.get(j).copied()? - dot) * *inverse;
+            *row.get_mut(j)? = entry;
+        }
+        let d = a_row.get(i).copied()? - row.iter().take(i).fold(T::zero(), |s, x| s + *x * *x);
+        if d.partial_cmp(&T::zero()) != Some(core::cmp::Ordering::Greater) {
+            return None;
+        }
+        let l = d.sqrt();
+        *f.diagonal.get_mut(i)? = l;
+        *f.inverse.get_mut(i)? = T::one() / l;
+    }
+    Some(f)
+}
+
+impl<T: RealField + Copy> SmallCholesky<T> {
+    /// `x = A⁻¹ b` on the leading `r` entries (forward then backward substitution).
+    fn solve(&self, b: &[T; 6], r: usize) -> [T; 6] {
+        let mut y = [T::zero(); 6];
+        for (i, ((row, bi), inverse)) in self.lower.iter().zip(b.iter()).zip(self.inverse.iter()).enumerate().take(r) {
+            let s = row.iter().zip(y.iter()).take(i).fold(*bi, |s, (l, y)| s - *l * *y);
+            if let Some(yi) = y.get_mut(i) {
+                *yi = s * *inverse;
+            }
+        }
+        // Backward: x_i = (y_i − Σ_{k > i} L_ki x_k) / L_ii, from the last entry up.
+        let mut x = [T::zero(); 6];
+        for i in (0..r.min(6)).rev() {
+            let s = self
+                .lower
+                .iter()
+                .zip(x.iter())
+                .take(r)
+                .skip(i + 1)
+                .fold(y.get(i).copied().unwrap_or_else(T::zero), |s, (row, xk)| {
+                    s - row.get(i).copied().unwrap_or_else(T::zero) * *xk
+                });
+            if let (Some(xi), Some(inverse)) = (x.get_mut(i), self.inverse.get(i)) {
+                *xi = s * *inverse;
+            }
+        }
+        x
+    }
 }
 
 /// What one call of [`manipulability_avoidance`] found.
@@ -198,7 +352,7 @@ pub struct ManipulabilityReport<T> {
 /// `τ = jᵀ f = −(∂V_msa/∂q)ᵀ − D_msa q̇`.
 ///
 /// Precondition: [`crate::dynamics::forward_kinematics`] at `(q, q̇)` (reads `data.v`).
-/// Cost O(N·(depth + N)). Errors (the row list is unchanged): [`TaskError::Dynamics`] for an
+/// Cost O(depth + N r²) (`r` selected rows). Errors (the row list is unchanged): [`TaskError::Dynamics`] for an
 /// unknown frame, [`TaskError::NonFinite`], [`TaskError::Capacity`].
 pub fn manipulability_avoidance<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const R: usize>(
     model: &Model<T, N, B, F>,
@@ -228,8 +382,60 @@ pub fn manipulability_avoidance<T: RealField + Copy, const N: usize, const B: us
 mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
     use super::*;
-    use crate::dynamics::forward_kinematics;
+    use crate::dynamics::{forward_kinematics, frame_jacobian, frame_jacobian_derivative};
     use crate::test_models::{branched, state, Branched, N, TCP, WRIST};
+    use nalgebra::{SMatrix, SVector, Vector6};
+
+    /// The plain reference for [`manipulability`] (the implementation it replaced): the padded
+    /// `A = J̃ J̃ᵀ + (I − S)` from dense masking products, nalgebra's Cholesky, and one
+    /// [`frame_jacobian_derivative`] per coordinate, `∂m/∂q_k = m ⟨∂J/∂q_k, A⁻¹ J̃⟩_F`.
+    pub(crate) fn reference<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
+        model: &Model<T, N, B, F>,
+        data: &Data<T, N, B, F>,
+        frame: FrameId,
+        rows: AxisMask,
+        coordinates: &[bool; N],
+    ) -> Result<ManipulabilityMeasure<T, N>, TaskError> {
+        let mut jacobian = SMatrix::<T, 6, N>::zeros();
+        frame_jacobian(model, data, frame, &mut jacobian)?;
+        let row_mask = Vector6::from_fn(|i, _| if rows.contains(i) { T::one() } else { T::zero() });
+        let column_mask =
+            SVector::<T, N>::from_fn(
+                |k, _| {
+                    if coordinates.get(k).copied().unwrap_or(false) {
+                        T::one()
+                    } else {
+                        T::zero()
+                    }
+                },
+            );
+        let selected = SMatrix::from_diagonal(&row_mask) * jacobian * SMatrix::from_diagonal(&column_mask);
+        let padded = selected * selected.transpose() + SMatrix::from_diagonal(&row_mask.map(|r| T::one() - r));
+        let singular = ManipulabilityMeasure { value: T::zero(), gradient: RowSVector::zeros(), singular: true };
+        let Some(factor) = nalgebra::Cholesky::new(padded) else {
+            return Ok(singular);
+        };
+        // A pivot at rounding level means a rank-deficient J (e.g. more rows than joints on the
+        // frame's path): treat it as singular rather than differentiate rounding noise.
+        let pivots = factor.l_dirty().diagonal();
+        let floor = nalgebra::convert::<f64, T>(100.0) * T::default_epsilon() * padded.diagonal().amax();
+        if pivots.iter().any(|l| *l * *l <= floor) {
+            return Ok(singular);
+        }
+        let value = pivots.iter().fold(T::one(), |m, l| m * *l);
+        let weights = factor.solve(&selected);
+        let mut derivative = SMatrix::<T, 6, N>::zeros();
+        let mut gradient = RowSVector::<T, N>::zeros();
+        for (k, entry) in gradient.iter_mut().enumerate() {
+            let direction = SVector::<T, N>::from_fn(|r, _| if r == k { T::one() } else { T::zero() });
+            frame_jacobian_derivative(model, data, frame, &direction, &mut derivative)?;
+            *entry = value * derivative.dot(&weights);
+        }
+        if !(value.is_finite() && crate::math::all_finite(&gradient)) {
+            return Ok(singular);
+        }
+        Ok(ManipulabilityMeasure { value, gradient, singular: false })
+    }
 
     fn c<T: RealField + Copy>(x: f64) -> T {
         nalgebra::convert(x)
@@ -254,6 +460,152 @@ mod tests {
         let mut data = Data::new(model);
         forward_kinematics(model, &mut data, q, &SVector::zeros()).unwrap();
         manipulability(model, &data, s.0, s.1, &s.2).unwrap()
+    }
+
+    /// Every non-empty row mask with several column selections on both branches (TCP: the
+    /// coupled joint, WRIST: the prismatic branch), including columns off the frame's path.
+    fn all_selections() -> impl Iterator<Item = (FrameId, AxisMask, [bool; N])> {
+        let columns = [
+            [true; N],
+            [true, true, true, true, false, false],
+            [false, true, false, false, true, true],
+            [true, false, true, true, true, false],
+            [false, true, true, false, true, true],
+        ];
+        [TCP, WRIST].into_iter().flat_map(move |frame| {
+            (1..64_usize).flat_map(move |bits| {
+                let rows = AxisMask::new(core::array::from_fn(|i| bits & (1 << i) != 0));
+                columns.into_iter().map(move |c| (frame, rows, c))
+            })
+        })
+    }
+
+    /// `σ_min / max(σ_max, 1)` of the selected Jacobian (f64, SVD) at `q` (`σ_min / σ_max` if all
+    /// six rows are selected): the scale of the pivot floor of [`manipulability`] is the largest
+    /// diagonal entry of `J̃ J̃ᵀ + (I − S)`.
+    fn conditioning(q: &SVector<f64, N>, frame: FrameId, rows: AxisMask, columns: &[bool; N]) -> f64 {
+        let model = branched::<f64>();
+        let mut data = Data::new(&model);
+        forward_kinematics(&model, &mut data, q, &SVector::zeros()).unwrap();
+        let mut j = SMatrix::<f64, 6, N>::zeros();
+        frame_jacobian(&model, &data, frame, &mut j).unwrap();
+        let picked: std::vec::Vec<usize> = (0..6).filter(|i| rows.contains(*i)).collect();
+        let selected =
+            nalgebra::DMatrix::from_fn(picked.len(), N, |r, k| if columns[k] { j[(picked[r], k)] } else { 0.0 });
+        let s = selected.singular_values();
+        let largest = if picked.len() < 6 { s.max().max(1.0) } else { s.max() };
+        if largest > 0.0 {
+            s.min() / largest
+        } else {
+            0.0
+        }
+    }
+
+    /// Fast vs reference at the same precision over [`all_selections`] and 20 random states.
+    /// Selections with `c² < 1e3 · 100 ε` (`c` of [`conditioning`]) are skipped: near the
+    /// pivot floor (e.g. a rank-deficient selection) the singular flag is decided by rounding.
+    /// On the others both must be regular with
+    /// `|Δm| ≤ tol (|m| + 1e-3) / c²` and `‖Δ∇m‖∞ ≤ tol (‖∇m‖∞ + 1e-3) / c²`
+    /// (the gradient goes through `(J Jᵀ)⁻¹`). Returns the worst scaled gradient difference and
+    /// the number of compared cases.
+    fn compare_with_reference<T: RealField + Copy>(tolerance: f64) -> (f64, usize) {
+        let model = branched::<T>();
+        let mut data = Data::new(&model);
+        let (mut worst, mut compared) = (0.0_f64, 0);
+        for seed in 0..20 {
+            let q = state(seed, 2.0);
+            forward_kinematics(&model, &mut data, &q.cast(), &SVector::zeros()).unwrap();
+            for (frame, rows, columns) in all_selections() {
+                let fast = manipulability(&model, &data, frame, rows, &columns).unwrap();
+                let plain = reference(&model, &data, frame, rows, &columns).unwrap();
+                if fast.singular {
+                    assert_eq!((fast.value, fast.gradient), (T::zero(), RowSVector::zeros()));
+                }
+                let f64_of = |x: T| -> f64 { nalgebra::try_convert(x).unwrap() };
+                let c2 = conditioning(&q, frame, rows, &columns).powi(2);
+                if c2 < 1e5 * f64_of(T::default_epsilon()) {
+                    continue;
+                }
+                assert!(!fast.singular && !plain.singular, "seed {seed} {frame:?} {rows:?} {columns:?}");
+                compared += 1;
+                let (m, dm) = (f64_of(plain.value), f64_of(fast.value - plain.value));
+                assert!(dm.abs() * c2 <= tolerance * (m.abs() + 1e-3), "seed {seed}: m {m} vs {dm}");
+                let scale = f64_of(plain.gradient.amax());
+                let err = f64_of((fast.gradient - plain.gradient).amax()) * c2;
+                worst = worst.max(err / (scale + 1e-3));
+                assert!(
+                    err <= tolerance * (scale + 1e-3),
+                    "seed {seed} {frame:?} {rows:?} {columns:?}: {err} vs {scale}"
+                );
+            }
+        }
+        (worst, compared)
+    }
+
+    #[test]
+    fn fast_gradient_matches_the_reference_f64() {
+        let (worst, regular) = compare_with_reference::<f64>(1e-12);
+        eprintln!("manipulability fast vs reference f64: worst scaled {worst:e} over {regular} cases");
+        assert!(regular > 1000, "{regular}");
+    }
+
+    #[test]
+    fn fast_gradient_matches_the_reference_f32() {
+        let (worst, regular) = compare_with_reference::<f32>(2e-4);
+        eprintln!("manipulability fast vs reference f32: worst scaled {worst:e} over {regular} cases");
+        assert!(regular > 1000, "{regular}");
+    }
+
+    /// The f32 fast gradient against the f64 reference on the selections of [`selections`]
+    /// (well-conditioned, as a controller uses them).
+    #[test]
+    fn fast_gradient_f32_matches_the_f64_reference() {
+        let (m64, m32) = (branched::<f64>(), branched::<f32>());
+        let (mut d64, mut d32) = (Data::new(&m64), Data::new(&m32));
+        let mut worst = 0.0_f64;
+        for seed in 0..40 {
+            let q = state(seed, 2.0);
+            forward_kinematics(&m64, &mut d64, &q, &SVector::zeros()).unwrap();
+            forward_kinematics(&m32, &mut d32, &q.cast(), &SVector::zeros()).unwrap();
+            for (frame, rows, columns) in selections() {
+                let plain = reference(&m64, &d64, frame, rows, &columns).unwrap();
+                let fast = manipulability(&m32, &d32, frame, rows, &columns).unwrap();
+                assert!(!plain.singular && !fast.singular);
+                let dm = (f64::from(fast.value) - plain.value).abs();
+                assert!(dm <= 1e-4 * (plain.value + 1e-3), "seed {seed}: {dm} of {}", plain.value);
+                let err = (fast.gradient.cast::<f64>() - plain.gradient).amax();
+                worst = worst.max(err / (plain.gradient.amax() + 1e-3));
+                assert!(err <= 3e-4 * (plain.gradient.amax() + 1e-3), "seed {seed}: {err}");
+            }
+        }
+        eprintln!("manipulability f32 fast vs f64 reference: worst relative {worst:e}");
+    }
+
+    /// A world-fixed frame has J = 0: singular with any row, like the reference.
+    #[test]
+    fn world_fixed_frame_is_singular() {
+        let mut b = crate::model::ModelBuilder::<f64, 1, 1, 1>::new(nalgebra::Vector3::zeros());
+        let z = crate::model::JointKind::Revolute { axis: nalgebra::Unit::new_normalize(nalgebra::Vector3::z()) };
+        let inertia = crate::model::Inertia::point_mass(1.0, nalgebra::Vector3::x());
+        b.add_body(
+            None,
+            crate::math::spatial::Placement::identity(),
+            z,
+            crate::model::JointDrive::actuated(0),
+            inertia,
+        )
+        .unwrap();
+        let fixed = b.add_frame(None, crate::math::spatial::Placement::identity()).unwrap();
+        let model = b.try_build().unwrap();
+        let mut data = Data::new(&model);
+        forward_kinematics(&model, &mut data, &SVector::from([0.3]), &SVector::zeros()).unwrap();
+        let x = AxisMask::new([true, false, false, false, false, false]);
+        let fast = manipulability(&model, &data, fixed, x, &[true]).unwrap();
+        assert!(fast.singular && fast == reference(&model, &data, fixed, x, &[true]).unwrap());
+        assert_eq!(
+            manipulability(&model, &data, FrameId(3), x, &[true]),
+            Err(TaskError::Dynamics(DynamicsError::UnknownFrame))
+        );
     }
 
     #[test]
