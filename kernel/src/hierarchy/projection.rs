@@ -78,10 +78,17 @@ impl<T: RealField + Copy, const N: usize, const R: usize, const L: usize> Defaul
 /// input projector `N_i` (successive: product of the level projectors above (4.4)–(4.6);
 /// augmented: the accumulated projector (4.9)–(4.13)). Then, row by row in stack order, the
 /// projected row `j̄ᵀ = N jᵀ` (augmented: the accumulated `N`; successive: the projector of
-/// this level's earlier rows) and `w = W⁻¹ j̄ᵀ` (a Cholesky solve, or nothing for `W = I`) give
-/// the scalar `s = j̄ w`, and `N ← N − a (N j̄ᵀ) wᵀ / s` — the only inversion is `1/s`. With
-/// [`Weighting::AccelerationBased`] the recursion is the static one and the level torque is
-/// mapped as `M N (M⁻¹ τ_i)` (4.38)–(4.42).
+/// this level's earlier rows) and `w = W⁻¹ j̄ᵀ` give the scalar `s = j̄ w`, and
+/// `N ← N − a (N j̄ᵀ) wᵀ / s` — the only inversion is `1/s`. With [`Weighting::AccelerationBased`]
+/// the recursion is the static one and the level torque is mapped as `M N (M⁻¹ τ_i)`
+/// (4.38)–(4.42).
+///
+/// With `W = L Lᵀ` (the Cholesky factor of [`Weighting::Inertia`] or [`Weighting::Stiffness`])
+/// the metric is applied by forward and backward substitution on the factor's column-major
+/// storage: `jW⁻¹jᵀ = |L⁻¹jᵀ|²` (one half-solve), `s = |L⁻¹j̄ᵀ|²` and `w = L⁻ᵀ(L⁻¹j̄ᵀ)`. The
+/// mat-vecs skip the zero entries of the (sparse) task rows, and the rank-one update works in
+/// place on the projector's columns. The transmissions of a level's rows are computed against
+/// its input projector before its first update, so no copy of the projector is made.
 ///
 /// A row's activation `a` is its task activation times the shaping of its norm ratio `ρ`
 /// ([`Shaping`]); with the continuous shaping, `a → 0` before `s → 0`, so `1/s` is only formed
@@ -89,7 +96,8 @@ impl<T: RealField + Copy, const N: usize, const R: usize, const L: usize> Defaul
 /// neither acts nor locks. The task force `f` is applied unscaled: unilateral tasks fade their
 /// own force with their potential.
 ///
-/// Writes `data` and returns the torque. Cost O(R N²) (+ O(R N²) for the solves with `W`).
+/// Writes `data` and returns the torque. Cost about `4.5 N²` multiply-adds per row that updates
+/// the projector, `N²` (less for sparse rows) per row of the last level without diagnostics.
 /// Errors (nothing written): a level `≥ L`, more rows than `R`, a non-finite row, an invalid
 /// shaping band.
 pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS: usize, const L: usize>(
@@ -99,74 +107,119 @@ pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS
 ) -> Result<&'d SVector<T, N>, HierarchyError> {
     validate(config, stack, R, L)?;
     let level_count = stack.level_count();
-    data.projector = SMatrix::identity();
-    data.torque = SVector::zeros();
-    data.level_count = level_count;
-    let mut diagnostics = data.rows.iter_mut();
+    let HierarchyData { projector, level_projector, torque, rows, levels, level_torques, level_count: count } = data;
+    *projector = SMatrix::identity();
+    *torque = SVector::zeros();
+    *count = level_count;
+    let mut scratch = Scratch::<T, N>::default();
+    let mut first_slot = 0;
     for (level, (level_diagnostics, level_torque)) in
-        data.levels.iter_mut().zip(data.level_torques.iter_mut()).enumerate().take(level_count)
+        levels.iter_mut().zip(level_torques.iter_mut()).enumerate().take(level_count)
     {
         let on_level = || stack.rows().iter().filter(move |r| r.level == level);
-        let input = data.projector;
-        let torque: SVector<T, N> =
-            on_level().fold(SVector::zeros(), |t, r| t + r.row.jacobian.transpose() * r.row.force);
-        let projected = apply_projector(&config.weighting, &input, &torque);
-        data.torque += projected;
-        *level_torque = projected;
-        *level_diagnostics = level_result(&torque, &projected);
+        let mut task_torque = SVector::<T, N>::zeros();
+        for r in on_level() {
+            let force = r.row.force;
+            for (t, &j) in task_torque.as_mut_slice().iter_mut().zip(r.row.jacobian.as_slice()) {
+                *t += j * force;
+            }
+        }
+        apply_projector(&config.weighting, projector, task_torque.as_slice(), level_torque);
+        for (t, &p) in torque.as_mut_slice().iter_mut().zip(level_torque.as_slice()) {
+            *t += p;
+        }
+        *level_diagnostics = level_result(&task_torque, level_torque);
 
-        if config.recursion == Recursion::Successive {
-            data.level_projector = SMatrix::identity();
-        }
-        let last = level + 1 == level_count;
-        for stack_row in on_level() {
-            if last && !config.diagnose_last_level {
-                // Nothing lies below the last level: its rows lock nothing. Only the cheap
-                // transmission diagnostic is kept.
-                if let Some(slot) = diagnostics.next() {
-                    *slot = RowDiagnostics {
-                        level,
-                        activation: stack_row.row.activation,
-                        projected_norm_ratio: T::zero(),
-                        transmission: transmission(&config.weighting, &input, &stack_row.row.jacobian.transpose()),
-                    };
-                }
-                continue;
-            }
-            let working = match config.recursion {
-                Recursion::Successive => &mut data.level_projector,
-                Recursion::Augmented | Recursion::Unprojected => &mut data.projector,
+        // Diagnostics against the level's input projector, before any row of the level updates it.
+        let mut level_rows = 0;
+        for (slot, r) in rows.iter_mut().skip(first_slot).zip(on_level()) {
+            *slot = RowDiagnostics {
+                level,
+                activation: r.row.activation,
+                projected_norm_ratio: T::zero(),
+                transmission: transmission(&config.weighting, projector, r.row.jacobian.as_slice(), &mut scratch.u),
             };
-            let mut row =
-                update_row(config, &input, working, stack_row.row.jacobian.transpose(), stack_row.row.activation);
-            row.level = level;
-            if let Some(slot) = diagnostics.next() {
-                *slot = row;
+            level_rows += 1;
+        }
+        // Nothing lies below the last level: without diagnostics its rows lock nothing (the
+        // skipped rows keep their task activation, ρ = 0 and their transmission).
+        let last = level + 1 == level_count;
+        if !last || config.diagnose_last_level {
+            if config.recursion == Recursion::Successive {
+                *level_projector = SMatrix::identity();
+            }
+            for (slot, r) in rows.iter_mut().skip(first_slot).zip(on_level()) {
+                let working = match config.recursion {
+                    Recursion::Successive => &mut *level_projector,
+                    Recursion::Augmented | Recursion::Unprojected => &mut *projector,
+                };
+                let (activation, ratio) =
+                    update_row(config, working, r.row.jacobian.as_slice(), r.row.activation, &mut scratch);
+                slot.activation = activation;
+                slot.projected_norm_ratio = ratio;
+            }
+            if config.recursion == Recursion::Successive {
+                *projector *= *level_projector;
             }
         }
-        if config.recursion == Recursion::Successive {
-            data.projector *= data.level_projector;
-        }
+        first_slot += level_rows;
     }
     Ok(&data.torque)
 }
 
-/// The rank-one update of one row; returns its diagnostics.
+/// Vectors of one row's update.
+struct Scratch<T: RealField, const N: usize> {
+    /// `j̄ᵀ = N jᵀ`.
+    projected: SVector<T, N>,
+    /// `L⁻¹ jᵀ`, then `w = W⁻¹ j̄ᵀ` (metric weightings only).
+    w: SVector<T, N>,
+    /// `N j̄ᵀ` (and the transmission's `N_in jᵀ`).
+    u: SVector<T, N>,
+}
+
+impl<T: RealField + Copy, const N: usize> Default for Scratch<T, N> {
+    fn default() -> Self {
+        Self { projected: SVector::zeros(), w: SVector::zeros(), u: SVector::zeros() }
+    }
+}
+
+/// The rank-one update `N ← N − a (N j̄ᵀ) wᵀ / s` of one row (the remark after Table 4.3,
+/// (4.13) with (4.70)–(4.72)); returns its activation `a` and norm ratio `ρ`.
 fn update_row<T: RealField + Copy, const N: usize>(
     config: &HierarchyConfig<'_, T, N>,
-    input: &SMatrix<T, N, N>,
     working: &mut SMatrix<T, N, N>,
-    row: SVector<T, N>,
+    row: &[T],
     task_activation: T,
-) -> RowDiagnostics<T> {
-    let transmission = transmission(&config.weighting, input, &row);
-    let reference = row.dot(&metric_solve(&config.weighting, &row));
-    let projected = *working * row;
-    let w = metric_solve(&config.weighting, &projected);
-    let s = projected.dot(&w);
+    scratch: &mut Scratch<T, N>,
+) -> (T, T) {
+    let factor = match config.weighting {
+        Weighting::Inertia(factor) | Weighting::Stiffness(factor) => Some(factor.l_dirty().as_slice()),
+        Weighting::Identity | Weighting::AccelerationBased(_) => None,
+    };
+    // jW⁻¹jᵀ = |L⁻¹jᵀ|² (or |j|²).
+    let reference = match factor {
+        Some(l) => {
+            copy(scratch.w.as_mut_slice(), row);
+            forward_substitute::<T, N>(l, scratch.w.as_mut_slice());
+            norm_squared(scratch.w.as_slice())
+        }
+        None => norm_squared(row),
+    };
     if !reference.is_finite() || reference <= T::zero() {
-        return RowDiagnostics { level: 0, activation: T::zero(), projected_norm_ratio: T::zero(), transmission };
+        return (T::zero(), T::zero());
     }
+    mat_vec::<T, N>(working.as_slice(), row, scratch.projected.as_mut_slice());
+    // s = j̄W⁻¹j̄ᵀ = |L⁻¹j̄ᵀ|², w = L⁻ᵀL⁻¹j̄ᵀ (or s = |j̄|², w = j̄).
+    let s = match factor {
+        Some(l) => {
+            copy(scratch.w.as_mut_slice(), scratch.projected.as_slice());
+            forward_substitute::<T, N>(l, scratch.w.as_mut_slice());
+            let s = norm_squared(scratch.w.as_slice());
+            backward_substitute::<T, N>(l, scratch.w.as_mut_slice());
+            s
+        }
+        None => norm_squared(scratch.projected.as_slice()),
+    };
     let ratio = (s.max(T::zero()) / reference).sqrt();
     let clamped = task_activation.max(T::zero()).min(T::one());
     let activation = match config.shaping {
@@ -182,49 +235,122 @@ fn update_row<T: RealField + Copy, const N: usize>(
         }
     };
     if activation > T::zero() && s > T::zero() && config.recursion != Recursion::Unprojected {
-        let u = *working * projected;
-        *working -= u * (w.transpose() * (activation / s));
+        mat_vec::<T, N>(working.as_slice(), scratch.projected.as_slice(), scratch.u.as_mut_slice());
+        let w = match factor {
+            Some(_) => scratch.w.as_slice(),
+            None => scratch.projected.as_slice(),
+        };
+        rank_one_update::<T, N>(working.as_mut_slice(), scratch.u.as_slice(), w, activation / s);
     }
-    RowDiagnostics { level: 0, activation, projected_norm_ratio: ratio, transmission }
+    (activation, ratio)
 }
 
-/// `‖N_in jᵀ‖ / ‖jᵀ‖`, 1 for a zero row.
+/// `‖N_in jᵀ‖ / ‖jᵀ‖` (the acceleration-based projector: `‖M N M⁻¹ jᵀ‖ / ‖jᵀ‖`), 1 for a zero
+/// row. `tmp` receives the projected row.
 fn transmission<T: RealField + Copy, const N: usize>(
     weighting: &Weighting<'_, T, N>,
     input: &SMatrix<T, N, N>,
-    row: &SVector<T, N>,
+    row: &[T],
+    tmp: &mut SVector<T, N>,
 ) -> T {
-    let row_norm = row.norm();
-    if row_norm > T::zero() {
-        apply_projector(weighting, input, row).norm() / row_norm
+    let row_squared = norm_squared(row);
+    if row_squared > T::zero() {
+        apply_projector(weighting, input, row, tmp);
+        (norm_squared(tmp.as_slice()) / row_squared).sqrt()
     } else {
         T::one()
     }
 }
 
-/// `W⁻¹ x` (identity for the static and the acceleration-based recursion).
-fn metric_solve<T: RealField + Copy, const N: usize>(
-    weighting: &Weighting<'_, T, N>,
-    x: &SVector<T, N>,
-) -> SVector<T, N> {
-    match weighting {
-        Weighting::Identity | Weighting::AccelerationBased(_) => *x,
-        Weighting::Inertia(factor) | Weighting::Stiffness(factor) => factor.solve(x),
-    }
-}
-
-/// `N τ`, or `M N M⁻¹ τ` for the acceleration-based projector (4.38).
+/// `out = N τ`, or `M N M⁻¹ τ` for the acceleration-based projector (4.38).
 fn apply_projector<T: RealField + Copy, const N: usize>(
     weighting: &Weighting<'_, T, N>,
     projector: &SMatrix<T, N, N>,
-    torque: &SVector<T, N>,
-) -> SVector<T, N> {
+    torque: &[T],
+    out: &mut SVector<T, N>,
+) {
     match weighting {
         Weighting::AccelerationBased(mass) => {
             let l = mass.l();
-            l * (l.transpose() * (projector * mass.solve(torque)))
+            *out = l * (l.transpose() * (projector * mass.solve(&SVector::from_iterator(torque.iter().copied()))));
         }
-        _ => projector * torque,
+        _ => mat_vec::<T, N>(projector.as_slice(), torque, out.as_mut_slice()),
+    }
+}
+
+/// `y = x` (element by element, no length check).
+fn copy<T: Copy>(y: &mut [T], x: &[T]) {
+    for (v, &s) in y.iter_mut().zip(x) {
+        *v = s;
+    }
+}
+
+/// `Σ xᵢ²`.
+fn norm_squared<T: RealField + Copy>(x: &[T]) -> T {
+    x.iter().fold(T::zero(), |acc, &v| acc + v * v)
+}
+
+/// `y = A x` for the column-major `N × N` matrix `a`, column by column; zero entries of `x`
+/// (the sparse task rows) are skipped.
+fn mat_vec<T: RealField + Copy, const N: usize>(a: &[T], x: &[T], y: &mut [T]) {
+    // Accumulated in a local array the optimiser keeps in registers.
+    let mut sum = [T::zero(); N];
+    for (column, &xc) in a.chunks_exact(N.max(1)).zip(x) {
+        if xc != T::zero() {
+            for (v, &aic) in sum.iter_mut().zip(column) {
+                *v += aic * xc;
+            }
+        }
+    }
+    for (v, s) in y.iter_mut().zip(sum) {
+        *v = s;
+    }
+}
+
+/// `A ← A − u (c w)ᵀ` in place on the column-major `N × N` matrix `a`.
+fn rank_one_update<T: RealField + Copy, const N: usize>(a: &mut [T], u: &[T], w: &[T], c: T) {
+    for (column, &wc) in a.chunks_exact_mut(N.max(1)).zip(w) {
+        let coefficient = wc * c;
+        for (aic, &ui) in column.iter_mut().zip(u) {
+            *aic -= ui * coefficient;
+        }
+    }
+}
+
+/// `x ← L⁻¹ x` by forward substitution, column by column, on the column-major storage of the
+/// lower-triangular `L` (only its lower triangle is read: `l_dirty()` of a Cholesky factor).
+/// Leading zeros of `x` cost nothing.
+fn forward_substitute<T: RealField + Copy, const N: usize>(l: &[T], x: &mut [T]) {
+    for (k, column) in l.chunks_exact(N.max(1)).enumerate() {
+        let Some((head, tail)) = x.split_at_mut_checked(k + 1) else {
+            break;
+        };
+        let (Some(xk), Some(&diagonal)) = (head.last_mut(), column.get(k)) else {
+            break;
+        };
+        if *xk == T::zero() {
+            continue;
+        }
+        *xk /= diagonal;
+        let value = *xk;
+        for (xi, &lik) in tail.iter_mut().zip(column.iter().skip(k + 1)) {
+            *xi -= lik * value;
+        }
+    }
+}
+
+/// `x ← L⁻ᵀ x` by backward substitution (dot products with the columns of `L` below the
+/// diagonal), on the column-major storage of the lower-triangular `L`.
+fn backward_substitute<T: RealField + Copy, const N: usize>(l: &[T], x: &mut [T]) {
+    for (k, column) in l.chunks_exact(N.max(1)).enumerate().rev() {
+        let Some((head, tail)) = x.split_at_mut_checked(k + 1) else {
+            continue;
+        };
+        let (Some(xk), Some(&diagonal)) = (head.last_mut(), column.get(k)) else {
+            continue;
+        };
+        let dot = tail.iter().zip(column.iter().skip(k + 1)).fold(T::zero(), |acc, (&xi, &lik)| acc + lik * xi);
+        *xk = (*xk - dot) / diagonal;
     }
 }
 
@@ -254,7 +380,9 @@ fn validate<T: RealField + Copy, const N: usize, const RS: usize>(
         return Err(HierarchyError::TooManyLevels { capacity: level_capacity });
     }
     let finite = stack.rows().iter().all(|r| {
-        r.row.force.is_finite() && r.row.activation.is_finite() && r.row.jacobian.iter().all(|x| x.is_finite())
+        r.row.force.is_finite()
+            && r.row.activation.is_finite()
+            && r.row.jacobian.as_slice().iter().all(|x| x.is_finite())
     });
     if !finite {
         return Err(HierarchyError::NonFinite);
@@ -276,6 +404,10 @@ fn validate<T: RealField + Copy, const N: usize, const RS: usize>(
         Err(HierarchyError::InvalidShaping)
     }
 }
+
+#[cfg(test)]
+#[path = "projection_reference.rs"]
+mod reference;
 
 #[cfg(test)]
 mod tests {
