@@ -4,6 +4,12 @@ use nalgebra::{RealField, SMatrix, SVector};
 
 use super::{HierarchyConfig, HierarchyError, Recursion, Shaping, Stack, Weighting};
 use crate::math::switching::transition_activation;
+#[cfg(test)]
+use {
+    super::push_transitioning,
+    crate::tasks::{TaskRow, TaskRows},
+    nalgebra::RowSVector,
+};
 
 /// What the recursion did with one row (stack order).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -214,9 +220,8 @@ fn update_row<T: RealField + Copy, const N: usize>(
         Some(l) => {
             copy(scratch.w.as_mut_slice(), scratch.projected.as_slice());
             forward_substitute::<T, N>(l, scratch.w.as_mut_slice());
-            let s = norm_squared(scratch.w.as_slice());
             backward_substitute::<T, N>(l, scratch.w.as_mut_slice());
-            s
+            dot(scratch.projected.as_slice(), scratch.w.as_slice())
         }
         None => norm_squared(scratch.projected.as_slice()),
     };
@@ -283,6 +288,11 @@ fn copy<T: Copy>(y: &mut [T], x: &[T]) {
     for (v, &s) in y.iter_mut().zip(x) {
         *v = s;
     }
+}
+
+/// `Σ xᵢ yᵢ`.
+fn dot<T: RealField + Copy>(x: &[T], y: &[T]) -> T {
+    x.iter().zip(y).fold(T::zero(), |acc, (&a, &b)| acc + a * b)
 }
 
 /// `Σ xᵢ²`.
@@ -627,6 +637,39 @@ mod tests {
         assert_eq!(data.torque, SVector::<f64, N>::repeat(7.0));
         let bad = HierarchyConfig { shaping: Shaping::Continuous { singular_full: 0.2, singular_start: 0.1 }, ..cfg };
         assert_eq!(project(&bad, &Stack::<f64, N, 8>::new(), &mut data), Err(HierarchyError::InvalidShaping));
+    }
+
+    /// Fast [`project`] against the plain reference recursion on random stacks (every
+    /// recursion × weighting × shaping, with and without last-level diagnostics), on the
+    /// branched test model (its mass matrix at random states, a random SPD stiffness).
+    #[test]
+    fn fast_recursion_equals_the_reference_on_the_test_model() {
+        let (mut worst64, mut worst32) = (0.0_f64, 0.0_f64);
+        for seed in 0..40 {
+            let mut rng = reference::TestRng::new(seed);
+            let mass = mass_factor(seed + 1);
+            let mass = mass.l() * mass.l().transpose();
+            let stiffness = reference::random_spd::<N>(&mut rng);
+            let stack = reference::random_stack::<N, 16>(&mut rng, 2 + seed as usize % 3);
+            worst64 = worst64.max(reference::compare_f64::<N, 16, 16, 4>(&stack, &mass, &stiffness, 1e-9));
+            worst32 = worst32.max(reference::compare_f32::<N, 16, 16, 4>(&stack, &mass, &stiffness, 4.0, 1e-5));
+        }
+        // The comparison is not vacuous: rounding differs (other summation order).
+        assert!(worst64 > 0.0 && worst32 > 0.0, "{worst64} {worst32}");
+    }
+
+    /// The same on a Justin-size system (`N = 20`, random SPD mass and stiffness matrices,
+    /// up to four levels).
+    #[test]
+    fn fast_recursion_equals_the_reference_for_20_coordinates() {
+        for seed in 0..20 {
+            let mut rng = reference::TestRng::new(1000 + seed);
+            let mass = reference::random_spd::<20>(&mut rng);
+            let stiffness = reference::random_spd::<20>(&mut rng);
+            let stack = reference::random_stack::<20, 24>(&mut rng, 2 + seed as usize % 3);
+            reference::compare_f64::<20, 24, 24, 4>(&stack, &mass, &stiffness, 1e-9);
+            reference::compare_f32::<20, 24, 24, 4>(&stack, &mass, &stiffness, 4.0, 1e-5);
+        }
     }
 
     #[test]

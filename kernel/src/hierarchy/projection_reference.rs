@@ -1,12 +1,15 @@
 //! The plain scalar-inverse projector recursion: the straightforward nalgebra form of
-//! [`project`](super::project) it replaced (the rank-one updates of (4.13) with `W⁻¹` applied by
+//! `project` it replaced (the rank-one updates of (4.13) with `W⁻¹` applied by
 //! full Cholesky solves, every product a generic nalgebra one). Test builds only: it is the
 //! reference the fast recursion is compared with (kernel unit tests on the small test models,
 //! `thesis-tests` on the Justin model, which include this file by path).
 //!
 //! The including module provides the names it uses (`use super::*`): nalgebra's `RealField`,
-//! `SMatrix`, `SVector`, the hierarchy's `HierarchyConfig`, `Recursion`, `Shaping`, `Stack`,
-//! `Weighting`, `RowDiagnostics`, `LevelDiagnostics` and `transition_activation`.
+//! `RowSVector`, `SMatrix`, `SVector`, the hierarchy's `HierarchyConfig`, `HierarchyData`,
+//! `Recursion`, `Shaping`, `Stack`, `Weighting`, `RowDiagnostics`, `LevelDiagnostics`,
+//! `push_transitioning`, the tasks' `TaskRow`, `TaskRows`, and `transition_activation`; and a
+//! function `project` with the signature of the kernel's.
+#![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "test support: a failure is a test failure")]
 
 use super::*;
 
@@ -179,4 +182,235 @@ fn level_result<T: RealField + Copy, const N: usize>(
         T::zero()
     };
     LevelDiagnostics { torque_norm, projected_torque_norm, conflict }
+}
+
+// --- comparison support: random stacks and the fast-vs-reference check ---------------------
+
+/// A xorshift generator for reproducible random test data.
+pub struct TestRng(u64);
+
+impl TestRng {
+    /// A generator from a seed (any value).
+    pub fn new(seed: u64) -> Self {
+        Self(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1)
+    }
+
+    /// Uniform in `[0, 1)`.
+    pub fn unit(&mut self) -> f64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// Uniform in `[-1, 1)`.
+    pub fn symmetric(&mut self) -> f64 {
+        2.0 * self.unit() - 1.0
+    }
+
+    /// Uniform in `0..n`.
+    pub fn below(&mut self, n: usize) -> usize {
+        ((self.unit() * n as f64) as usize).min(n.saturating_sub(1))
+    }
+}
+
+/// A random symmetric positive definite matrix `A Aᵀ + I/2`.
+pub fn random_spd<const N: usize>(rng: &mut TestRng) -> SMatrix<f64, N, N> {
+    let a = SMatrix::<f64, N, N>::from_fn(|_, _| rng.symmetric());
+    a * a.transpose() + SMatrix::identity() * 0.5
+}
+
+/// A random stack on `levels` levels (2–4 rows each, at most `RS` rows in all): dense rows,
+/// sparse rows (most entries zero, as a kinematic chain's), zero rows, rows nearly dependent
+/// on earlier ones (a combination of two earlier rows plus a `1e-9` perturbation: an
+/// algorithmic singularity) and rows with task activations in `(0, 1)`; plus, when there is
+/// room, a two-row task in transition between two levels (forces and activations scaled by
+/// the transition weight of a progress in `(0, 1)`).
+pub fn random_stack<const N: usize, const RS: usize>(rng: &mut TestRng, levels: usize) -> Stack<f64, N, RS> {
+    let mut stack = Stack::new();
+    let mut earlier: [RowSVector<f64, N>; RS] = [RowSVector::zeros(); RS];
+    let mut count = 0;
+    for level in 0..levels {
+        let rows = 2 + rng.below(3);
+        for _ in 0..rows {
+            if count + 2 >= RS {
+                break;
+            }
+            let mut activation = 1.0;
+            let jacobian = match rng.below(6) {
+                0 => RowSVector::zeros(),
+                1 if count >= 2 => {
+                    let (a, b) = (earlier[rng.below(count)], earlier[rng.below(count)]);
+                    a * rng.symmetric() + b * rng.symmetric() + RowSVector::from_fn(|_, _| 1e-9 * rng.symmetric())
+                }
+                2 => RowSVector::from_fn(|_, _| if rng.unit() < 0.3 { rng.symmetric() } else { 0.0 }),
+                3 => {
+                    activation = rng.unit();
+                    RowSVector::from_fn(|_, _| rng.symmetric())
+                }
+                _ => RowSVector::from_fn(|_, _| rng.symmetric()),
+            };
+            earlier[count] = jacobian;
+            count += 1;
+            let row = TaskRow { jacobian, force: 10.0 * rng.symmetric(), potential: 0.0, activation };
+            stack.push(level, row).unwrap();
+        }
+    }
+    if levels >= 2 && count + 4 <= RS {
+        let mut task = TaskRows::<f64, N, 2>::new();
+        for _ in 0..2 {
+            let jacobian = RowSVector::from_fn(|_, _| rng.symmetric());
+            task.push(TaskRow { jacobian, force: 5.0 * rng.symmetric(), potential: 0.0, activation: 1.0 }).unwrap();
+        }
+        let (from, to) = (rng.below(levels), rng.below(levels));
+        push_transitioning(&mut stack, &task, from, to, 0.05 + 0.9 * rng.unit()).unwrap();
+    }
+    stack
+}
+
+/// The stack in another scalar.
+pub fn cast_stack<T: RealField + Copy, const N: usize, const RS: usize>(stack: &Stack<f64, N, RS>) -> Stack<T, N, RS> {
+    let mut cast = Stack::new();
+    for r in stack.rows() {
+        let row = TaskRow {
+            jacobian: r.row.jacobian.map(nalgebra::convert::<f64, T>),
+            force: nalgebra::convert(r.row.force),
+            potential: nalgebra::convert(r.row.potential),
+            activation: nalgebra::convert(r.row.activation),
+        };
+        cast.push(r.level, row).unwrap();
+    }
+    cast
+}
+
+/// Number of configurations [`outputs`] runs: recursion (none, successive, augmented) ×
+/// weighting (`W = I`, `M`, `K`, acceleration-based) × shaping (continuous, classical) × last-level
+/// diagnostics (off, on).
+pub const CONFIGURATIONS: usize = 48;
+
+/// Outputs of one projection as named lists of numbers: torque, projector, level torques,
+/// level diagnostics, row activations, norm ratios and transmissions (row levels and the level
+/// count are compared exactly by [`outputs`] itself).
+pub type Outputs = std::vec::Vec<(&'static str, std::vec::Vec<f64>)>;
+
+/// Runs configuration `index < CONFIGURATIONS` on `stack` (cast to `T`) with the fast `project`
+/// and with [`project_reference`]; returns a description and both outputs.
+pub fn outputs<T: RealField + Copy, const N: usize, const RS: usize, const R: usize, const L: usize>(
+    stack: &Stack<f64, N, RS>,
+    mass: &SMatrix<f64, N, N>,
+    stiffness: &SMatrix<f64, N, N>,
+    index: usize,
+) -> (std::string::String, Outputs, Outputs) {
+    let stack = cast_stack::<T, N, RS>(stack);
+    let mass_factor = nalgebra::Cholesky::new(mass.map(nalgebra::convert::<f64, T>)).unwrap();
+    let stiffness_factor = nalgebra::Cholesky::new(stiffness.map(nalgebra::convert::<f64, T>)).unwrap();
+    let c = nalgebra::convert::<f64, T>;
+    let recursion = [Recursion::Unprojected, Recursion::Successive, Recursion::Augmented][index % 3];
+    let weighting = [
+        Weighting::Identity,
+        Weighting::Inertia(&mass_factor),
+        Weighting::Stiffness(&stiffness_factor),
+        Weighting::AccelerationBased(&mass_factor),
+    ][index / 3 % 4];
+    let shaping = [
+        Shaping::Continuous { singular_full: c(0.05), singular_start: c(0.15) },
+        Shaping::Discontinuous { singular_threshold: c(0.01) },
+    ][index / 12 % 2];
+    let diagnose_last_level = index / 24 % 2 == 1;
+    let config = HierarchyConfig { recursion, weighting, shaping, diagnose_last_level };
+    let what = std::format!(
+        "{recursion:?} {} {shaping:?} diagnose {diagnose_last_level}",
+        ["W = I", "W = M", "W = K", "acceleration-based"][index / 3 % 4]
+    );
+    let mut fast = HierarchyData::<T, N, R, L>::default();
+    project(&config, &stack, &mut fast).unwrap();
+    let reference = project_reference::<T, N, R, RS, L>(&config, &stack);
+    assert_eq!(fast.level_count, reference.level_count, "{what}");
+    let rows = stack.rows().len();
+    for (f, r) in fast.rows.iter().zip(&reference.rows).take(rows) {
+        assert_eq!(f.level, r.level, "{what}");
+    }
+    let f64s = |x: &[T]| x.iter().map(|v| nalgebra::try_convert::<T, f64>(*v).unwrap()).collect::<std::vec::Vec<_>>();
+    let flatten = |torque: &SVector<T, N>,
+                   projector: &SMatrix<T, N, N>,
+                   level_torques: &[SVector<T, N>],
+                   levels: &[LevelDiagnostics<T>],
+                   row_diagnostics: &[RowDiagnostics<T>]| {
+        let count = reference.level_count;
+        let level_torques: std::vec::Vec<T> =
+            level_torques.iter().take(count).flat_map(|t| t.as_slice().iter().copied()).collect();
+        let level_norms: std::vec::Vec<T> =
+            levels.iter().take(count).flat_map(|l| [l.torque_norm, l.projected_torque_norm]).collect();
+        let conflicts: std::vec::Vec<T> = levels.iter().take(count).map(|l| l.conflict).collect();
+        let row = |f: fn(&RowDiagnostics<T>) -> T| {
+            f64s(&row_diagnostics.iter().take(rows).map(f).collect::<std::vec::Vec<_>>())
+        };
+        std::vec![
+            ("torque", f64s(torque.as_slice())),
+            ("projector", f64s(projector.as_slice())),
+            ("level torques", f64s(&level_torques)),
+            ("level torque norms", f64s(&level_norms)),
+            ("level conflicts", f64s(&conflicts)),
+            ("row activations", row(|r| r.activation)),
+            ("row norm ratios", row(|r| r.projected_norm_ratio)),
+            ("row transmissions", row(|r| r.transmission)),
+        ]
+    };
+    let fast_outputs = flatten(&fast.torque, &fast.projector, &fast.level_torques, &fast.levels, &fast.rows);
+    let reference_outputs =
+        flatten(&reference.torque, &reference.projector, &reference.level_torques, &reference.levels, &reference.rows);
+    (what, fast_outputs, reference_outputs)
+}
+
+/// Largest difference of two lists relative to `1 + ` the largest magnitude of `b`.
+pub fn scaled_difference(a: &[f64], b: &[f64]) -> f64 {
+    let scale = b.iter().fold(1.0_f64, |m, x| m.max(x.abs()));
+    a.iter().zip(b).fold(0.0, |m, (x, y)| m.max((x - y).abs() / scale))
+}
+
+/// Every configuration in `f64`: fast and reference outputs agree within `tolerance` (scaled
+/// by [`scaled_difference`]). Returns the largest difference.
+pub fn compare_f64<const N: usize, const RS: usize, const R: usize, const L: usize>(
+    stack: &Stack<f64, N, RS>,
+    mass: &SMatrix<f64, N, N>,
+    stiffness: &SMatrix<f64, N, N>,
+    tolerance: f64,
+) -> f64 {
+    let mut worst = 0.0_f64;
+    for index in 0..CONFIGURATIONS {
+        let (what, fast, reference) = outputs::<f64, N, RS, R, L>(stack, mass, stiffness, index);
+        for ((name, a), (_, b)) in fast.iter().zip(&reference) {
+            let difference = scaled_difference(a, b);
+            assert!(difference <= tolerance, "{what}: {name} differs by {difference:e}");
+            worst = worst.max(difference);
+        }
+    }
+    worst
+}
+
+/// Every configuration in `f32`, judged against the `f64` reference: the fast recursion's
+/// error is at most `factor` times the `f32` reference's own error plus `floor` (both scaled
+/// by [`scaled_difference`]). Returns the largest difference between the fast and the
+/// reference `f32` outputs.
+pub fn compare_f32<const N: usize, const RS: usize, const R: usize, const L: usize>(
+    stack: &Stack<f64, N, RS>,
+    mass: &SMatrix<f64, N, N>,
+    stiffness: &SMatrix<f64, N, N>,
+    factor: f64,
+    floor: f64,
+) -> f64 {
+    let mut worst = 0.0_f64;
+    for index in 0..CONFIGURATIONS {
+        let (what, fast, reference) = outputs::<f32, N, RS, R, L>(stack, mass, stiffness, index);
+        let (_, _, exact) = outputs::<f64, N, RS, R, L>(stack, mass, stiffness, index);
+        for (((name, a), (_, b)), (_, e)) in fast.iter().zip(&reference).zip(&exact) {
+            let (fast_error, reference_error) = (scaled_difference(a, e), scaled_difference(b, e));
+            assert!(
+                fast_error <= factor * reference_error + floor,
+                "{what}: {name} off the f64 result by {fast_error:e} (the f32 reference by {reference_error:e})"
+            );
+            worst = worst.max(scaled_difference(a, b));
+        }
+    }
+    worst
 }
