@@ -90,11 +90,15 @@ impl<T: RealField + Copy, const N: usize, const R: usize, const L: usize> Defaul
 /// (4.38)–(4.42).
 ///
 /// With `W = L Lᵀ` (the Cholesky factor of [`Weighting::Inertia`] or [`Weighting::Stiffness`])
-/// the metric is applied by forward and backward substitution on the factor's column-major
-/// storage: `jW⁻¹jᵀ = |L⁻¹jᵀ|²` (one half-solve), `s = |L⁻¹j̄ᵀ|²` and `w = L⁻ᵀ(L⁻¹j̄ᵀ)`. The
-/// mat-vecs skip the zero entries of the (sparse) task rows, and the rank-one update works in
+/// `W⁻¹ = L⁻ᵀL⁻¹` is formed once per projection (about `N³/2` multiply-adds, only if some row
+/// updates the projector) from the factor's column-major storage, and each row applies it by
+/// two mat-vecs: `jW⁻¹jᵀ = j (W⁻¹jᵀ)` and `w = W⁻¹j̄ᵀ`. All mat-vecs run column by column over
+/// the column-major storage and skip the zero entries of the vector (task rows are sparse, and
+/// projected rows keep zeros where the projector does not couple); the rank-one update works in
 /// place on the projector's columns. The transmissions of a level's rows are computed against
-/// its input projector before its first update, so no copy of the projector is made.
+/// its input projector before its first update, so no copy of the projector is made, and while
+/// the input projector is still exactly `I` (the first level) the level torque and the
+/// transmissions need no mat-vec at all.
 ///
 /// A row's activation `a` is its task activation times the shaping of its norm ratio `ρ`
 /// ([`Shaping`]); with the continuous shaping, `a → 0` before `s → 0`, so `1/s` is only formed
@@ -102,8 +106,9 @@ impl<T: RealField + Copy, const N: usize, const R: usize, const L: usize> Defaul
 /// neither acts nor locks. The task force `f` is applied unscaled: unilateral tasks fade their
 /// own force with their potential.
 ///
-/// Writes `data` and returns the torque. Cost about `4.5 N²` multiply-adds per row that updates
-/// the projector, `N²` (less for sparse rows) per row of the last level without diagnostics.
+/// Writes `data` and returns the torque. Cost: at most `5 N²` multiply-adds per row that updates
+/// the projector (`4 N²` for one that does not lock), `N²` (less for sparse rows, none on the
+/// first level) per row of the last level without diagnostics.
 /// Errors (nothing written): a level `≥ L`, more rows than `R`, a non-finite row, an invalid
 /// shaping band.
 pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS: usize, const L: usize>(
@@ -314,8 +319,8 @@ fn norm_squared<T: RealField + Copy>(x: &[T]) -> T {
     x.iter().fold(T::zero(), |acc, &v| acc + v * v)
 }
 
-/// `y = A x` for the column-major `N × N` matrix `a`, column by column; zero entries of `x`
-/// (the sparse task rows) are skipped.
+/// `y = A x` for the column-major `N × N` matrix `a`, column by column, accumulated in
+/// registers; zero entries of `x` are skipped (task rows are sparse, projected rows often too).
 fn mat_vec<T: RealField + Copy, const N: usize>(a: &[T], x: &[T], y: &mut [T]) {
     // Accumulated in a local array the optimiser keeps in registers.
     let mut sum = [T::zero(); N];
