@@ -421,10 +421,17 @@ fn validate<T: RealField + Copy, const N: usize, const RS: usize>(
     if stack.level_count() > level_capacity {
         return Err(HierarchyError::TooManyLevels { capacity: level_capacity });
     }
+    // `x · 0` is ±0 for a finite `x` and NaN otherwise, and NaN propagates through the sum: one
+    // multiply-add per entry instead of a test and a branch.
     let finite = stack.rows().iter().all(|r| {
-        r.row.force.is_finite()
-            && r.row.activation.is_finite()
-            && r.row.jacobian.as_slice().iter().all(|x| x.is_finite())
+        let zero = T::zero();
+        let probe = r
+            .row
+            .jacobian
+            .as_slice()
+            .iter()
+            .fold(r.row.force * zero + r.row.activation * zero, |sum, &x| sum + x * zero);
+        probe == zero
     });
     if !finite {
         return Err(HierarchyError::NonFinite);
@@ -665,6 +672,16 @@ mod tests {
         assert_eq!(project(&cfg, &stack, &mut data), Err(HierarchyError::TooManyLevels { capacity: 4 }));
         stack.clear();
         stack.push(0, TaskRow { force: f64::NAN, ..row(RowSVector::zeros(), 0.0) }).unwrap();
+        assert_eq!(project(&cfg, &stack, &mut data), Err(HierarchyError::NonFinite));
+        for (entry, value) in [(0, f64::INFINITY), (N - 1, f64::NEG_INFINITY), (2, f64::NAN)] {
+            let mut j = RowSVector::<f64, N>::from_element(1e300);
+            j[entry] = value;
+            stack.clear();
+            stack.push(0, row(j, 1.0)).unwrap();
+            assert_eq!(project(&cfg, &stack, &mut data), Err(HierarchyError::NonFinite), "entry {entry}");
+        }
+        stack.clear();
+        stack.push(0, TaskRow { activation: f64::NEG_INFINITY, ..row(RowSVector::from_element(1.0), 0.0) }).unwrap();
         assert_eq!(project(&cfg, &stack, &mut data), Err(HierarchyError::NonFinite));
         assert_eq!(data.torque, SVector::<f64, N>::repeat(7.0));
         let bad = HierarchyConfig { shaping: Shaping::Continuous { singular_full: 0.2, singular_start: 0.1 }, ..cfg };
