@@ -209,7 +209,7 @@ pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS
 struct Scratch<T: RealField, const N: usize> {
     /// `j̄ᵀ = N jᵀ`.
     projected: SVector<T, N>,
-    /// `L⁻¹ jᵀ`, then `w = W⁻¹ j̄ᵀ` (metric weightings only).
+    /// `W⁻¹ jᵀ`, then `w = W⁻¹ j̄ᵀ` (metric weightings only).
     w: SVector<T, N>,
     /// `N j̄ᵀ` (and the transmission's `N_in jᵀ`).
     u: SVector<T, N>,
