@@ -396,29 +396,43 @@ pub fn inverse_reflected_masses<T: RealField + Copy, const N: usize, const K: us
     factor_rows: &SMatrix<T, N, N>,
     rhs: [&[T; N]; K],
 ) -> Result<[T; K], TaskError> {
-    let mut y = [[T::zero(); N]; K];
+    // `y[k]` holds the K solutions' entries `k` side by side: one pass over each row of `L`
+    // serves every right-hand side.
+    let mut y = [[T::zero(); K]; N];
     let start = rhs.iter().map(|b| b.iter().position(|x| !x.is_zero()).unwrap_or(N)).fold(N, usize::min);
     for (i, row) in factor_rows.as_slice().chunks_exact(N).enumerate().skip(start) {
-        let Some((before, Some(&diag))) = row.split_at_checked(i).map(|(b, r)| (b, r.first())) else {
+        let (Some(before), Some(&diag)) = (row.get(start..i), row.get(i)) else {
             break;
         };
         if diag.is_zero() {
             return Err(TaskError::Singular);
         }
-        let before = before.get(start..).unwrap_or(&[]);
-        for (yk, b) in y.iter_mut().zip(rhs) {
-            let Some((done, current)) = yk.split_at_mut_checked(i) else {
-                break;
-            };
-            let (Some(yi), Some(&bi)) = (current.first_mut(), b.get(i)) else {
-                break;
-            };
-            let done = done.get(start..).unwrap_or(&[]);
-            let sum = before.iter().zip(done).fold(bi, |acc, (&l, &yj)| acc + -(yj * l));
-            *yi = sum / diag;
+        let Some((done, current)) = y.split_at_mut_checked(i) else {
+            break;
+        };
+        let (Some(yi), Some(done)) = (current.first_mut(), done.get(start..)) else {
+            break;
+        };
+        let mut sum = [T::zero(); K];
+        for (s, b) in sum.iter_mut().zip(rhs) {
+            *s = b.get(i).copied().unwrap_or_else(T::zero);
+        }
+        for (&l, yk) in before.iter().zip(done.iter()) {
+            for (s, &x) in sum.iter_mut().zip(yk) {
+                *s += -(x * l);
+            }
+        }
+        for (x, s) in yi.iter_mut().zip(sum) {
+            *x = s / diag;
         }
     }
-    Ok(y.map(|v| v.iter().fold(T::zero(), |s, &x| s + x * x)))
+    let mut norms = [T::zero(); K];
+    for yk in &y {
+        for (n, &x) in norms.iter_mut().zip(yk) {
+            *n += x * x;
+        }
+    }
+    Ok(norms)
 }
 
 /// Writes `eᵀ J_{x,q}` for the point `point` (world, m) on `body` into `row` (zeroed first):
