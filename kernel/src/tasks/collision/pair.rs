@@ -401,40 +401,27 @@ pub fn inverse_reflected_masses<T: RealField + Copy, const N: usize, const K: us
     let mut y = [[T::zero(); K]; N];
     let start = rhs.iter().map(|b| b.iter().position(|x| !x.is_zero()).unwrap_or(N)).fold(N, usize::min);
     for (i, row) in factor_rows.as_slice().chunks_exact(N).enumerate().skip(start) {
-        let Some(&diag) = row.get(i) else {
+        let (Some(before), Some(&diag)) = (row.get(start..i), row.get(i)) else {
             break;
         };
         if diag.is_zero() {
             return Err(TaskError::Singular);
         }
-        // The dot product runs over whole blocks of four from `start`: past the diagonal the
-        // rows of `L` are zero (`factor_rows`) and so are the entries of `y` not yet solved
-        // (`y_i` included), so the padding adds only zero terms at the end of each sum.
-        let end = (start + (i + 1 - start).next_multiple_of(4)).min(N);
-        let (Some(l), Some(solved)) = (row.get(start..end), y.get(start..end)) else {
+        let Some((done, current)) = y.split_at_mut_checked(i) else {
+            break;
+        };
+        let (Some(yi), Some(done)) = (current.first_mut(), done.get(start..)) else {
             break;
         };
         let mut sum = [T::zero(); K];
         for (s, b) in sum.iter_mut().zip(rhs) {
             *s = b.get(i).copied().unwrap_or_else(T::zero);
         }
-        let (l_blocks, y_blocks) = (l.chunks_exact(4), solved.chunks_exact(4));
-        let (l_rest, y_rest) = (l_blocks.remainder(), y_blocks.remainder());
-        for (lb, yb) in l_blocks.zip(y_blocks) {
-            for (&lk, yk) in lb.iter().zip(yb) {
-                for (s, &x) in sum.iter_mut().zip(yk) {
-                    *s += -(x * lk);
-                }
-            }
-        }
-        for (&lk, yk) in l_rest.iter().zip(y_rest) {
+        for (&l, yk) in before.iter().zip(done.iter()) {
             for (s, &x) in sum.iter_mut().zip(yk) {
-                *s += -(x * lk);
+                *s += -(x * l);
             }
         }
-        let Some(yi) = y.get_mut(i) else {
-            break;
-        };
         for (x, s) in yi.iter_mut().zip(sum) {
             *x = s / diag;
         }
