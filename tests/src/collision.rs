@@ -17,7 +17,8 @@ use fixtures::justin::{self, collision as jc};
 use kernel::dynamics::{crba, forward_kinematics, mass_matrix_cholesky};
 use kernel::model::BodyId;
 use kernel::tasks::collision::{
-    exclusion_rule, proximity, self_collision_rows, CollisionData, CollisionParameters, Volume, VolumeId,
+    evaluate_pair, exclusion_rule, factor_rows, inverse_reflected_masses, proximity, self_collision_rows,
+    CollisionData, CollisionParameters, Volume, VolumeId,
 };
 use kernel::tasks::TaskRows;
 use kernel::{Data, Model};
@@ -563,6 +564,80 @@ fn justin_rows_in_f32_agree_with_f64() {
         assert!((t64 - t32).amax() <= 2e-3 * t64.amax().max(1.0), "{t64} vs {t32}");
         compared += 1;
     }
+}
+
+/// The fast rows of `self_collision_rows` (support-path Jacobians, one forward substitution
+/// for both reflected masses, closed-form damping) against the reference `evaluate_pair` on
+/// random Justin states with random velocities: Jacobian, force, potential and activation of
+/// every row, and both reflected masses (3.20) of every emitted pair, relative to `tolerance`.
+fn justin_fast_rows_match_reference<T: nalgebra::RealField + Copy>(tolerance: f64, seed: u64) {
+    let model = justin::model::<T>().unwrap();
+    let bounds = justin::model::<f64>().unwrap();
+    let collision = jc::collision_model(&model).unwrap();
+    let mut data = Data::new(&model);
+    let mut cd = CollisionData::new(&collision);
+    let c = |x: f64| nalgebra::convert::<f64, T>(x);
+    let parameters = CollisionParameters::try_new(c(25.0), c(0.15), c(0.7), c(0.0), c(0.15)).unwrap();
+    let f = |x: T| nalgebra::try_convert::<T, f64>(x).unwrap();
+    let mut rng = Rng(seed);
+    let (mut rows_compared, mut damped) = (0, 0);
+    for _ in 0..60 {
+        let q = random_state(&bounds, &mut rng);
+        let v = SVector::<f64, N>::from_fn(|_, _| rng.uniform(-1.0, 1.0));
+        forward_kinematics(&model, &mut data, &q.cast::<T>(), &v.cast::<T>()).unwrap();
+        crba(&model, &mut data);
+        let factor = mass_matrix_cholesky(&data).unwrap();
+        let mut rows = TaskRows::<T, N, ROWS>::new();
+        let report = self_collision_rows(&collision, &mut cd, &model, &data, &factor, &parameters, &mut rows).unwrap();
+        assert_eq!(report.dropped, 0);
+        let rows_of_l = factor_rows(&factor);
+        let emitted: Vec<usize> = (0..collision.pairs().len())
+            .filter(|&k| {
+                cd.proximities[k].distance < parameters.emit_distance() && cd.proximities[k].direction.is_some()
+            })
+            .collect();
+        assert_eq!(rows.len(), emitted.len());
+        for (row, &pair) in rows.rows().iter().zip(&emitted) {
+            let e = evaluate_pair(&collision, &cd, &model, &data, &factor, &parameters, pair).unwrap();
+            let scale = 1.0 + f(e.row.jacobian.amax());
+            for (a, b) in row.jacobian.iter().zip(e.row.jacobian.iter()) {
+                assert!(f((*a - *b).abs()) <= tolerance * scale, "pair {pair}: {} vs {}", row.jacobian, e.row.jacobian);
+            }
+            for (name, a, b) in [
+                ("force", row.force, e.row.force),
+                ("potential", row.potential, e.row.potential),
+                ("activation", row.activation, e.row.activation),
+            ] {
+                assert!(f((a - b).abs()) <= tolerance * (1.0 + f(b.abs())), "pair {pair} {name}: {a} vs {b}");
+            }
+            let [wi, wj] = inverse_reflected_masses(
+                &rows_of_l,
+                [&e.jacobian_first.transpose().into(), &e.jacobian_second.transpose().into()],
+            )
+            .unwrap();
+            for (fast, reference) in [(wi, e.inverse_masses.x), (wj, e.inverse_masses.y)] {
+                assert!(
+                    f((fast - reference).abs()) <= tolerance * f(reference.abs()),
+                    "pair {pair}: 1/m {fast} vs {reference}"
+                );
+            }
+            rows_compared += 1;
+            if e.row.force != parameters.force(e.distance) {
+                damped += 1;
+            }
+        }
+    }
+    assert!(rows_compared > 200 && damped > 150, "{rows_compared} rows, {damped} damped");
+}
+
+#[test]
+fn justin_fast_rows_match_the_reference_f64() {
+    justin_fast_rows_match_reference::<f64>(1e-12, 0xFA57_0000_0000_0064);
+}
+
+#[test]
+fn justin_fast_rows_match_the_reference_f32() {
+    justin_fast_rows_match_reference::<f32>(5e-4, 0xFA57_0000_0000_0032);
 }
 
 /// Fig. 3.5 / Table 3.1 on the one-dimensional collision-direction model (`sca_damping`).

@@ -21,7 +21,8 @@ pub fn guarded_divide<T: RealField + Copy>(numerator: T, denominator: T, thresho
     }
 }
 
-/// `true` if every entry of `m` is finite (no NaN, no infinity).
+/// `true` if every entry of `m` is finite (no NaN, no infinity): one pass over the contiguous
+/// storage (`as_slice`), without nalgebra's strided element iterator.
 ///
 /// ```
 /// use kernel::math::all_finite;
@@ -31,5 +32,5 @@ pub fn guarded_divide<T: RealField + Copy>(numerator: T, denominator: T, thresho
 /// ```
 #[inline]
 pub fn all_finite<T: RealField + Copy, const R: usize, const C: usize>(m: &SMatrix<T, R, C>) -> bool {
-    m.iter().all(|x| x.is_finite())
+    m.as_slice().iter().all(|x| x.is_finite())
 }

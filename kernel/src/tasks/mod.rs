@@ -55,11 +55,15 @@ impl<T: RealField + Copy, const N: usize, const R: usize> TaskRows<T, N, R> {
     }
 
     /// Appends a row; rejects non-finite rows and a full list (the list is unchanged then).
+    ///
+    /// The finiteness check runs over the Jacobian's contiguous storage (`as_slice`); inlined,
+    /// so that a row built at the call site is written into the list without an extra copy.
+    #[inline]
     pub fn push(&mut self, row: TaskRow<T, N>) -> Result<(), TaskError> {
         let finite = row.force.is_finite()
             && row.potential.is_finite()
             && row.activation.is_finite()
-            && row.jacobian.iter().all(|x| x.is_finite());
+            && row.jacobian.as_slice().iter().all(|x| x.is_finite());
         if !finite {
             return Err(TaskError::NonFinite);
         }

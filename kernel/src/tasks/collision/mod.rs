@@ -52,7 +52,7 @@ pub use model::{
     Volume, VolumeId,
 };
 pub use pair::{
-    collision_rows_from_geometry, evaluate_pair, inverse_reflected_mass, pair_damping, self_collision_rows,
-    CollisionParameters, CollisionReport, PairEvaluation,
+    collision_rows_from_geometry, evaluate_pair, factor_rows, inverse_reflected_mass, inverse_reflected_masses,
+    pair_damping, self_collision_rows, CollisionParameters, CollisionReport, PairEvaluation,
 };
 pub use volumes::{closest_points, proximity, Core, Proximity, SweptSphere};

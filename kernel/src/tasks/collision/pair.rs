@@ -22,7 +22,9 @@
 //! order, which is why only the principal block diagonal of (3.6) remains, (3.7)).
 
 use heapless::Vec;
-use nalgebra::{convert, Cholesky, Const, Matrix1, Matrix2, RealField, RowSVector, SVector, Vector1, Vector2};
+use nalgebra::{
+    convert, Cholesky, Const, Matrix1, Matrix2, RealField, RowSVector, SMatrix, SVector, Vector1, Vector2, Vector3,
+};
 
 use super::model::{CollisionData, CollisionModel, CollisionPair};
 use super::volumes::Proximity;
@@ -366,6 +368,189 @@ pub fn evaluate_pair<
     Ok(PairEvaluation { pair, distance: d, jacobian_first, jacobian_second, inverse_masses, damping, row })
 }
 
+/// The rows of the Cholesky factor `L` of `M = L Lᵀ` as contiguous slices: `Lᵀ` in
+/// column-major storage (column `i` holds row `i` of `L`; only its first `i + 1` entries, the
+/// lower triangle, are written). Built once per [`collision_rows_from_geometry`] call for the
+/// dot-product forward substitutions of [`inverse_reflected_masses`].
+pub fn factor_rows<T: RealField + Copy, const N: usize>(mass_cholesky: &Cholesky<T, Const<N>>) -> SMatrix<T, N, N> {
+    let mut rows = SMatrix::<T, N, N>::zeros();
+    let out = rows.as_mut_slice();
+    for (c, column) in mass_cholesky.l_dirty().as_slice().chunks_exact(N).enumerate() {
+        for (r, &x) in column.iter().enumerate().skip(c) {
+            if let Some(slot) = out.get_mut(r * N + c) {
+                *slot = x;
+            }
+        }
+    }
+    rows
+}
+
+/// `(‖L⁻¹ b₁‖², …, ‖L⁻¹ b_K‖²)` with `M = L Lᵀ` given by [`factor_rows`] (1/kg): the inverse
+/// reflected masses `J M⁻¹ Jᵀ` (3.20) of the Jacobian rows `J = bₖᵀ`.
+///
+/// Forward substitution in dot-product form over the rows of `L`,
+/// `yᵢ = (bᵢ − Σ_{k<i} l_ik y_k) / l_ii`, with the same operations in the same order as the
+/// column-oriented [`inverse_reflected_mass`] (the reference), starting at the first nonzero
+/// entry of the right-hand sides (the entries of `y` before it are zero).
+pub fn inverse_reflected_masses<T: RealField + Copy, const N: usize, const K: usize>(
+    factor_rows: &SMatrix<T, N, N>,
+    rhs: [&[T; N]; K],
+) -> Result<[T; K], TaskError> {
+    // `y[k]` holds the K solutions' entries `k` side by side: one pass over each row of `L`
+    // serves every right-hand side.
+    let mut y = [[T::zero(); K]; N];
+    let start = rhs.iter().map(|b| b.iter().position(|x| !x.is_zero()).unwrap_or(N)).fold(N, usize::min);
+    for (i, row) in factor_rows.as_slice().chunks_exact(N).enumerate().skip(start) {
+        let (Some(before), Some(&diag)) = (row.get(start..i), row.get(i)) else {
+            break;
+        };
+        if diag.is_zero() {
+            return Err(TaskError::Singular);
+        }
+        let Some((done, current)) = y.split_at_mut_checked(i) else {
+            break;
+        };
+        let (Some(yi), Some(done)) = (current.first_mut(), done.get(start..)) else {
+            break;
+        };
+        let mut sum = [T::zero(); K];
+        for (s, b) in sum.iter_mut().zip(rhs) {
+            *s = b.get(i).copied().unwrap_or_else(T::zero);
+        }
+        for (&l, yk) in before.iter().zip(done.iter()) {
+            for (s, &x) in sum.iter_mut().zip(yk) {
+                *s += -(x * l);
+            }
+        }
+        for (x, s) in yi.iter_mut().zip(sum) {
+            *x = s / diag;
+        }
+    }
+    let mut norms = [T::zero(); K];
+    for yk in &y {
+        for (n, &x) in norms.iter_mut().zip(yk) {
+            *n += x * x;
+        }
+    }
+    Ok(norms)
+}
+
+/// Writes `eᵀ J_{x,q}` for the point `point` (world, m) on `body` into `row` (zeroed first):
+/// per joint on the support path, `eᵀ (v_S + ω_S × x) = eᵀ v_S + ω_Sᵀ (x × e)` spread over
+/// the joint's drive terms, (3.17)–(3.18). The fast form of [`projected_jacobian`].
+fn projected_jacobian_into<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
+    model: &Model<T, N, B, F>,
+    data: &Data<T, N, B, F>,
+    body: BodyId,
+    point: &Vector3<T>,
+    direction: &Vector3<T>,
+    row: &mut [T; N],
+) -> Result<(), TaskError> {
+    *row = [T::zero(); N];
+    let bodies = model.bodies();
+    bodies.get(body.0).ok_or(DynamicsError::UnknownBody)?;
+    let moment = point.cross(direction);
+    let (e, m) = (direction, &moment);
+    let mut next = Some(body);
+    for _ in 0..B {
+        let Some(id) = next else {
+            break;
+        };
+        let Some(joint) = bodies.get(id.0) else {
+            break;
+        };
+        next = joint.parent;
+        let Some(s) = data.motion_subspaces.get(id.0) else {
+            continue;
+        };
+        let value = e.x * s.w + e.y * s.a + e.z * s.b + (m.x * s.x + m.y * s.y + m.z * s.z);
+        for term in joint.drive.terms() {
+            if let Some(x) = row.get_mut(term.coordinate) {
+                *x += value * term.coefficient;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The row of pair `pair` (as [`evaluate_pair`]`(..).row`, equal to rounding) without the
+/// pair's intermediate results: the two projected Jacobians written in place
+/// ([`projected_jacobian_into`]), both inverse reflected masses (3.20) by one forward
+/// substitution over `factor_rows` ([`inverse_reflected_masses`]; skipped for a world-fixed
+/// volume, whose mass is infinite, and when the stiffness and so the damping is zero), and the
+/// damping constant of (3.23) in the closed form `c = 2 ξ √(k / (m_i⁻¹ + m_j⁻¹))` (see
+/// [`pair_damping`]). The proximity must have a direction.
+fn pair_row<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const V: usize, const P: usize>(
+    collision_model: &CollisionModel<T, V, P>,
+    collision: &CollisionData<T, V, P>,
+    model: &Model<T, N, B, F>,
+    data: &Data<T, N, B, F>,
+    factor_rows: &SMatrix<T, N, N>,
+    parameters: &CollisionParameters<T>,
+    pair: usize,
+) -> Result<TaskRow<T, N>, TaskError> {
+    let invalid = TaskError::InvalidParameter { name: "pair" };
+    let &CollisionPair { first, second } = collision_model.pairs().get(pair).ok_or(invalid)?;
+    let proximity: &Proximity<T> = collision.proximities.get(pair).ok_or(invalid)?;
+    let (Some(a), Some(b)) = (collision_model.volume(first), collision_model.volume(second)) else {
+        return Err(invalid);
+    };
+    let e = proximity.direction.ok_or(TaskError::Singular)?.into_inner();
+    let d = proximity.distance;
+    let stiffness = parameters.stiffness(d);
+    let mut jacobian_first = [T::zero(); N];
+    let mut jacobian_second = [T::zero(); N];
+    if let Some(body) = a.body {
+        projected_jacobian_into(model, data, body, &proximity.core_first, &e, &mut jacobian_first)?;
+    }
+    if let Some(body) = b.body {
+        projected_jacobian_into(model, data, body, &proximity.core_second, &e, &mut jacobian_second)?;
+    }
+    let inverse_mass_sum = if stiffness <= T::zero() {
+        T::zero()
+    } else {
+        match (a.body.is_some(), b.body.is_some()) {
+            (true, true) => {
+                let [wi, wj] = inverse_reflected_masses(factor_rows, [&jacobian_first, &jacobian_second])?;
+                wi + wj
+            }
+            (true, false) => inverse_reflected_masses(factor_rows, [&jacobian_first])?[0],
+            (false, true) => inverse_reflected_masses(factor_rows, [&jacobian_second])?[0],
+            (false, false) => T::zero(),
+        }
+    };
+    if !inverse_mass_sum.is_finite() {
+        return Err(TaskError::NonFinite);
+    }
+    let c = if stiffness > T::zero() && inverse_mass_sum > T::zero() {
+        convert::<f64, T>(2.0) * parameters.damping_ratio * (stiffness / inverse_mass_sum).sqrt()
+    } else {
+        T::zero()
+    };
+    let mut row = TaskRow {
+        jacobian: RowSVector::<T, N>::zeros(),
+        force: T::zero(),
+        potential: parameters.potential(d),
+        activation: parameters.activation(d),
+    };
+    let mut rate = T::zero();
+    for (((x, &ji), &jj), &v) in
+        row.jacobian.as_mut_slice().iter_mut().zip(&jacobian_first).zip(&jacobian_second).zip(data.v.as_slice())
+    {
+        *x = jj - ji;
+        rate += *x * v;
+    }
+    row.force = parameters.force(d) - c * rate;
+    let finite = row.force.is_finite()
+        && row.potential.is_finite()
+        && row.activation.is_finite()
+        && row.jacobian.as_slice().iter().all(|x| x.is_finite());
+    if !finite {
+        return Err(TaskError::NonFinite);
+    }
+    Ok(row)
+}
+
 /// What [`self_collision_rows`] did in one cycle (telemetry).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CollisionReport<T> {
@@ -499,18 +684,21 @@ pub fn collision_rows_from_geometry<
             }
         }
     }
-    // Rows in pair order: a pass over the pairs with a membership test (O(P·R) comparisons)
-    // instead of a sort, whose ordering-violation panic path would survive in the image.
-    let mut staged: Vec<TaskRow<T, N>, R> = Vec::new();
-    let chosen = (0..collision_model.pairs().len()).filter(|index| selected.iter().any(|&(_, s)| s == *index));
-    for index in chosen {
-        let evaluation = evaluate_pair(collision_model, collision, model, data, mass_cholesky, parameters, index)?;
-        let r = evaluation.row;
-        let finite = r.force.is_finite() && r.potential.is_finite() && r.jacobian.iter().all(|x| x.is_finite());
-        if !finite {
-            return Err(TaskError::NonFinite);
+    // Rows in pair order: a pass over a membership mask of the pairs instead of a sort, whose
+    // ordering-violation panic path would survive in the image.
+    let mut chosen = [false; P];
+    for &(_, index) in &selected {
+        if let Some(flag) = chosen.get_mut(index) {
+            *flag = true;
         }
-        staged.push(r).map_err(|_| TaskError::Capacity { capacity: R })?;
+    }
+    let mut staged: Vec<TaskRow<T, N>, R> = Vec::new();
+    if !selected.is_empty() {
+        let factor = factor_rows(mass_cholesky);
+        for (index, _) in chosen.iter().enumerate().filter(|(_, &flag)| flag) {
+            let row = pair_row(collision_model, collision, model, data, &factor, parameters, index)?;
+            staged.push(row).map_err(|_| TaskError::Capacity { capacity: R })?;
+        }
     }
     // By reference: consuming a heapless vector drops its iterator through a slice index.
     for r in &staged {
@@ -767,9 +955,13 @@ mod tests {
         candidates.sort_by(|a, b| a.0.total_cmp(&b.0));
         let mut closest: std::vec::Vec<usize> = candidates.iter().take(2).map(|c| c.1).collect();
         closest.sort_unstable();
+        // The rows are exactly those of the selected pairs (the fast form; it equals the
+        // reference `evaluate_pair` to rounding, `fast_rows_match_the_reference_*`).
+        let rows_of_l = factor_rows(&factor);
         for (row, pair) in few.rows()[1..].iter().zip(&closest) {
+            assert_eq!(*row, pair_row(&cm, &cd, &robot, &data, &rows_of_l, &p, *pair).unwrap());
             let e = evaluate_pair(&cm, &cd, &robot, &data, &factor, &p, *pair).unwrap();
-            assert_eq!(*row, e.row);
+            assert!(row_difference(row, &e.row) <= 1e-12, "{row:?} vs {:?}", e.row);
         }
         // A full list stays as it was.
         let before = few.clone();
@@ -777,6 +969,137 @@ mod tests {
         assert_eq!((report.rows, few), (0, before));
         // Unknown pair.
         assert!(evaluate_pair(&cm, &cd, &robot, &data, &factor, &p, 99).is_err());
+    }
+
+    /// Largest relative difference of two rows' Jacobians, forces, potentials and activations.
+    fn row_difference<T: RealField + Copy>(fast: &TaskRow<T, N>, reference: &TaskRow<T, N>) -> f64 {
+        let scale = |x: T| 1.0 + nalgebra::try_convert::<T, f64>(x.abs()).unwrap();
+        let rel = |a: T, b: T| nalgebra::try_convert::<T, f64>((a - b).abs()).unwrap() / scale(b);
+        let jacobian = fast
+            .jacobian
+            .iter()
+            .zip(reference.jacobian.iter())
+            .map(|(&a, &b)| nalgebra::try_convert::<T, f64>((a - b).abs()).unwrap() / scale(reference.jacobian.amax()))
+            .fold(0.0, f64::max);
+        jacobian
+            .max(rel(fast.force, reference.force))
+            .max(rel(fast.potential, reference.potential))
+            .max(rel(fast.activation, reference.activation))
+    }
+
+    /// The fast pair rows ([`pair_row`], used by [`collision_rows_from_geometry`]) and the
+    /// fast reflected masses ([`inverse_reflected_masses`]) against the reference
+    /// [`evaluate_pair`] / [`inverse_reflected_mass`] at random states with random velocities,
+    /// every pair with a direction below the emit distance, f64 (tight) and f32.
+    fn fast_rows_match_reference<T: RealField + Copy>(tolerance: f64) {
+        let robot = branched::<T>();
+        let cm = collision_model(&robot);
+        let mut cd = CollisionData::new(&cm);
+        let mut data = Data::new(&robot);
+        let p = parameters::<T>(0.7);
+        let (mut compared, mut damped) = (0, 0);
+        for seed in 0..200 {
+            let (q, v) = (state(seed, 1.5).cast::<T>(), state(seed + 500, 1.0).cast::<T>());
+            forward_kinematics(&robot, &mut data, &q, &v).unwrap();
+            crba(&robot, &mut data);
+            let factor = mass_matrix_cholesky(&data).unwrap();
+            let rows_of_l = factor_rows(&factor);
+            cm.update(&data, &mut cd);
+            for pair in 0..cm.pairs().len() {
+                let proximity = cd.proximities[pair];
+                if proximity.distance >= p.emit_distance() || proximity.direction.is_none() {
+                    continue;
+                }
+                let reference = evaluate_pair(&cm, &cd, &robot, &data, &factor, &p, pair).unwrap();
+                let fast = pair_row(&cm, &cd, &robot, &data, &rows_of_l, &p, pair).unwrap();
+                let difference = row_difference(&fast, &reference.row);
+                assert!(
+                    difference <= tolerance,
+                    "seed {seed} pair {pair}: {difference:e}\n{fast:?}\n{:?}",
+                    reference.row
+                );
+                let [wi, wj] = inverse_reflected_masses(
+                    &rows_of_l,
+                    [&reference.jacobian_first.transpose().into(), &reference.jacobian_second.transpose().into()],
+                )
+                .unwrap();
+                for (fast, reference) in [(wi, reference.inverse_masses.x), (wj, reference.inverse_masses.y)] {
+                    let (f, r) = (
+                        nalgebra::try_convert::<T, f64>(fast).unwrap(),
+                        nalgebra::try_convert::<T, f64>(reference).unwrap(),
+                    );
+                    assert!((f - r).abs() <= tolerance * r.abs(), "seed {seed} pair {pair}: {f} vs {r}");
+                }
+                compared += 1;
+                if reference.row.force != p.force(reference.distance) {
+                    damped += 1;
+                }
+            }
+        }
+        assert!(compared > 500 && damped > 300, "{compared} rows, {damped} damped");
+    }
+
+    #[test]
+    fn fast_rows_match_the_reference_f64() {
+        fast_rows_match_reference::<f64>(1e-12);
+    }
+
+    #[test]
+    fn fast_rows_match_the_reference_f32() {
+        fast_rows_match_reference::<f32>(2e-4);
+    }
+
+    /// The rows of [`collision_rows_from_geometry`] are the reference rows of the selected
+    /// pairs, in pair order.
+    #[test]
+    fn field_rows_are_the_reference_rows() {
+        let robot = branched::<f64>();
+        let cm = collision_model(&robot);
+        let mut cd = CollisionData::new(&cm);
+        let mut data = Data::new(&robot);
+        let p = parameters::<f64>(0.9);
+        let mut total = 0;
+        for seed in 0..50 {
+            forward_kinematics(&robot, &mut data, &state(seed, 1.5), &state(seed + 77, 1.0)).unwrap();
+            crba(&robot, &mut data);
+            let factor = mass_matrix_cholesky(&data).unwrap();
+            let mut rows = TaskRows::<f64, N, P>::new();
+            let report = self_collision_rows(&cm, &mut cd, &robot, &data, &factor, &p, &mut rows).unwrap();
+            let expected: std::vec::Vec<TaskRow<f64, N>> = (0..cm.pairs().len())
+                .filter(|&k| cd.proximities[k].distance < p.emit_distance() && cd.proximities[k].direction.is_some())
+                .map(|k| evaluate_pair(&cm, &cd, &robot, &data, &factor, &p, k).unwrap().row)
+                .collect();
+            assert_eq!((report.rows, rows.len()), (expected.len(), expected.len()));
+            for (fast, reference) in rows.rows().iter().zip(&expected) {
+                assert!(row_difference(fast, reference) <= 1e-12, "seed {seed}: {fast:?} vs {reference:?}");
+            }
+            total += expected.len();
+        }
+        assert!(total > 100, "{total}");
+    }
+
+    /// Leading zeros of the right-hand sides are skipped; a zero pivot is an error.
+    #[test]
+    fn reflected_masses_of_sparse_rows_and_singular_factors() {
+        let robot = branched::<f64>();
+        let mut data = Data::new(&robot);
+        forward_kinematics(&robot, &mut data, &state(9, 1.0), &SVector::zeros()).unwrap();
+        crba(&robot, &mut data);
+        let factor = mass_matrix_cholesky(&data).unwrap();
+        let rows_of_l = factor_rows(&factor);
+        let inverse = data.mass_matrix.try_inverse().unwrap();
+        for start in 0..=N {
+            let b = SVector::<f64, N>::from_fn(|i, _| if i < start { 0.0 } else { 0.3 + i as f64 });
+            let [w] = inverse_reflected_masses(&rows_of_l, [&b.into()]).unwrap();
+            let expected = (b.transpose() * inverse * b).x;
+            assert!((w - expected).abs() <= 1e-12 * (1.0 + expected), "start {start}: {w} vs {expected}");
+            let reference = inverse_reflected_mass(&factor, &b.transpose()).unwrap();
+            assert!((w - reference).abs() <= 1e-14 * (1.0 + reference));
+        }
+        let mut singular = rows_of_l;
+        singular[(2, 2)] = 0.0;
+        let b = SVector::<f64, N>::repeat(1.0);
+        assert_eq!(inverse_reflected_masses(&singular, [&b.into(), &b.into()]), Err(TaskError::Singular));
     }
 
     #[test]

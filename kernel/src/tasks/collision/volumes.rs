@@ -303,10 +303,20 @@ fn nearest_pair<T: RealField + Copy, const K: usize>(
 
 /// Closest point to `p` on the triangle `t`.
 fn closest_on_triangle<T: RealField + Copy>(p: &Vector3<T>, t: &[Vector3<T>; 3]) -> Vector3<T> {
+    closest_on_triangle_with_normal(p, t, triangle_normal(t).as_ref())
+}
+
+/// [`closest_on_triangle`] with the triangle's [`triangle_normal`] computed by the caller (once
+/// per triangle when several points are tested against it; the same operations).
+fn closest_on_triangle_with_normal<T: RealField + Copy>(
+    p: &Vector3<T>,
+    t: &[Vector3<T>; 3],
+    normal: Option<&Vector3<T>>,
+) -> Vector3<T> {
     let [a, b, c] = t;
-    if let Some(n) = triangle_normal(t) {
+    if let Some(n) = normal {
         let projection = p - n * (n.dot(&(p - a)) / n.norm_squared());
-        if inside_triangle(&projection, t, &n) {
+        if inside_triangle(&projection, t, n) {
             return projection;
         }
     }
@@ -324,28 +334,75 @@ fn closest_segment_triangle<T: RealField + Copy>(
     q: &Vector3<T>,
     t: &[Vector3<T>; 3],
 ) -> (Vector3<T>, Vector3<T>) {
-    let [a, b, c] = t;
-    if let Some(n) = triangle_normal(t) {
-        let (dp, dq) = (n.dot(&(p - a)), n.dot(&(q - a)));
-        let zero = T::zero();
-        let crosses = (dp <= zero && dq >= zero) || (dp >= zero && dq <= zero);
-        if crosses && dp != dq {
-            let x = p + (q - p) * (dp / (dp - dq));
-            if inside_triangle(&x, t, &n) {
-                return (x, x);
-            }
+    let normal = triangle_normal(t);
+    let n = normal.as_ref();
+    if let Some(x) = segment_piercing(p, q, t, n) {
+        return (x, x);
+    }
+    let ends = [closest_on_triangle_with_normal(p, t, n), closest_on_triangle_with_normal(q, t, n)];
+    closest_segment_triangle_boundary(p, q, t, ends)
+}
+
+/// The point where the segment `[p, q]` pierces the triangle `t` with normal `normal` (its
+/// [`triangle_normal`]), if it does.
+fn segment_piercing<T: RealField + Copy>(
+    p: &Vector3<T>,
+    q: &Vector3<T>,
+    t: &[Vector3<T>; 3],
+    normal: Option<&Vector3<T>>,
+) -> Option<Vector3<T>> {
+    let n = normal?;
+    let [a, _, _] = t;
+    let (dp, dq) = (n.dot(&(p - a)), n.dot(&(q - a)));
+    let zero = T::zero();
+    let crosses = (dp <= zero && dq >= zero) || (dp >= zero && dq <= zero);
+    if crosses && dp != dq {
+        let x = p + (q - p) * (dp / (dp - dq));
+        if inside_triangle(&x, t, n) {
+            return Some(x);
         }
     }
+    None
+}
+
+/// The boundary candidates of [`closest_segment_triangle`] for a segment that does not pierce
+/// the triangle: both endpoints against the triangle (`ends`, the closest points of the triangle
+/// to `p` and `q`, computed by the caller) and the segment against the three edges.
+fn closest_segment_triangle_boundary<T: RealField + Copy>(
+    p: &Vector3<T>,
+    q: &Vector3<T>,
+    [a, b, c]: &[Vector3<T>; 3],
+    [closest_p, closest_q]: [Vector3<T>; 2],
+) -> (Vector3<T>, Vector3<T>) {
     nearest_pair([
-        (*p, closest_on_triangle(p, t)),
-        (*q, closest_on_triangle(q, t)),
+        (*p, closest_p),
+        (*q, closest_q),
         closest_segment_segment(p, q, a, b),
         closest_segment_segment(p, q, b, c),
         closest_segment_segment(p, q, c, a),
     ])
 }
 
-/// Closest points of two triangles: the nearest of the six edge–triangle pairs.
+/// [`closest_segment_triangle`] with the triangle's [`triangle_normal`] and the closest points
+/// of the triangle to `p` and `q` given by the caller: a triangle–triangle test computes them
+/// once per triangle and vertex instead of once per edge (the same operations, so the same
+/// result).
+fn closest_segment_triangle_with<T: RealField + Copy>(
+    p: &Vector3<T>,
+    q: &Vector3<T>,
+    t: &[Vector3<T>; 3],
+    normal: Option<&Vector3<T>>,
+    ends: [Vector3<T>; 2],
+) -> (Vector3<T>, Vector3<T>) {
+    match segment_piercing(p, q, t, normal) {
+        Some(x) => (x, x),
+        None => closest_segment_triangle_boundary(p, q, t, ends),
+    }
+}
+
+/// Closest points of two triangles: the nearest of the six edge–triangle pairs
+/// ([`closest_segment_triangle`]), with each triangle's normal and each vertex's closest point on
+/// the other triangle computed once.
 fn closest_triangle_triangle<T: RealField + Copy>(
     s: &[Vector3<T>; 3],
     t: &[Vector3<T>; 3],
@@ -353,13 +410,18 @@ fn closest_triangle_triangle<T: RealField + Copy>(
     let [a, b, c] = s;
     let [d, e, f] = t;
     let swap = |(x, y): (Vector3<T>, Vector3<T>)| (y, x);
+    // Each triangle's normal once, each vertex's closest point on the other triangle once.
+    let (normal_s, normal_t) = (triangle_normal(s), triangle_normal(t));
+    let (ns, nt) = (normal_s.as_ref(), normal_t.as_ref());
+    let [ca, cb, cc] = s.each_ref().map(|v| closest_on_triangle_with_normal(v, t, nt));
+    let [cd, ce, cf] = t.each_ref().map(|v| closest_on_triangle_with_normal(v, s, ns));
     nearest_pair([
-        closest_segment_triangle(a, b, t),
-        closest_segment_triangle(b, c, t),
-        closest_segment_triangle(c, a, t),
-        swap(closest_segment_triangle(d, e, s)),
-        swap(closest_segment_triangle(e, f, s)),
-        swap(closest_segment_triangle(f, d, s)),
+        closest_segment_triangle_with(a, b, t, nt, [ca, cb]),
+        closest_segment_triangle_with(b, c, t, nt, [cb, cc]),
+        closest_segment_triangle_with(c, a, t, nt, [cc, ca]),
+        swap(closest_segment_triangle_with(d, e, s, ns, [cd, ce])),
+        swap(closest_segment_triangle_with(e, f, s, ns, [ce, cf])),
+        swap(closest_segment_triangle_with(f, d, s, ns, [cf, cd])),
     ])
 }
 
@@ -367,6 +429,46 @@ fn closest_triangle_triangle<T: RealField + Copy>(
 mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing, clippy::panic, reason = "tests")]
     use super::*;
+
+    /// The plain triangle–triangle test (the reference of [`closest_triangle_triangle`]): the
+    /// nearest of the six edge–triangle pairs, each computed from scratch.
+    fn closest_triangle_triangle_reference(
+        s: &[Vector3<f64>; 3],
+        t: &[Vector3<f64>; 3],
+    ) -> (Vector3<f64>, Vector3<f64>) {
+        let [a, b, c] = s;
+        let [d, e, f] = t;
+        let swap = |(x, y): (Vector3<f64>, Vector3<f64>)| (y, x);
+        nearest_pair([
+            closest_segment_triangle(a, b, t),
+            closest_segment_triangle(b, c, t),
+            closest_segment_triangle(c, a, t),
+            swap(closest_segment_triangle(d, e, s)),
+            swap(closest_segment_triangle(e, f, s)),
+            swap(closest_segment_triangle(f, d, s)),
+        ])
+    }
+
+    /// The triangle–triangle test with shared normals and vertex projections gives exactly the
+    /// reference's points, on random, degenerate, parallel and intersecting triangles.
+    #[test]
+    fn triangle_triangle_equals_the_plain_reference() {
+        let mut rng = Rng(0x7A1A_0001);
+        let mut pierced = 0;
+        for k in 0..20_000 {
+            let first = random_core(&mut rng, 2, None);
+            let second = random_core(&mut rng, 2, Some(&first));
+            let (Core::Triangle(s), Core::Triangle(t)) = (first, second) else {
+                panic!("triangles expected");
+            };
+            let fast = closest_triangle_triangle(&s, &t);
+            assert_eq!(fast, closest_triangle_triangle_reference(&s, &t), "case {k}: {s:?} {t:?}");
+            if fast.0 == fast.1 {
+                pierced += 1;
+            }
+        }
+        assert!(pierced > 100, "{pierced} intersecting pairs");
+    }
 
     /// xorshift64*, uniform in [0, 1).
     pub(super) struct Rng(pub u64);
