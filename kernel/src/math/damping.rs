@@ -227,7 +227,7 @@ pub fn cholesky_in_place<T: RealField + Copy>(a: &mut [T], n: usize) -> bool {
         return n == 0 && a.is_empty();
     }
     for j in 0..n {
-        let (previous, rest) = a.split_at_mut(j * n);
+        let Some((previous, rest)) = a.split_at_mut_checked(j * n) else { return false };
         let Some(column) = rest.get_mut(..n) else { return false };
         let Some(below) = column.get_mut(j..) else { return false };
         for l_column in previous.chunks_exact(n) {
@@ -240,7 +240,7 @@ pub fn cholesky_in_place<T: RealField + Copy>(a: &mut [T], n: usize) -> bool {
             }
         }
         let Some((diagonal, tail)) = below.split_first_mut() else { return false };
-        if !(*diagonal > T::zero()) {
+        if (*diagonal).partial_cmp(&T::zero()) != Some(core::cmp::Ordering::Greater) {
             return false;
         }
         let root = diagonal.sqrt();
@@ -257,8 +257,8 @@ pub fn cholesky_in_place<T: RealField + Copy>(a: &mut [T], n: usize) -> bool {
 /// Column-oriented: leading zeros of `b` cost nothing. Returns `false` if the sizes differ.
 pub fn solve_lower_in_place<T: RealField + Copy>(l: &[T], b: &mut [T]) -> bool {
     let n = b.len();
-    if l.len() != n * n {
-        return false;
+    if n == 0 || l.len() != n * n {
+        return n == 0 && l.is_empty();
     }
     for (j, column) in l.chunks_exact(n).enumerate() {
         let (Some((y, rest)), Some((diagonal, below))) =
@@ -284,8 +284,8 @@ pub fn solve_lower_in_place<T: RealField + Copy>(l: &[T], b: &mut [T]) -> bool {
 /// sizes differ.
 pub fn solve_lower_transpose_in_place<T: RealField + Copy>(l: &[T], y: &mut [T]) -> bool {
     let n = y.len();
-    if l.len() != n * n {
-        return false;
+    if n == 0 || l.len() != n * n {
+        return n == 0 && l.is_empty();
     }
     for (j, column) in l.chunks_exact(n).enumerate().rev() {
         let (Some((x, rest)), Some((diagonal, below))) =

@@ -69,7 +69,7 @@ fn norms<T: RealField + Copy, const D: usize>(a: &[T]) -> (T, T) {
 /// Columns `p < q` (contiguous in the column-major storage `m`) ←
 /// `(c·col_p − s·col_q, s·col_p + c·col_q)`.
 fn rotate_columns<T: RealField + Copy, const D: usize>(m: &mut [T], p: usize, q: usize, c: T, s: T) {
-    let (head, tail) = m.split_at_mut(q * D);
+    let Some((head, tail)) = m.split_at_mut_checked(q * D) else { return };
     let (Some(column_p), Some(column_q)) = (head.get_mut(p * D..(p + 1) * D), tail.get_mut(..D)) else { return };
     for (xp, xq) in column_p.iter_mut().zip(column_q.iter_mut()) {
         let (a, b) = (*xp, *xq);
@@ -82,7 +82,7 @@ fn rotate_columns<T: RealField + Copy, const D: usize>(m: &mut [T], p: usize, q:
 /// `(c·row_p − s·row_q, s·row_p + c·row_q)`.
 fn rotate_rows<T: RealField + Copy, const D: usize>(m: &mut [T], p: usize, q: usize, c: T, s: T) {
     for column in m.chunks_exact_mut(D) {
-        let (head, tail) = column.split_at_mut(q);
+        let Some((head, tail)) = column.split_at_mut_checked(q) else { return };
         let (Some(xp), Some(xq)) = (head.get_mut(p), tail.first_mut()) else { return };
         let (a, b) = (*xp, *xq);
         *xp = c * a - s * b;
