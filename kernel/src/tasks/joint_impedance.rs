@@ -123,22 +123,8 @@ pub fn joint_impedance<T: RealField + Copy, const N: usize, const R: usize>(
     if rows.len().saturating_add(task.row_count()) > R {
         return Err(TaskError::Capacity { capacity: R });
     }
-    // Validate first so that a failure leaves `rows` unchanged: the force and potential of the
-    // selected coordinates, without building the N-wide rows (their Jacobian `e_kᵀ` is finite).
-    let c = &task.config;
-    let half: T = nalgebra::convert(0.5);
-    let valid = c
-        .selected
-        .iter()
-        .zip(q.iter().zip(target.position.iter()))
-        .zip(v.iter().zip(target.velocity.iter()))
-        .zip(c.stiffness.iter().zip(c.damping.iter()))
-        .filter(|(((s, _), _), _)| **s)
-        .all(|(((_, (q, qd)), (v, vd)), (k, d))| {
-            let (error, rate) = (*q - *qd, *v - *vd);
-            (-*k * error - *d * rate).is_finite() && (half * *k * error * error).is_finite()
-        });
-    if !valid {
+    // Validate first so that a failure leaves `rows` unchanged.
+    if !task.rows(q, v, target).all(|r| r.force.is_finite() && r.potential.is_finite()) {
         return Err(TaskError::NonFinite);
     }
     for row in task.rows(q, v, target) {
