@@ -86,6 +86,7 @@ use nalgebra::{Cholesky, Const, Matrix3, RealField, SMatrix, SVector, Vector6};
 
 use super::config::RobotLayout;
 use crate::dynamics::{frame_jacobian, DynamicsError};
+use crate::math::damping::{cholesky_in_place, solve_lower_in_place, solve_lower_transpose_in_place};
 use crate::model::{Data, Model};
 
 /// Parameters of the contact-force limiter.
@@ -191,8 +192,9 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
     /// One period `dt`: estimates the wrenches from `residual` (`τ̂_ext`, [`super::observer`]) at
     /// the kinematics of `data` (after `forward_kinematics`), then advances the governor of each
     /// hand with `Some` limits (a hand with `None` is reset). If the 12 × 12 solve fails (a
-    /// non-finite input), the estimate is zero and the corrections are held. Cost O(N) frame
-    /// Jacobians plus one 12 × 12 Cholesky.
+    /// non-finite input), the estimate is zero and the corrections are held. Cost two frame
+    /// Jacobians, the 12 × 12 Gram matrix as N rank-one updates and one 12 × 12 Cholesky, all
+    /// as loops over the column-major storage.
     /// Errors: [`DynamicsError::UnknownFrame`] for a TCP frame outside the model.
     #[allow(clippy::too_many_arguments, reason = "the controller's pieces, each used once")]
     pub fn update<const B: usize, const F: usize>(
@@ -205,39 +207,61 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
         hands: &[Option<HandLimits<T>>; 2],
         dt: T,
     ) -> Result<(), DynamicsError> {
+        // J_h = blockdiag(A_hᵀ, A_hᵀ) J_h,world column by column; J_u (platform columns zero)
+        // stacked for both hands into the 12 × N matrix, one 12-entry column per coordinate.
         let mut full = [SMatrix::<T, 6, N>::zeros(); 2];
-        let mut upper = [SMatrix::<T, 6, N>::zeros(); 2];
-        for ((tcp, limits), (jacobian, upper_body)) in
-            layout.tcp.iter().zip(hands.iter()).zip(full.iter_mut().zip(upper.iter_mut()))
-        {
+        let mut stacked = SMatrix::<T, 12, N>::zeros();
+        for (h, ((tcp, limits), jacobian)) in layout.tcp.iter().zip(hands.iter()).zip(full.iter_mut()).enumerate() {
             let axes = limits.map_or_else(Matrix3::identity, |l| l.axes);
-            let mut world = SMatrix::<T, 6, N>::zeros();
-            frame_jacobian(model, data, *tcp, &mut world)?;
-            let at = axes.transpose();
-            jacobian.fixed_rows_mut::<3>(0).copy_from(&(at * world.fixed_rows::<3>(0)));
-            jacobian.fixed_rows_mut::<3>(3).copy_from(&(at * world.fixed_rows::<3>(3)));
-            *upper_body = *jacobian;
-            for (k, mut column) in upper_body.column_iter_mut().enumerate() {
+            frame_jacobian(model, data, *tcp, jacobian)?;
+            for (k, (column, target)) in
+                jacobian.as_mut_slice().chunks_exact_mut(6).zip(stacked.as_mut_slice().chunks_exact_mut(12)).enumerate()
+            {
+                for half in column.chunks_exact_mut(3) {
+                    let world = [
+                        half.first().copied().unwrap_or_else(T::zero),
+                        half.get(1).copied().unwrap_or_else(T::zero),
+                        half.get(2).copied().unwrap_or_else(T::zero),
+                    ];
+                    // (Aᵀ x)_i = column i of A · x.
+                    for (x, a) in half.iter_mut().zip(axes.as_slice().chunks_exact(3)) {
+                        *x = a.iter().zip(world.iter()).fold(T::zero(), |s, (a, w)| s + *a * *w);
+                    }
+                }
                 if layout.platform.is_platform(k) {
-                    column.fill(T::zero());
+                    continue;
+                }
+                if let Some(rows) = target.get_mut(6 * h..6 * h + 6) {
+                    rows.copy_from_slice(column);
                 }
             }
         }
-        // Constant offsets only: a run-time offset into `fixed_rows` keeps nalgebra's bounds
-        // assertion (a panic path) in the image.
-        let [right, left] = &upper;
-        let mut stacked = SMatrix::<T, 12, N>::zeros();
-        stacked.fixed_rows_mut::<6>(0).copy_from(right);
-        stacked.fixed_rows_mut::<6>(6).copy_from(left);
-        let gram = stacked * stacked.transpose() + SMatrix::<T, 12, 12>::identity() * parameters.regularisation;
+        // Gram matrix J_u J_uᵀ + μ I as a sum of rank-one terms over the columns, and J_u τ̂_ext.
+        let mut gram = SMatrix::<T, 12, 12>::identity() * parameters.regularisation;
+        let mut projected = SVector::<T, 12>::zeros();
+        for (column, r) in stacked.as_slice().chunks_exact(12).zip(residual.iter()) {
+            for (g_column, c_j) in gram.as_mut_slice().chunks_exact_mut(12).zip(column.iter()) {
+                if *c_j != T::zero() {
+                    for (g, c_i) in g_column.iter_mut().zip(column.iter()) {
+                        *g += *c_i * *c_j;
+                    }
+                }
+            }
+            for (p, c) in projected.iter_mut().zip(column.iter()) {
+                *p += *c * *r;
+            }
+        }
         self.stacked = stacked;
         self.effective = [None; 2];
-        let Some(factor) = Cholesky::new(gram) else {
+        let mut external = projected;
+        let solved = cholesky_in_place(gram.as_mut_slice(), 12)
+            && solve_lower_in_place(gram.as_slice(), external.as_mut_slice())
+            && solve_lower_transpose_in_place(gram.as_slice(), external.as_mut_slice());
+        if !solved {
             self.applied = [Vector6::zeros(); 2];
             self.relief = SVector::zeros();
             return Ok(());
-        };
-        let external = factor.solve(&(stacked * residual));
+        }
         if !crate::math::all_finite(&external) {
             self.applied = [Vector6::zeros(); 2];
             self.relief = SVector::zeros();
@@ -277,10 +301,10 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
             if let Some(e) = self.effective.get_mut(h) {
                 *e = Some(bounds);
             }
-            let torque = jacobian.transpose() * reaction;
-            for (k, (r, t)) in self.relief.iter_mut().zip(torque.iter()).enumerate() {
+            // J_r,hᵀ P_h F̂: the platform columns of J_h only.
+            for (k, (r, column)) in self.relief.iter_mut().zip(jacobian.as_slice().chunks_exact(6)).enumerate() {
                 if layout.platform.is_platform(k) {
-                    *r += *t;
+                    *r += column.iter().zip(reaction.iter()).fold(T::zero(), |s, (j, f)| s + *j * *f);
                 }
             }
         }
@@ -295,7 +319,8 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
     /// each hand (task axes). Returns the torque `−J_Lᵀ e` that moves every limited axis'
     /// rigid-contact force onto its bound (with the damping rule of the module docs). Zero
     /// without an enabled limit or if a solve fails.
-    /// Cost: 12 solves with `factor`, one 12 × 12 Cholesky.
+    /// Cost: one forward substitution with `factor` per limited row plus one for `τ` (loops on
+    /// the column-major factor), one 12 × 12 Cholesky.
     pub fn limit_command(
         &self,
         regularisation: T,
@@ -317,30 +342,52 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
         if !selected.iter().any(|s| *s) {
             return none;
         }
-        // M⁻¹ J_uᵀ, then the reflected inertia of L (identity on the other rows) and J_L M⁻¹ τ.
-        let mobility = factor.solve(&self.stacked.transpose());
-        let mut reflected = self.stacked * mobility;
-        let mut rhs = mobility.transpose() * task_torque;
-        for (i, mut row) in reflected.row_iter_mut().enumerate() {
-            let row_selected = selected.get(i).copied().unwrap_or(false);
-            for (j, x) in row.iter_mut().enumerate() {
-                let both = row_selected && selected.get(j).copied().unwrap_or(false);
-                *x = match (i == j, both) {
-                    (true, true) => *x + regularisation,
-                    (true, false) => T::one(),
-                    (false, true) => *x,
-                    (false, false) => T::zero(),
-                };
-            }
-        }
-        for (r, s) in rhs.iter_mut().zip(selected.iter()) {
+        // With M = L Lᵀ: Y = L⁻¹ J_Lᵀ (forward substitution of the selected rows only) and
+        // z = L⁻¹ τ; the reflected inertia J_L M⁻¹ J_Lᵀ = Yᵀ Y (identity on the other rows) and
+        // J_L M⁻¹ τ = Yᵀ z.
+        let l = factor.l_dirty().as_slice();
+        let mut z = *task_torque;
+        let mut reduced = SMatrix::<T, N, 12>::zeros();
+        let mut solved = solve_lower_in_place(l, z.as_mut_slice());
+        for (i, (column, s)) in reduced.as_mut_slice().chunks_exact_mut(N).zip(selected.iter()).enumerate() {
             if !s {
-                *r = T::zero();
+                continue;
+            }
+            for (y, j) in column.iter_mut().zip(self.stacked.as_slice().chunks_exact(12)) {
+                *y = j.get(i).copied().unwrap_or_else(T::zero);
+            }
+            solved &= solve_lower_in_place(l, column);
+        }
+        let mut reflected = SMatrix::<T, 12, 12>::identity();
+        let mut force = SVector::<T, 12>::zeros();
+        let dot = |a: &[T], b: &[T]| a.iter().zip(b.iter()).fold(T::zero(), |s, (x, y)| s + *x * *y);
+        for (i, ((yi, si), (r_column, f))) in reduced
+            .as_slice()
+            .chunks_exact(N)
+            .zip(selected.iter())
+            .zip(reflected.as_mut_slice().chunks_exact_mut(12).zip(force.iter_mut()))
+            .enumerate()
+        {
+            if !si {
+                continue;
+            }
+            *f = dot(yi, z.as_slice());
+            // Column i, rows j ≥ i (the lower triangle the factorisation reads).
+            for (j, ((yj, sj), x)) in
+                reduced.as_slice().chunks_exact(N).zip(selected.iter()).zip(r_column.iter_mut()).enumerate().skip(i)
+            {
+                if *sj {
+                    *x = dot(yi, yj) + if i == j { regularisation } else { T::zero() };
+                }
             }
         }
-        let Some(force) = Cholesky::new(reflected).map(|f| f.solve(&rhs)).filter(crate::math::all_finite) else {
+        let solved = solved
+            && cholesky_in_place(reflected.as_mut_slice(), 12)
+            && solve_lower_in_place(reflected.as_slice(), force.as_mut_slice())
+            && solve_lower_transpose_in_place(reflected.as_slice(), force.as_mut_slice());
+        if !(solved && force.iter().all(|x| x.is_finite())) {
             return none;
-        };
+        }
         let mut excess = SVector::<T, 12>::zeros();
         let mut limited = [[false; 6]; 2];
         for (h, ((bounds, flags), damping)) in
@@ -358,7 +405,12 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
                 *flag = over != T::zero();
             }
         }
-        CommandLimit { torque: -(self.stacked.transpose() * excess), limited }
+        // −J_Lᵀ e: one dot product per column of the stacked Jacobian.
+        let mut torque = SVector::<T, N>::zeros();
+        for (t, column) in torque.iter_mut().zip(self.stacked.as_slice().chunks_exact(12)) {
+            *t = -dot(column, excess.as_slice());
+        }
+        CommandLimit { torque, limited }
     }
 }
 
@@ -395,6 +447,174 @@ mod tests {
 
     fn c<T: RealField + Copy>(x: f64) -> T {
         nalgebra::convert(x)
+    }
+
+    /// The plain limiter (nalgebra products, `Cholesky::new`/`solve`, 12 full solves with the
+    /// N × N factor): the reference for the loops of [`ForceLimiter::update`] and
+    /// [`ForceLimiter::limit_command`].
+    struct Reference<T: RealField, const N: usize>(ForceLimiter<T, N>);
+
+    impl<T: RealField + Copy, const N: usize> Reference<T, N> {
+        fn bounds(&self, index: usize, lower: &Vector6<T>, upper: &Vector6<T>) -> (Vector6<T>, Vector6<T>) {
+            self.0.bounds(index, lower, upper)
+        }
+        #[allow(clippy::too_many_arguments)]
+        fn update<const B: usize, const F: usize>(
+            &mut self,
+            parameters: &ForceLimitParameters<T>,
+            model: &Model<T, N, B, F>,
+            data: &Data<T, N, B, F>,
+            layout: &RobotLayout<N>,
+            residual: &SVector<T, N>,
+            hands: &[Option<HandLimits<T>>; 2],
+            dt: T,
+        ) -> Result<(), DynamicsError> {
+            let mut full = [SMatrix::<T, 6, N>::zeros(); 2];
+            let mut upper = [SMatrix::<T, 6, N>::zeros(); 2];
+            for ((tcp, limits), (jacobian, upper_body)) in
+                layout.tcp.iter().zip(hands.iter()).zip(full.iter_mut().zip(upper.iter_mut()))
+            {
+                let axes = limits.map_or_else(Matrix3::identity, |l| l.axes);
+                let mut world = SMatrix::<T, 6, N>::zeros();
+                frame_jacobian(model, data, *tcp, &mut world)?;
+                let at = axes.transpose();
+                jacobian.fixed_rows_mut::<3>(0).copy_from(&(at * world.fixed_rows::<3>(0)));
+                jacobian.fixed_rows_mut::<3>(3).copy_from(&(at * world.fixed_rows::<3>(3)));
+                *upper_body = *jacobian;
+                for (k, mut column) in upper_body.column_iter_mut().enumerate() {
+                    if layout.platform.is_platform(k) {
+                        column.fill(T::zero());
+                    }
+                }
+            }
+            // Constant offsets only: a run-time offset into `fixed_rows` keeps nalgebra's bounds
+            // assertion (a panic path) in the image.
+            let [right, left] = &upper;
+            let mut stacked = SMatrix::<T, 12, N>::zeros();
+            stacked.fixed_rows_mut::<6>(0).copy_from(right);
+            stacked.fixed_rows_mut::<6>(6).copy_from(left);
+            let gram = stacked * stacked.transpose() + SMatrix::<T, 12, 12>::identity() * parameters.regularisation;
+            self.0.stacked = stacked;
+            self.0.effective = [None; 2];
+            let Some(factor) = Cholesky::new(gram) else {
+                self.0.applied = [Vector6::zeros(); 2];
+                self.0.relief = SVector::zeros();
+                return Ok(());
+            };
+            let external = factor.solve(&(stacked * residual));
+            if !crate::math::all_finite(&external) {
+                self.0.applied = [Vector6::zeros(); 2];
+                self.0.relief = SVector::zeros();
+                return Ok(());
+            }
+            self.0.relief = SVector::zeros();
+            let step = parameters.gain * dt;
+            let wrenches: [Vector6<T>; 2] =
+                [external.fixed_rows::<6>(0).into_owned(), external.fixed_rows::<6>(6).into_owned()];
+            for (h, ((limits, jacobian), wrench)) in hands.iter().zip(full.iter()).zip(wrenches).enumerate() {
+                let applied = -wrench;
+                if let Some(a) = self.0.applied.get_mut(h) {
+                    *a = applied;
+                }
+                let Some(correction) = self.0.correction.get_mut(h) else { continue };
+                let Some(limits) = limits.filter(|_| parameters.enabled) else {
+                    *correction = Vector6::zeros();
+                    continue;
+                };
+                let share = T::one() - parameters.margin;
+                let limits = HandLimits { lower: limits.lower * share, upper: limits.upper * share, ..limits };
+                let mut reaction = Vector6::zeros();
+                for axis in 0..6 {
+                    let get = |v: &Vector6<T>| v.get(axis).copied().unwrap_or_else(T::zero);
+                    let (a, lower, upper) = (get(&applied), get(&limits.lower), get(&limits.upper));
+                    let lower = Some(lower).filter(|x| x.is_finite());
+                    let upper = Some(upper).filter(|x| x.is_finite());
+                    if let Some(c) = correction.get_mut(axis) {
+                        *c = governor_step(*c, a, lower, upper, step, parameters.max_correction);
+                    }
+                    let pressing = (upper.is_some() && a > T::zero()) || (lower.is_some() && a < T::zero());
+                    if let (true, Some(r)) = (pressing, reaction.get_mut(axis)) {
+                        *r = get(&wrench);
+                    }
+                }
+                let bounds = self.bounds(h, &limits.lower, &limits.upper);
+                if let Some(e) = self.0.effective.get_mut(h) {
+                    *e = Some(bounds);
+                }
+                let torque = jacobian.transpose() * reaction;
+                for (k, (r, t)) in self.0.relief.iter_mut().zip(torque.iter()).enumerate() {
+                    if layout.platform.is_platform(k) {
+                        *r += *t;
+                    }
+                }
+            }
+            Ok(())
+        }
+
+        fn limit_command(
+            &self,
+            regularisation: T,
+            task_torque: &SVector<T, N>,
+            factor: &Cholesky<T, Const<N>>,
+            damping: &[Vector6<T>; 2],
+        ) -> CommandLimit<T, N> {
+            let none = CommandLimit { torque: SVector::zeros(), limited: [[false; 6]; 2] };
+            // The limited rows L: an axis of a hand with an enabled limit and a finite bound.
+            let mut selected = [false; 12];
+            for (h, bounds) in self.0.effective.iter().enumerate() {
+                let Some((lower, upper)) = bounds else { continue };
+                for (axis, (low, high)) in lower.iter().zip(upper.iter()).enumerate() {
+                    if let Some(s) = selected.get_mut(6 * h + axis) {
+                        *s = low.is_finite() || high.is_finite();
+                    }
+                }
+            }
+            if !selected.iter().any(|s| *s) {
+                return none;
+            }
+            // M⁻¹ J_uᵀ, then the reflected inertia of L (identity on the other rows) and J_L M⁻¹ τ.
+            let mobility = factor.solve(&self.0.stacked.transpose());
+            let mut reflected = self.0.stacked * mobility;
+            let mut rhs = mobility.transpose() * task_torque;
+            for (i, mut row) in reflected.row_iter_mut().enumerate() {
+                let row_selected = selected.get(i).copied().unwrap_or(false);
+                for (j, x) in row.iter_mut().enumerate() {
+                    let both = row_selected && selected.get(j).copied().unwrap_or(false);
+                    *x = match (i == j, both) {
+                        (true, true) => *x + regularisation,
+                        (true, false) => T::one(),
+                        (false, true) => *x,
+                        (false, false) => T::zero(),
+                    };
+                }
+            }
+            for (r, s) in rhs.iter_mut().zip(selected.iter()) {
+                if !s {
+                    *r = T::zero();
+                }
+            }
+            let Some(force) = Cholesky::new(reflected).map(|f| f.solve(&rhs)).filter(crate::math::all_finite) else {
+                return none;
+            };
+            let mut excess = SVector::<T, 12>::zeros();
+            let mut limited = [[false; 6]; 2];
+            for (h, ((bounds, flags), damping)) in
+                self.0.effective.iter().zip(limited.iter_mut()).zip(damping.iter()).enumerate()
+            {
+                let Some((lower, upper)) = bounds else { continue };
+                for (axis, flag) in flags.iter_mut().enumerate() {
+                    let row = 6 * h + axis;
+                    let get = |v: &Vector6<T>| v.get(axis).copied().unwrap_or_else(T::zero);
+                    let (Some(f), Some(e)) = (force.get(row), excess.get_mut(row)) else { continue };
+                    let d = get(damping);
+                    let (low, high) = (get(lower) + d.max(T::zero()), get(upper) + d.min(T::zero()));
+                    let over = *f - f.max(low).min(high);
+                    *e = over;
+                    *flag = over != T::zero();
+                }
+            }
+            CommandLimit { torque: -(self.0.stacked.transpose() * excess), limited }
+        }
     }
 
     /// A quasi-static contact: the applied force is the (effective) bound plus a disturbance
@@ -485,6 +705,103 @@ mod tests {
             data,
             RobotLayout { tcp: [tcp, tcp], platform, torso: [false; 3], arms: [[false, true, true], [false; 3]] },
         )
+    }
+
+    /// The loops of [`ForceLimiter::update`] and [`ForceLimiter::limit_command`] against the
+    /// plain [`Reference`] on the branched test model (platform slider 0, both TCP frames,
+    /// turned desired frames), over 40 governed cycles with random residuals, torques, limits
+    /// and damping: same estimate, corrections, relief, flags and command torque.
+    fn loops_match_the_reference<T: RealField + Copy>(regularisation: f64, tolerance: f64) {
+        use crate::dynamics::{crba, forward_kinematics};
+        use crate::platform::{PlatformAxis, PlatformLayout};
+        use crate::test_models::{branched, state, N, TCP, WRIST};
+        use nalgebra::Rotation3;
+        let model = branched::<T>();
+        let platform =
+            PlatformLayout::try_new::<N>([PlatformAxis::Admitted(0), PlatformAxis::Absent, PlatformAxis::Absent])
+                .unwrap();
+        let layout = RobotLayout {
+            tcp: [TCP, WRIST],
+            platform,
+            torso: [false, true, true, false, false, false],
+            arms: [[false, false, false, true, false, false], [false, false, false, false, true, true]],
+        };
+        let (mut fast, mut plain) = (ForceLimiter::<T, N>::new(), Reference(ForceLimiter::<T, N>::new()));
+        let parameters = ForceLimitParameters {
+            enabled: true,
+            margin: c(0.1),
+            gain: c(20.0),
+            max_correction: c(15.0),
+            regularisation: c(regularisation),
+        };
+        let to_f64 = |x: T| -> f64 { nalgebra::try_convert(x).unwrap() };
+        let mut worst = 0.0_f64;
+        let mut limited_rows = 0;
+        for cycle in 0..40_u64 {
+            let q: SVector<T, N> = state(cycle, 1.5).cast();
+            let mut data = Data::new(&model);
+            forward_kinematics(&model, &mut data, &q, &SVector::zeros()).unwrap();
+            crba(&model, &mut data);
+            let factor = Cholesky::new(data.mass_matrix).unwrap();
+            let residual: SVector<T, N> = (state(cycle ^ 3, 40.0) - state(cycle ^ 5, 40.0)).cast();
+            let hand = |seed: u64| {
+                let s = state(seed, 1.0);
+                let mut upper = Vector6::repeat(f64::INFINITY);
+                let mut lower = Vector6::repeat(f64::NEG_INFINITY);
+                upper[(seed % 6) as usize] = 5.0;
+                lower[((seed + 2) % 6) as usize] = -3.0;
+                if seed % 4 == 0 {
+                    upper[((seed + 4) % 6) as usize] = 2.0;
+                }
+                HandLimits {
+                    axes: Rotation3::from_scaled_axis(nalgebra::Vector3::new(s[0], s[1], s[2])).into_inner(),
+                    lower,
+                    upper,
+                }
+                .cast_limits::<T>()
+            };
+            let hands = [Some(hand(cycle * 7 + 1)), if cycle % 3 == 0 { None } else { Some(hand(cycle * 5 + 2)) }];
+            let dt = c(1e-3);
+            fast.update(&parameters, &model, &data, &layout, &residual, &hands, dt).unwrap();
+            plain.update(&parameters, &model, &data, &layout, &residual, &hands, dt).unwrap();
+            let scale = to_f64(residual.amax()) + 1.0;
+            for h in 0..2 {
+                worst = worst.max(to_f64((fast.applied[h] - plain.0.applied[h]).amax()) / scale);
+                worst = worst.max(to_f64((fast.correction[h] - plain.0.correction[h]).amax()) / scale);
+            }
+            worst = worst.max(to_f64((fast.relief - plain.0.relief).amax()) / scale);
+            worst = worst.max(to_f64((fast.stacked - plain.0.stacked).amax()));
+            let torque: SVector<T, N> = (state(cycle ^ 11, 60.0) - state(cycle ^ 13, 60.0)).cast();
+            let damping = [Vector6::from_fn(|i, _| c((i as f64 - 2.5) * 0.7)), Vector6::zeros()];
+            let a = fast.limit_command(parameters.regularisation, &torque, &factor, &damping);
+            let b = plain.limit_command(parameters.regularisation, &torque, &factor, &damping);
+            assert_eq!(a.limited, b.limited, "cycle {cycle}");
+            limited_rows += a.limited.iter().flatten().filter(|f| **f).count();
+            let command = to_f64((a.torque - b.torque).amax()) / (to_f64(b.torque.amax()) + 1.0);
+            worst = worst.max(command);
+            assert!(worst <= tolerance, "cycle {cycle}: relative difference {worst:e}");
+        }
+        assert!(limited_rows > 10, "the command-side limit acted ({limited_rows} rows)");
+        eprintln!("force limiter fast vs reference: {worst:e}");
+    }
+
+    impl HandLimits<f64> {
+        fn cast_limits<T: RealField + Copy>(&self) -> HandLimits<T> {
+            HandLimits { axes: self.axes.cast(), lower: self.lower.cast(), upper: self.upper.cast() }
+        }
+    }
+
+    #[test]
+    fn loops_match_the_reference_f64() {
+        loops_match_the_reference::<f64>(1e-4, 1e-10);
+    }
+
+    #[test]
+    fn loops_match_the_reference_f32() {
+        // μ = 1e-2: the Gram matrix of the 5 upper-body columns has rank 5 of 12, its condition
+        // is about 1/μ (and that of J_L M⁻¹ J_Lᵀ + μ I similar): f32 rounding of both versions
+        // scales with it; a wrong entry would differ by O(1).
+        loops_match_the_reference::<f32>(1e-2, 1e-3);
     }
 
     /// `+10 N` on the right TCP's x, nothing else.

@@ -9,7 +9,7 @@
 
 use core::fmt;
 
-use nalgebra::{Cholesky, RealField, SMatrix, SVector};
+use nalgebra::{RealField, SMatrix, SVector};
 
 use super::eigen::symmetric_eigen;
 
@@ -55,7 +55,9 @@ impl core::error::Error for DampingError {}
 ///
 /// With `Λ = L Lᵀ` (Cholesky): `L⁻¹ K L⁻ᵀ = V K₀ Vᵀ`, `Q = L V`. With `Λ⁻¹ = Lₐ Lₐᵀ`:
 /// `Λ = Lₐ⁻ᵀ Lₐ⁻¹`, `Lₐᵀ K Lₐ = V K₀ Vᵀ`, `Q = Lₐ⁻ᵀ V` (a triangular solve). Only triangular
-/// solves and a symmetric eigendecomposition ([`super::eigen::symmetric_eigen`]) are used.
+/// solves and a symmetric eigendecomposition ([`super::eigen::symmetric_eigen`]) are used, all
+/// as loops over the column-major storage ([`cholesky_in_place`], [`solve_lower_in_place`],
+/// [`solve_lower_transpose_in_place`]).
 ///
 /// Inputs: `Λ` or `Λ⁻¹` symmetric positive definite, `K` symmetric positive semidefinite
 /// (N/m, Nm/rad), `ξ ≥ 0` per mode (the mode order follows the eigen-solver; pass equal
@@ -77,51 +79,369 @@ pub fn double_diagonalization<T: RealField + Copy, const D: usize>(
     let given = match inertia {
         ReflectedInertia::Inertia(m) | ReflectedInertia::Inverse(m) => m,
     };
-    if !(super::all_finite(given) && super::all_finite(stiffness)) {
+    let finite = |m: &SMatrix<T, D, D>| m.as_slice().iter().all(|x| x.is_finite());
+    if !(finite(given) && finite(stiffness)) {
         return Err(DampingError::NonFinite);
     }
     if damping_ratio.iter().any(|x| !x.is_finite() || *x < T::zero()) {
         return Err(DampingError::InvalidDampingRatio);
     }
-    let factor = Cholesky::new(*given).ok_or(DampingError::InertiaNotPositiveDefinite)?;
-    let l = factor.l();
-    let reduced = match inertia {
-        ReflectedInertia::Inertia(_) => {
-            let x = l.solve_lower_triangular(stiffness).ok_or(DampingError::InertiaNotPositiveDefinite)?;
-            l.solve_lower_triangular(&x.transpose()).ok_or(DampingError::InertiaNotPositiveDefinite)?
-        }
-        ReflectedInertia::Inverse(_) => l.transpose() * stiffness * l,
+    let mut factor = *given;
+    if !cholesky_in_place(factor.as_mut_slice(), D) {
+        return Err(DampingError::InertiaNotPositiveDefinite);
+    }
+    let factored = match inertia {
+        ReflectedInertia::Inertia(_) => ReflectedInertia::Inertia(&factor),
+        ReflectedInertia::Inverse(_) => ReflectedInertia::Inverse(&factor),
     };
-    let reduced = (reduced + reduced.transpose()) * nalgebra::convert::<f64, T>(0.5);
+    double_diagonalization_factored(factored, stiffness, damping_ratio)
+}
+
+/// [`double_diagonalization`] from the Cholesky factor: `inertia` holds `L` with `Λ = L Lᵀ`
+/// ([`ReflectedInertia::Inertia`]) or `Lₐ` with `Λ⁻¹ = Lₐ Lₐᵀ` ([`ReflectedInertia::Inverse`]),
+/// as [`cholesky_in_place`] leaves it (only the lower triangle is read; positive diagonal).
+/// Same design and errors as [`double_diagonalization`] except that the inertia is not checked
+/// again (`K` and `ξ` are assumed finite, `ξ ≥ 0`): for a caller that has factored `Λ⁻¹`
+/// itself (the Cartesian impedance checks its pivots). Cost O(D³), no D×D matrix product of
+/// nalgebra.
+pub fn double_diagonalization_factored<T: RealField + Copy, const D: usize>(
+    inertia: ReflectedInertia<'_, T, D>,
+    stiffness: &SMatrix<T, D, D>,
+    damping_ratio: &SVector<T, D>,
+) -> Result<SMatrix<T, D, D>, DampingError> {
+    let half = nalgebra::convert::<f64, T>(0.5);
+    // The reduced stiffness L⁻¹ K L⁻ᵀ or Lₐᵀ K Lₐ, symmetrised.
+    let mut reduced = *stiffness;
+    match inertia {
+        ReflectedInertia::Inertia(l) => {
+            // X = L⁻¹ K (column by column), then L⁻¹ Xᵀ = L⁻¹ K L⁻ᵀ (K symmetric: Xᵀ = K L⁻ᵀ).
+            for column in reduced.as_mut_slice().chunks_exact_mut(D) {
+                if !solve_lower_in_place(l.as_slice(), column) {
+                    return Err(DampingError::InertiaNotPositiveDefinite);
+                }
+            }
+            reduced.transpose_mut();
+            for column in reduced.as_mut_slice().chunks_exact_mut(D) {
+                if !solve_lower_in_place(l.as_slice(), column) {
+                    return Err(DampingError::InertiaNotPositiveDefinite);
+                }
+            }
+        }
+        ReflectedInertia::Inverse(l) => {
+            // W = K Lₐ, then (Lₐᵀ W)_ij = Σ_{k ≥ i} L_ki W_kj.
+            let mut w = SMatrix::<T, D, D>::zeros();
+            for (j, (w_column, l_column)) in
+                w.as_mut_slice().chunks_exact_mut(D).zip(l.as_slice().chunks_exact(D)).enumerate()
+            {
+                let lower = l_column.get(j..).unwrap_or(&[]);
+                for (k_column, l_kj) in stiffness.as_slice().chunks_exact(D).skip(j).zip(lower.iter()) {
+                    if *l_kj != T::zero() {
+                        for (w, k) in w_column.iter_mut().zip(k_column.iter()) {
+                            *w += *k * *l_kj;
+                        }
+                    }
+                }
+            }
+            for (r_column, w_column) in reduced.as_mut_slice().chunks_exact_mut(D).zip(w.as_slice().chunks_exact(D)) {
+                for (i, (r, l_column)) in r_column.iter_mut().zip(l.as_slice().chunks_exact(D)).enumerate() {
+                    let tail = l_column.get(i..).unwrap_or(&[]).iter().zip(w_column.get(i..).unwrap_or(&[]));
+                    *r = tail.fold(T::zero(), |s, (a, b)| s + *a * *b);
+                }
+            }
+        }
+    }
+    symmetrise(&mut reduced, half);
     let (k0, v) = symmetric_eigen(&reduced);
-    let q = match inertia {
-        ReflectedInertia::Inertia(_) => l * v,
-        ReflectedInertia::Inverse(_) => {
-            l.transpose().solve_upper_triangular(&v).ok_or(DampingError::InertiaNotPositiveDefinite)?
+    let mut q = v;
+    match inertia {
+        ReflectedInertia::Inertia(l) => {
+            // Q = L V: Q_ij = Σ_{k ≤ i} L_ik V_kj, column by column with axpy over L's columns.
+            for (q_column, v_column) in q.as_mut_slice().chunks_exact_mut(D).zip(v.as_slice().chunks_exact(D)) {
+                q_column.fill(T::zero());
+                for (k, (l_column, v_kj)) in l.as_slice().chunks_exact(D).zip(v_column.iter()).enumerate() {
+                    let targets = q_column.get_mut(k..).unwrap_or(&mut []);
+                    for (x, l_ik) in targets.iter_mut().zip(l_column.get(k..).unwrap_or(&[]).iter()) {
+                        *x += *l_ik * *v_kj;
+                    }
+                }
+            }
         }
-    };
+        ReflectedInertia::Inverse(l) => {
+            for column in q.as_mut_slice().chunks_exact_mut(D) {
+                if !solve_lower_transpose_in_place(l.as_slice(), column) {
+                    return Err(DampingError::InertiaNotPositiveDefinite);
+                }
+            }
+        }
+    }
     // The eigensolver returns a stiffness-free mode (e.g. the common mode of a collision pair)
     // as O(ε max k₀) rather than 0; damping it by 2ξ√(ε k) would be spurious, and unboundedly
     // so relative to the real damping as the inertias grow apart. Modes within rounding of
     // zero are zero.
     let tolerance = nalgebra::convert::<f64, T>(1e3) * T::default_epsilon() * k0.amax();
-    let mut modal = SVector::<T, D>::zeros();
-    for ((d0, k), xi) in modal.iter_mut().zip(k0.iter()).zip(damping_ratio.iter()) {
+    let two = nalgebra::convert::<f64, T>(2.0);
+    // D = Σ_k d₀ₖ q_k q_kᵀ over the columns q_k of Q.
+    let mut damping = SMatrix::<T, D, D>::zeros();
+    for ((q_column, k), xi) in q.as_slice().chunks_exact(D).zip(k0.iter()).zip(damping_ratio.iter()) {
         if *k < -tolerance {
             return Err(DampingError::StiffnessNotPositiveSemidefinite);
         }
-        if *k > tolerance {
-            *d0 = nalgebra::convert::<f64, T>(2.0) * *xi * k.sqrt();
+        if *k <= tolerance {
+            continue;
+        }
+        let d0 = two * *xi * k.sqrt();
+        for (d_column, q_j) in damping.as_mut_slice().chunks_exact_mut(D).zip(q_column.iter()) {
+            let scale = d0 * *q_j;
+            for (d, q_i) in d_column.iter_mut().zip(q_column.iter()) {
+                *d += *q_i * scale;
+            }
         }
     }
-    Ok(q * SMatrix::from_diagonal(&modal) * q.transpose())
+    Ok(damping)
+}
+
+/// `A ← (A + Aᵀ)/2` in place (`half` = ½).
+fn symmetrise<T: RealField + Copy, const D: usize>(a: &mut SMatrix<T, D, D>, half: T) {
+    for i in 0..D {
+        for j in (i + 1)..D {
+            let (Some(upper), Some(lower)) = (a.get((i, j)).copied(), a.get((j, i)).copied()) else { continue };
+            let mean = (upper + lower) * half;
+            if let Some(x) = a.get_mut((i, j)) {
+                *x = mean;
+            }
+            if let Some(x) = a.get_mut((j, i)) {
+                *x = mean;
+            }
+        }
+    }
+}
+
+/// Cholesky factorisation `A = L Lᵀ` in place on the column-major storage of an `n×n`
+/// symmetric matrix (`a.len() = n²`; the lower triangle is read): on success the lower
+/// triangle holds `L` (positive diagonal) and the strict upper triangle is left as it was.
+/// Left-looking, column by column, the same operation order as nalgebra's `Cholesky::new`.
+/// Returns `false` (the storage then holds a partial factor) if a pivot is zero, negative or
+/// NaN. Cost n³/6 multiply-adds.
+pub fn cholesky_in_place<T: RealField + Copy>(a: &mut [T], n: usize) -> bool {
+    if n == 0 || a.len() != n * n {
+        return n == 0 && a.is_empty();
+    }
+    for j in 0..n {
+        let Some((previous, rest)) = a.split_at_mut_checked(j * n) else { return false };
+        let Some(column) = rest.get_mut(..n) else { return false };
+        let Some(below) = column.get_mut(j..) else { return false };
+        for l_column in previous.chunks_exact(n) {
+            let Some(l_tail) = l_column.get(j..) else { return false };
+            let Some(&l_jk) = l_tail.first() else { return false };
+            if l_jk != T::zero() {
+                for (x, l) in below.iter_mut().zip(l_tail.iter()) {
+                    *x -= l_jk * *l;
+                }
+            }
+        }
+        let Some((diagonal, tail)) = below.split_first_mut() else { return false };
+        if (*diagonal).partial_cmp(&T::zero()) != Some(core::cmp::Ordering::Greater) {
+            return false;
+        }
+        let root = diagonal.sqrt();
+        *diagonal = root;
+        for x in tail.iter_mut() {
+            *x /= root;
+        }
+    }
+    true
+}
+
+/// Forward substitution `L y = b` in place (`b ← L⁻¹ b`) with the column-major `n×n` lower
+/// factor `l` of [`cholesky_in_place`] (`n = b.len()`, only the lower triangle is read).
+/// Column-oriented: leading zeros of `b` cost nothing. Returns `false` if the sizes differ.
+pub fn solve_lower_in_place<T: RealField + Copy>(l: &[T], b: &mut [T]) -> bool {
+    let n = b.len();
+    if n == 0 || l.len() != n * n {
+        return n == 0 && l.is_empty();
+    }
+    for (j, column) in l.chunks_exact(n).enumerate() {
+        let (Some((y, rest)), Some((diagonal, below))) =
+            (b.get_mut(j..).and_then(|s| s.split_first_mut()), column.get(j..).and_then(|s| s.split_first()))
+        else {
+            return false;
+        };
+        if *y == T::zero() {
+            continue;
+        }
+        *y /= *diagonal;
+        let y = *y;
+        for (x, l_ij) in rest.iter_mut().zip(below.iter()) {
+            *x -= y * *l_ij;
+        }
+    }
+    true
+}
+
+/// Backward substitution `Lᵀ x = y` in place (`y ← L⁻ᵀ y`) with the column-major lower factor
+/// `l` of [`cholesky_in_place`] (`n = y.len()`): `x_j = (y_j − Σ_{i>j} L_ij x_i)/L_jj`, a dot
+/// product with the contiguous part of column `j` below the diagonal. Returns `false` if the
+/// sizes differ.
+pub fn solve_lower_transpose_in_place<T: RealField + Copy>(l: &[T], y: &mut [T]) -> bool {
+    let n = y.len();
+    if n == 0 || l.len() != n * n {
+        return n == 0 && l.is_empty();
+    }
+    for (j, column) in l.chunks_exact(n).enumerate().rev() {
+        let (Some((x, rest)), Some((diagonal, below))) =
+            (y.get_mut(j..).and_then(|s| s.split_first_mut()), column.get(j..).and_then(|s| s.split_first()))
+        else {
+            return false;
+        };
+        let sum = below.iter().zip(rest.iter()).fold(*x, |s, (l_ij, x_i)| s - *l_ij * *x_i);
+        *x = sum / *diagonal;
+    }
+    true
 }
 
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
     use super::*;
-    use nalgebra::{Matrix2, Matrix3, Matrix4, Vector2, Vector3};
+    use nalgebra::{Cholesky, Matrix2, Matrix3, Matrix4, Vector2, Vector3};
+
+    /// The plain design through nalgebra's `Cholesky`, triangular `solve_*` and matrix products:
+    /// the reference for [`double_diagonalization`] (same eigen-solver).
+    fn reference_double_diagonalization<T: RealField + Copy, const D: usize>(
+        inertia: ReflectedInertia<'_, T, D>,
+        stiffness: &SMatrix<T, D, D>,
+        damping_ratio: &SVector<T, D>,
+    ) -> Result<SMatrix<T, D, D>, DampingError> {
+        let given = match inertia {
+            ReflectedInertia::Inertia(m) | ReflectedInertia::Inverse(m) => m,
+        };
+        if !(crate::math::all_finite(given) && crate::math::all_finite(stiffness)) {
+            return Err(DampingError::NonFinite);
+        }
+        if damping_ratio.iter().any(|x| !x.is_finite() || *x < T::zero()) {
+            return Err(DampingError::InvalidDampingRatio);
+        }
+        let factor = Cholesky::new(*given).ok_or(DampingError::InertiaNotPositiveDefinite)?;
+        let l = factor.l();
+        let reduced = match inertia {
+            ReflectedInertia::Inertia(_) => {
+                let x = l.solve_lower_triangular(stiffness).ok_or(DampingError::InertiaNotPositiveDefinite)?;
+                l.solve_lower_triangular(&x.transpose()).ok_or(DampingError::InertiaNotPositiveDefinite)?
+            }
+            ReflectedInertia::Inverse(_) => l.transpose() * stiffness * l,
+        };
+        let reduced = (reduced + reduced.transpose()) * nalgebra::convert::<f64, T>(0.5);
+        let (k0, v) = symmetric_eigen(&reduced);
+        let q = match inertia {
+            ReflectedInertia::Inertia(_) => l * v,
+            ReflectedInertia::Inverse(_) => {
+                l.transpose().solve_upper_triangular(&v).ok_or(DampingError::InertiaNotPositiveDefinite)?
+            }
+        };
+        let tolerance = nalgebra::convert::<f64, T>(1e3) * T::default_epsilon() * k0.amax();
+        let mut modal = SVector::<T, D>::zeros();
+        for ((d0, k), xi) in modal.iter_mut().zip(k0.iter()).zip(damping_ratio.iter()) {
+            if *k < -tolerance {
+                return Err(DampingError::StiffnessNotPositiveSemidefinite);
+            }
+            if *k > tolerance {
+                *d0 = nalgebra::convert::<f64, T>(2.0) * *xi * k.sqrt();
+            }
+        }
+        Ok(q * SMatrix::from_diagonal(&modal) * q.transpose())
+    }
+
+    /// xorshift in [−1, 1].
+    fn uniform(x: &mut u64) -> f64 {
+        *x ^= *x << 13;
+        *x ^= *x >> 7;
+        *x ^= *x << 17;
+        (*x >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+    }
+
+    /// Random SPD inertia (condition up to ~1e3), PSD stiffness (some with a null direction) and
+    /// ratios; fast against reference for both inertia inputs, in f64 and f32.
+    fn fast_matches_reference<const D: usize>() {
+        let mut x = 0x2545_F491_4F6C_DD1D_u64 ^ D as u64;
+        let mut worst = [0.0_f64; 2];
+        for case in 0..80 {
+            let a = SMatrix::<f64, D, D>::from_fn(|_, _| uniform(&mut x));
+            let inertia = a * a.transpose() + SMatrix::identity() * (0.05 + uniform(&mut x).abs());
+            let b = SMatrix::<f64, D, D>::from_fn(|_, _| uniform(&mut x) * 30.0);
+            let mut stiffness = b * b.transpose();
+            if case % 3 == 0 {
+                // A stiffness-free direction: K e = 0 for e = first axis.
+                let mut p = SMatrix::<f64, D, D>::identity();
+                p[(0, 0)] = 0.0;
+                stiffness = p * stiffness * p;
+            }
+            let ratios =
+                SVector::<f64, D>::from_fn(|_, _| if case % 2 == 0 { 0.7 } else { 0.2 + 0.5 * uniform(&mut x).abs() });
+            let inverse = inertia.try_inverse().unwrap();
+            for given in [ReflectedInertia::Inertia(&inertia), ReflectedInertia::Inverse(&inverse)] {
+                let fast = double_diagonalization(given, &stiffness, &ratios).unwrap();
+                let reference = reference_double_diagonalization(given, &stiffness, &ratios).unwrap();
+                let scale = reference.amax().max(1e-30);
+                let error = (fast - reference).amax() / scale;
+                worst[0] = worst[0].max(error);
+                assert!(error < 1e-10, "D = {D}, case {case}: relative difference {error:e}");
+                assert!((fast - fast.transpose()).amax() <= 1e-14 * fast.amax());
+                let given32 = match given {
+                    ReflectedInertia::Inertia(_) => inertia.cast::<f32>(),
+                    ReflectedInertia::Inverse(_) => inverse.cast::<f32>(),
+                };
+                let wrap = |m| match given {
+                    ReflectedInertia::Inertia(_) => ReflectedInertia::Inertia(m),
+                    ReflectedInertia::Inverse(_) => ReflectedInertia::Inverse(m),
+                };
+                let (k32, r32) = (stiffness.cast::<f32>(), ratios.cast::<f32>());
+                let fast32 = double_diagonalization(wrap(&given32), &k32, &r32).unwrap();
+                let reference32 = reference_double_diagonalization(wrap(&given32), &k32, &r32).unwrap();
+                let error32 = ((fast32 - reference32).amax() / reference32.amax().max(1e-30)) as f64;
+                worst[1] = worst[1].max(error32);
+                assert!(error32 < 2e-5, "f32 D = {D}, case {case}: {error32:e}");
+            }
+        }
+        eprintln!("D = {D}: worst relative difference fast vs reference f64 {:e}, f32 {:e}", worst[0], worst[1]);
+    }
+
+    #[test]
+    fn loops_match_the_nalgebra_reference() {
+        fast_matches_reference::<1>();
+        fast_matches_reference::<2>();
+        fast_matches_reference::<3>();
+        fast_matches_reference::<6>();
+    }
+
+    #[test]
+    fn triangular_kernels_invert_the_factor() {
+        let mut x = 77_u64;
+        for _ in 0..20 {
+            let a = SMatrix::<f64, 7, 7>::from_fn(|_, _| uniform(&mut x));
+            let m = a * a.transpose() + SMatrix::identity() * 0.1;
+            let mut l = m;
+            assert!(cholesky_in_place(l.as_mut_slice(), 7));
+            let reference = Cholesky::new(m).unwrap();
+            assert!((l.lower_triangle() - reference.l()).amax() < 1e-12);
+            // Upper triangle untouched.
+            assert_eq!(
+                l.upper_triangle(),
+                m.upper_triangle() - SMatrix::from_diagonal(&m.diagonal()) + SMatrix::from_diagonal(&l.diagonal())
+            );
+            let b = SVector::<f64, 7>::from_fn(|i, _| if i < 2 { 0.0 } else { uniform(&mut x) });
+            let mut y = b;
+            assert!(solve_lower_in_place(l.as_slice(), y.as_mut_slice()));
+            assert!((reference.l() * y - b).amax() < 1e-12);
+            let mut z = y;
+            assert!(solve_lower_transpose_in_place(l.as_slice(), z.as_mut_slice()));
+            assert!((m * z - b).amax() < 1e-10 * (1.0 + b.amax()));
+        }
+        let mut indefinite = Matrix2::new(1.0_f32, 2.0, 2.0, 1.0);
+        assert!(!cholesky_in_place(indefinite.as_mut_slice(), 2));
+        let mut nan = Matrix2::new(f32::NAN, 0.0, 0.0, 1.0);
+        assert!(!cholesky_in_place(nan.as_mut_slice(), 2));
+        assert!(!solve_lower_in_place(&[1.0_f32; 3], &mut [1.0, 2.0]));
+    }
 
     /// Damping ratios of the closed loop Λẍ + Dẋ + Kx = 0 from the eigenvalues of its state
     /// matrix (independent of the construction): ζ = −Re λ / |λ| for each complex pair.

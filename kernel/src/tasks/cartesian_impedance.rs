@@ -55,8 +55,10 @@ use heapless::Vec;
 use nalgebra::{Matrix3, Matrix6, RealField, RowSVector, SMatrix, SVector, UnitQuaternion, Vector3, Vector6};
 
 use super::{TaskError, TaskRow, TaskRows};
-use crate::dynamics::{frame_jacobian, mass_matrix_cholesky, DynamicsError};
-use crate::math::damping::{double_diagonalization, DampingError, ReflectedInertia};
+use crate::dynamics::{frame_jacobian, DynamicsError};
+use crate::math::damping::{
+    cholesky_in_place, double_diagonalization_factored, solve_lower_in_place, DampingError, ReflectedInertia,
+};
 use crate::math::spatial::{skew, Placement};
 use crate::model::{Data, FrameId, Model};
 
@@ -247,19 +249,21 @@ fn stiffness_is_valid<T: RealField + Copy>(k: &Matrix3<T>) -> bool {
     eigenvalues.iter().all(|l| *l >= -tolerance)
 }
 
-/// Task coordinates of the frame: error `e`, Jacobian `J_x = ∂e/∂q` (6×N) and `∂e/∂t`.
-struct TaskKinematics<T, const N: usize> {
+/// Task coordinates of the frame: error `e` and `∂e/∂t`; the frame Jacobian is turned into
+/// `J_x = ∂e/∂q` (6×N) in place.
+struct TaskKinematics<T> {
     error: Vector6<T>,
-    jacobian: SMatrix<T, 6, N>,
     time_derivative: Vector6<T>,
 }
 
+/// `e`, `∂e/∂t` and, in place of the world-aligned frame Jacobian `(J_v; J_ω)` in `jacobian`,
+/// `J_x = (Aᵀ J_v; Aᵀ E J_ω)` with `E = η I − [ε]×` (module docs), column by column.
 fn task_kinematics<T: RealField + Copy, const N: usize>(
     placement: &Placement<T>,
-    frame_jacobian: &SMatrix<T, 6, N>,
+    jacobian: &mut SMatrix<T, 6, N>,
     target: &CartesianTarget<T>,
     stiffness_frame: StiffnessFrame,
-) -> TaskKinematics<T, N> {
+) -> TaskKinematics<T> {
     let two: T = nalgebra::convert(2.0);
     let desired_rotation = target.pose.rotation;
     // A and its angular velocity ω_A (Ȧᵀ = −Aᵀ [ω_A]×).
@@ -281,19 +285,31 @@ fn task_kinematics<T: RealField + Copy, const N: usize>(
     let e_matrix = Matrix3::identity() * eta - skew(&epsilon);
     let translation = at * offset;
     let rotation = at * epsilon * two;
-    let mut jacobian = SMatrix::<T, 6, N>::zeros();
-    jacobian.fixed_rows_mut::<3>(0).copy_from(&(at * frame_jacobian.fixed_rows::<3>(0)));
-    jacobian.fixed_rows_mut::<3>(3).copy_from(&(at * e_matrix * frame_jacobian.fixed_rows::<3>(3)));
+    let rotation_map = at * e_matrix;
+    let apply = |m: &Matrix3<T>, x: &[T]| -> [T; 3] {
+        let (x0, x1, x2) = (
+            x.first().copied().unwrap_or_else(T::zero),
+            x.get(1).copied().unwrap_or_else(T::zero),
+            x.get(2).copied().unwrap_or_else(T::zero),
+        );
+        let m = m.as_slice();
+        let e = |i: usize| m.get(i).copied().unwrap_or_else(T::zero);
+        [e(0) * x0 + e(3) * x1 + e(6) * x2, e(1) * x0 + e(4) * x1 + e(7) * x2, e(2) * x0 + e(5) * x1 + e(8) * x2]
+    };
+    for column in jacobian.as_mut_slice().chunks_exact_mut(6) {
+        let Some((linear, angular)) = column.split_at_mut_checked(3) else { continue };
+        let new_linear = apply(&at, linear);
+        let new_angular = apply(&rotation_map, angular);
+        for (x, y) in linear.iter_mut().zip(new_linear).chain(angular.iter_mut().zip(new_angular)) {
+            *x = y;
+        }
+    }
     // ∂e_t/∂t = −Aᵀ (ṗ_des + ω_A × (p − p_des)). At fixed q, R R_desᵀ turns with the spatial
     // angular velocity −R R_desᵀ ω_des, so ∂e_r/∂t = −2 Aᵀ (ω_A × ε) − Aᵀ E R R_desᵀ ω_des.
     let translation_rate = -(at * (target.linear_velocity + omega_a.cross(&offset)));
     let rotation_rate = -(at * (omega_a.cross(&epsilon) * two + e_matrix * (relative * target.angular_velocity)));
     let stack = |t: &Vector3<T>, r: &Vector3<T>| Vector6::new(t.x, t.y, t.z, r.x, r.y, r.z);
-    TaskKinematics {
-        error: stack(&translation, &rotation),
-        jacobian,
-        time_derivative: stack(&translation_rate, &rotation_rate),
-    }
+    TaskKinematics { error: stack(&translation, &rotation), time_derivative: stack(&translation_rate, &rotation_rate) }
 }
 
 /// Cartesian impedance (3.54) of a frame: appends one row per selected axis (in the order
@@ -359,24 +375,42 @@ pub fn cartesian_impedance<T: RealField + Copy, const N: usize, const B: usize, 
     let mut jacobian = SMatrix::<T, 6, N>::zeros();
     frame_jacobian(model, data, config.frame, &mut jacobian)?;
     let placement = data.frame_placements.get(config.frame.0).ok_or(DynamicsError::UnknownFrame)?;
-    let kinematics = task_kinematics(placement, &jacobian, target, config.stiffness_frame);
+    let kinematics = task_kinematics(placement, &mut jacobian, target, config.stiffness_frame);
 
-    let mask = Vector6::from_fn(|i, _| if config.axes.contains(i) { T::one() } else { T::zero() });
-    let selector = Matrix6::from_diagonal(&mask);
-    let task_jacobian = selector * kinematics.jacobian;
-    let error = selector * kinematics.error;
-    let error_rate = selector * (kinematics.jacobian * data.v + kinematics.time_derivative);
-    let (damping, damping_fallback) = match damping_matrix(data, task, &task_jacobian, &mask) {
+    // The axis mask P: unselected rows of J_x, e and ė are zero.
+    let selected = config.axes.axes();
+    for column in jacobian.as_mut_slice().chunks_exact_mut(6) {
+        for (x, s) in column.iter_mut().zip(selected.iter()) {
+            if !s {
+                *x = T::zero();
+            }
+        }
+    }
+    let task_jacobian = &jacobian;
+    let mask = |v: Vector6<T>| v.zip_map(&Vector6::from(selected), |x, s| if s { x } else { T::zero() });
+    let error = mask(kinematics.error);
+    // ė = J_x q̇ + ∂e/∂t, column by column (the platform columns see q̇ = 0, (5.11)).
+    let mut rate = kinematics.time_derivative;
+    for (column, v) in task_jacobian.as_slice().chunks_exact(6).zip(data.v.as_slice().iter()) {
+        if *v != T::zero() {
+            for (r, j) in rate.as_mut_slice().iter_mut().zip(column.iter()) {
+                *r += *j * *v;
+            }
+        }
+    }
+    let error_rate = mask(rate);
+    let (damping, damping_fallback) = match damping_matrix(data, task, task_jacobian, &selected) {
         Ok(d) => (d, None),
-        Err(reason) => (Matrix6::from_diagonal(&config.fallback_damping.component_mul(&mask)), Some(reason)),
+        Err(reason) => (Matrix6::from_diagonal(&mask(config.fallback_damping)), Some(reason)),
     };
-    let spring = task.stiffness * error;
-    let damping_force = -(damping * error_rate);
+    let spring = symmetric_times(&task.stiffness, &error);
+    let damping_force = -symmetric_times(&damping, &error_rate);
     let unsaturated_force = damping_force - spring;
 
     let half: T = nalgebra::convert(0.5);
     let mut saturated = [false; 6];
     let mut pending: Vec<TaskRow<T, N>, 6> = Vec::new();
+    let finite_jacobian = task_jacobian.as_slice().iter().all(|x| x.is_finite());
     for (axis, flag) in saturated.iter_mut().enumerate() {
         if !config.axes.contains(axis) {
             continue;
@@ -385,13 +419,17 @@ pub fn cartesian_impedance<T: RealField + Copy, const N: usize, const B: usize, 
         let raw = -entry(&spring);
         let (lower, upper) = (entry(&config.force_lower), entry(&config.force_upper));
         *flag = raw < lower || raw > upper;
+        let mut row_jacobian = RowSVector::<T, N>::zeros();
+        for (x, column) in row_jacobian.as_mut_slice().iter_mut().zip(task_jacobian.as_slice().chunks_exact(6)) {
+            *x = column.get(axis).copied().unwrap_or_else(T::zero);
+        }
         let row = TaskRow {
-            jacobian: RowSVector::from_fn(|_, k| task_jacobian.get((axis, k)).copied().unwrap_or_else(T::zero)),
+            jacobian: row_jacobian,
             force: raw.max(lower).min(upper) + entry(&damping_force),
             potential: half * entry(&error) * entry(&spring),
             activation: T::one(),
         };
-        let finite = row.force.is_finite() && row.potential.is_finite() && crate::math::all_finite(&row.jacobian);
+        let finite = row.force.is_finite() && row.potential.is_finite() && finite_jacobian;
         if !finite || pending.push(row).is_err() {
             return Err(TaskError::NonFinite);
         }
@@ -403,31 +441,237 @@ pub fn cartesian_impedance<T: RealField + Copy, const N: usize, const B: usize, 
     Ok(CartesianReport { error, error_rate, unsaturated_force, damping_force, saturated, damping_fallback })
 }
 
+/// `S x` for a 6×6 matrix `S` as a loop over its columns.
+fn symmetric_times<T: RealField + Copy>(s: &Matrix6<T>, x: &Vector6<T>) -> Vector6<T> {
+    let mut y = Vector6::zeros();
+    for (column, xj) in s.as_slice().chunks_exact(6).zip(x.iter()) {
+        if *xj != T::zero() {
+            for (yi, sij) in y.iter_mut().zip(column.iter()) {
+                *yi += *sij * *xj;
+            }
+        }
+    }
+    y
+}
+
 /// `D` by double diagonalisation for `Λ⁻¹ = J_x M⁻¹ J_xᵀ` (unselected rows of `J_x` are zero;
 /// their diagonal entry of `Λ⁻¹` is set to 1 so the matrix stays invertible, and as they have no
 /// stiffness they get no damping). `Λ⁻¹` counts as singular if a pivot of its Cholesky factor
 /// has `L_ii² ≤ 100 ε max_i Λ⁻¹_ii`.
+///
+/// With `M = L Lᵀ`: `Y = L⁻¹ J_xᵀ` by forward substitution of the selected rows only (tight
+/// loops on the column-major factor, [`crate::math::damping::solve_lower_in_place`]) and
+/// `Λ⁻¹ = Yᵀ Y` (exactly symmetric). The factor of `Λ⁻¹` that checks the pivots is handed to
+/// [`crate::math::damping::double_diagonalization_factored`].
 fn damping_matrix<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
     data: &Data<T, N, B, F>,
     task: &CartesianImpedance<T>,
     task_jacobian: &SMatrix<T, 6, N>,
-    mask: &Vector6<T>,
+    selected: &[bool; 6],
 ) -> Result<Matrix6<T>, DampingFallback> {
-    let factor = mass_matrix_cholesky(data).map_err(|_| DampingFallback::MassMatrixNotPositiveDefinite)?;
-    let mobility = task_jacobian * factor.solve(&task_jacobian.transpose());
-    let half: T = nalgebra::convert(0.5);
-    let unselected = Matrix6::from_diagonal(&mask.map(|m| T::one() - m));
-    let inverse_inertia = (mobility + mobility.transpose()) * half + unselected;
+    let mut factor = data.mass_matrix;
+    if !cholesky_in_place(factor.as_mut_slice(), N) {
+        return Err(DampingFallback::MassMatrixNotPositiveDefinite);
+    }
+    // Y = L⁻¹ J_xᵀ, one column per selected row (zero for the others).
+    let mut reduced = SMatrix::<T, N, 6>::zeros();
+    for (axis, (column, flag)) in reduced.as_mut_slice().chunks_exact_mut(N).zip(selected.iter()).enumerate() {
+        if !flag {
+            continue;
+        }
+        for (y, j) in column.iter_mut().zip(task_jacobian.as_slice().chunks_exact(6)) {
+            *y = j.get(axis).copied().unwrap_or_else(T::zero);
+        }
+        if !solve_lower_in_place(factor.as_slice(), column) {
+            return Err(DampingFallback::MassMatrixNotPositiveDefinite);
+        }
+    }
+    let mut inverse_inertia = Matrix6::<T>::identity();
+    for (i, (yi, si)) in reduced.as_slice().chunks_exact(N).zip(selected.iter()).enumerate() {
+        if !si {
+            continue;
+        }
+        for (j, (yj, sj)) in reduced.as_slice().chunks_exact(N).zip(selected.iter()).enumerate().take(i + 1) {
+            if !sj {
+                continue;
+            }
+            let dot = yi.iter().zip(yj.iter()).fold(T::zero(), |s, (a, b)| s + *a * *b);
+            if let Some(x) = inverse_inertia.get_mut((i, j)) {
+                *x = dot;
+            }
+            if let Some(x) = inverse_inertia.get_mut((j, i)) {
+                *x = dot;
+            }
+        }
+    }
     // A rounding-level pivot would pass the factorization inside the design but give a
     // meaningless (huge) damping along the lost direction: treat it as singular.
-    let pivots = nalgebra::Cholesky::new(inverse_inertia).ok_or(DampingFallback::TaskJacobianSingular)?;
-    let floor = nalgebra::convert::<f64, T>(100.0) * T::default_epsilon() * inverse_inertia.diagonal().amax();
-    if pivots.l_dirty().diagonal().iter().any(|l| *l * *l <= floor) {
+    let mut pivots = inverse_inertia;
+    if !cholesky_in_place(pivots.as_mut_slice(), 6) {
         return Err(DampingFallback::TaskJacobianSingular);
     }
+    let floor = nalgebra::convert::<f64, T>(100.0) * T::default_epsilon() * inverse_inertia.diagonal().amax();
+    if pivots.diagonal().iter().any(|l| *l * *l <= floor) {
+        return Err(DampingFallback::TaskJacobianSingular);
+    }
+    if !inverse_inertia.as_slice().iter().all(|x| x.is_finite()) {
+        return Err(DampingFallback::Design(DampingError::NonFinite));
+    }
     let ratios = SVector::<T, 6>::repeat(task.config.damping_ratio);
-    double_diagonalization(ReflectedInertia::Inverse(&inverse_inertia), &task.stiffness, &ratios)
+    double_diagonalization_factored(ReflectedInertia::Inverse(&pivots), &task.stiffness, &ratios)
         .map_err(DampingFallback::Design)
+}
+
+/// The plain implementation (nalgebra products, the mask as a diagonal matrix, nalgebra's
+/// `Cholesky`, `solve` and [`double_diagonalization`]): the reference of the tests for the loops
+/// above.
+#[cfg(test)]
+mod reference {
+    #![allow(clippy::indexing_slicing, reason = "tests")]
+    use super::*;
+    use crate::dynamics::mass_matrix_cholesky;
+    use crate::math::damping::double_diagonalization;
+
+    struct TaskKinematics<T, const N: usize> {
+        error: Vector6<T>,
+        jacobian: SMatrix<T, 6, N>,
+        time_derivative: Vector6<T>,
+    }
+
+    fn task_kinematics<T: RealField + Copy, const N: usize>(
+        placement: &Placement<T>,
+        frame_jacobian: &SMatrix<T, 6, N>,
+        target: &CartesianTarget<T>,
+        stiffness_frame: StiffnessFrame,
+    ) -> TaskKinematics<T, N> {
+        let two: T = nalgebra::convert(2.0);
+        let desired_rotation = target.pose.rotation;
+        // A and its angular velocity ω_A (Ȧᵀ = −Aᵀ [ω_A]×).
+        let (a, omega_a) = match stiffness_frame {
+            StiffnessFrame::World => (Matrix3::identity(), Vector3::zeros()),
+            StiffnessFrame::Desired => (*desired_rotation.matrix(), target.angular_velocity),
+        };
+        let at = a.transpose();
+        let offset = placement.translation.vector - target.pose.translation.vector;
+        // Relative rotation R R_desᵀ (world), its quaternion with η ≥ 0.
+        let relative = placement.rotation * desired_rotation.inverse();
+        let quaternion = UnitQuaternion::from_rotation_matrix(&relative);
+        let (mut eta, mut epsilon) = (quaternion.w, quaternion.imag());
+        if eta < T::zero() {
+            eta = -eta;
+            epsilon = -epsilon;
+        }
+        // ∂(2ε)/∂ω for the spatial angular velocity of R R_desᵀ: E = η I − [ε]×.
+        let e_matrix = Matrix3::identity() * eta - skew(&epsilon);
+        let translation = at * offset;
+        let rotation = at * epsilon * two;
+        let mut jacobian = SMatrix::<T, 6, N>::zeros();
+        jacobian.fixed_rows_mut::<3>(0).copy_from(&(at * frame_jacobian.fixed_rows::<3>(0)));
+        jacobian.fixed_rows_mut::<3>(3).copy_from(&(at * e_matrix * frame_jacobian.fixed_rows::<3>(3)));
+        // ∂e_t/∂t = −Aᵀ (ṗ_des + ω_A × (p − p_des)). At fixed q, R R_desᵀ turns with the spatial
+        // angular velocity −R R_desᵀ ω_des, so ∂e_r/∂t = −2 Aᵀ (ω_A × ε) − Aᵀ E R R_desᵀ ω_des.
+        let translation_rate = -(at * (target.linear_velocity + omega_a.cross(&offset)));
+        let rotation_rate = -(at * (omega_a.cross(&epsilon) * two + e_matrix * (relative * target.angular_velocity)));
+        let stack = |t: &Vector3<T>, r: &Vector3<T>| Vector6::new(t.x, t.y, t.z, r.x, r.y, r.z);
+        TaskKinematics {
+            error: stack(&translation, &rotation),
+            jacobian,
+            time_derivative: stack(&translation_rate, &rotation_rate),
+        }
+    }
+
+    pub fn cartesian_impedance<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const R: usize>(
+        model: &Model<T, N, B, F>,
+        data: &Data<T, N, B, F>,
+        task: &CartesianImpedance<T>,
+        target: &CartesianTarget<T>,
+        rows: &mut TaskRows<T, N, R>,
+    ) -> Result<CartesianReport<T>, TaskError> {
+        let config = &task.config;
+        let pose_finite = crate::math::all_finite(target.pose.rotation.matrix())
+            && crate::math::all_finite(&target.pose.translation.vector);
+        if !(pose_finite
+            && crate::math::all_finite(&target.linear_velocity)
+            && crate::math::all_finite(&target.angular_velocity))
+        {
+            return Err(TaskError::NonFinite);
+        }
+        if rows.len().saturating_add(config.axes.count()) > R {
+            return Err(TaskError::Capacity { capacity: R });
+        }
+        let mut jacobian = SMatrix::<T, 6, N>::zeros();
+        frame_jacobian(model, data, config.frame, &mut jacobian)?;
+        let placement = data.frame_placements.get(config.frame.0).ok_or(DynamicsError::UnknownFrame)?;
+        let kinematics = task_kinematics(placement, &jacobian, target, config.stiffness_frame);
+
+        let mask = Vector6::from_fn(|i, _| if config.axes.contains(i) { T::one() } else { T::zero() });
+        let selector = Matrix6::from_diagonal(&mask);
+        let task_jacobian = selector * kinematics.jacobian;
+        let error = selector * kinematics.error;
+        let error_rate = selector * (kinematics.jacobian * data.v + kinematics.time_derivative);
+        let (damping, damping_fallback) = match damping_matrix(data, task, &task_jacobian, &mask) {
+            Ok(d) => (d, None),
+            Err(reason) => (Matrix6::from_diagonal(&config.fallback_damping.component_mul(&mask)), Some(reason)),
+        };
+        let spring = task.stiffness * error;
+        let damping_force = -(damping * error_rate);
+        let unsaturated_force = damping_force - spring;
+
+        let half: T = nalgebra::convert(0.5);
+        let mut saturated = [false; 6];
+        let mut pending: Vec<TaskRow<T, N>, 6> = Vec::new();
+        for (axis, flag) in saturated.iter_mut().enumerate() {
+            if !config.axes.contains(axis) {
+                continue;
+            }
+            let entry = |v: &Vector6<T>| v.get(axis).copied().unwrap_or_else(T::zero);
+            let raw = -entry(&spring);
+            let (lower, upper) = (entry(&config.force_lower), entry(&config.force_upper));
+            *flag = raw < lower || raw > upper;
+            let row = TaskRow {
+                jacobian: RowSVector::from_fn(|_, k| task_jacobian.get((axis, k)).copied().unwrap_or_else(T::zero)),
+                force: raw.max(lower).min(upper) + entry(&damping_force),
+                potential: half * entry(&error) * entry(&spring),
+                activation: T::one(),
+            };
+            let finite = row.force.is_finite() && row.potential.is_finite() && crate::math::all_finite(&row.jacobian);
+            if !finite || pending.push(row).is_err() {
+                return Err(TaskError::NonFinite);
+            }
+        }
+        // By reference: consuming a heapless vector drops its iterator through a slice index.
+        for row in &pending {
+            rows.push(*row)?;
+        }
+        Ok(CartesianReport { error, error_rate, unsaturated_force, damping_force, saturated, damping_fallback })
+    }
+
+    /// `D` by double diagonalisation for `Λ⁻¹ = J_x M⁻¹ J_xᵀ` (unselected rows of `J_x` are zero;
+    /// their diagonal entry of `Λ⁻¹` is set to 1 so the matrix stays invertible, and as they have no
+    /// stiffness they get no damping). `Λ⁻¹` counts as singular if a pivot of its Cholesky factor
+    /// has `L_ii² ≤ 100 ε max_i Λ⁻¹_ii`.
+    fn damping_matrix<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
+        data: &Data<T, N, B, F>,
+        task: &CartesianImpedance<T>,
+        task_jacobian: &SMatrix<T, 6, N>,
+        mask: &Vector6<T>,
+    ) -> Result<Matrix6<T>, DampingFallback> {
+        let factor = mass_matrix_cholesky(data).map_err(|_| DampingFallback::MassMatrixNotPositiveDefinite)?;
+        let mobility = task_jacobian * factor.solve(&task_jacobian.transpose());
+        let half: T = nalgebra::convert(0.5);
+        let unselected = Matrix6::from_diagonal(&mask.map(|m| T::one() - m));
+        let inverse_inertia = (mobility + mobility.transpose()) * half + unselected;
+        // A rounding-level pivot would pass the factorization inside the design but give a
+        // meaningless (huge) damping along the lost direction: treat it as singular.
+        let pivots = nalgebra::Cholesky::new(inverse_inertia).ok_or(DampingFallback::TaskJacobianSingular)?;
+        let floor = nalgebra::convert::<f64, T>(100.0) * T::default_epsilon() * inverse_inertia.diagonal().amax();
+        if pivots.l_dirty().diagonal().iter().any(|l| *l * *l <= floor) {
+            return Err(DampingFallback::TaskJacobianSingular);
+        }
+        let ratios = SVector::<T, 6>::repeat(task.config.damping_ratio);
+        double_diagonalization(ReflectedInertia::Inverse(&inverse_inertia), &task.stiffness, &ratios)
+            .map_err(DampingFallback::Design)
+    }
 }
 
 #[cfg(test)]
@@ -527,6 +771,68 @@ mod tests {
             assert!(relative <= tolerance, "seed {seed}: relative error {relative}");
         }
         worst
+    }
+
+    /// The loops of [`cartesian_impedance`] against the plain [`reference::cartesian_impedance`]
+    /// on random states, frames, masks and stiffness frames (and the fallbacks), f64 and f32.
+    fn fast_matches_reference<T: RealField + Copy>(tolerance: f64) -> f64 {
+        let model = branched::<T>();
+        let masks = [
+            AxisMask::new([true, true, true, false, false, true]),
+            AxisMask::new([true, false, true, true, false, true]),
+            AxisMask::ROTATION,
+            AxisMask::TRANSLATION,
+            AxisMask::ALL,
+        ];
+        let mut worst = 0.0_f64;
+        for seed in 0..60_u64 {
+            let frame = if seed % 2 == 0 { TCP } else { WRIST };
+            let stiffness_frame = if seed % 3 == 0 { StiffnessFrame::World } else { StiffnessFrame::Desired };
+            let mut cfg = config::<T>(frame, masks[(seed % 5) as usize], stiffness_frame);
+            cfg.force_upper = Vector6::repeat(c(15.0));
+            let task = CartesianImpedance::try_new(cfg).unwrap();
+            let (q, v): (SVector<T, N>, SVector<T, N>) = (state(seed, 2.0).cast(), state(seed ^ 9, 1.5).cast());
+            let mut target = offset_target(&model, frame, &q, seed ^ 31);
+            target.linear_velocity = Vector3::new(c(0.2), c(-0.1), c(0.3));
+            target.angular_velocity = Vector3::new(c(-0.3), c(0.5), c(0.1));
+            let mut data = Data::new(&model);
+            forward_kinematics(&model, &mut data, &q, &v).unwrap();
+            if seed % 11 != 5 {
+                crba(&model, &mut data); // else M = 0: the fallback
+            }
+            let (mut fast_rows, mut reference_rows) = (TaskRows::<T, N, 6>::new(), TaskRows::<T, N, 6>::new());
+            let fast = cartesian_impedance(&model, &data, &task, &target, &mut fast_rows).unwrap();
+            let plain = reference::cartesian_impedance(&model, &data, &task, &target, &mut reference_rows).unwrap();
+            assert_eq!(fast.damping_fallback, plain.damping_fallback, "seed {seed}");
+            assert_eq!(fast.saturated, plain.saturated, "seed {seed}");
+            assert_eq!(fast_rows.len(), reference_rows.len());
+            let scale = |x: T| -> f64 { nalgebra::try_convert(x).unwrap() };
+            let force_scale = scale(plain.unsaturated_force.amax()) + 1.0;
+            let mut error =
+                scale((fast.error - plain.error).amax()) + scale((fast.error_rate - plain.error_rate).amax());
+            error = error.max(scale((fast.damping_force - plain.damping_force).amax()) / force_scale);
+            error = error.max(scale((fast.unsaturated_force - plain.unsaturated_force).amax()) / force_scale);
+            for (a, b) in fast_rows.rows().iter().zip(reference_rows.rows()) {
+                error = error.max(scale((a.jacobian - b.jacobian).amax()));
+                error = error.max(scale((a.force - b.force).abs()) / force_scale);
+                error = error.max(scale((a.potential - b.potential).abs()) / (scale(b.potential.abs()) + 1.0));
+            }
+            worst = worst.max(error);
+            assert!(error <= tolerance, "seed {seed}: relative difference {error:e}");
+        }
+        worst
+    }
+
+    #[test]
+    fn loops_match_the_reference_f64() {
+        let worst = fast_matches_reference::<f64>(1e-10);
+        eprintln!("cartesian fast vs reference, f64: {worst:e}");
+    }
+
+    #[test]
+    fn loops_match_the_reference_f32() {
+        let worst = fast_matches_reference::<f32>(1e-4);
+        eprintln!("cartesian fast vs reference, f32: {worst:e}");
     }
 
     #[test]

@@ -65,6 +65,7 @@ use nalgebra::{Cholesky, Const, RealField, RowSVector, SVector, Vector2};
 use self::distance::ArcBoundary;
 use self::kinematics::{wrap_from, wrap_to_pi};
 use super::{TaskError, TaskRow, TaskRows};
+use crate::math::damping::solve_lower_in_place;
 use crate::math::switching::transition_activation;
 
 /// Number of workspace boundaries (rows) of the torso.
@@ -507,7 +508,8 @@ fn governing_side<T: RealField + Copy>(side: &Side<T>, q2: T, q3: T) -> Option<b
 /// Used alone, `τ = Σ jᵀ f = −(∂V_tws/∂q)ᵀ − D_tws q̇`.
 ///
 /// Inputs: `q`, `q̇` (rad, rad/s), the Cholesky factor of `M(q)`
-/// ([`crate::dynamics::mass_matrix_cholesky`]). Cost O(N²) per row (two triangular solves).
+/// ([`crate::dynamics::mass_matrix_cholesky`]). Cost O(N²) once (two forward substitutions for
+/// the 2×2 block of `M⁻¹` the rows live in), O(1) per row.
 /// Errors (the row list is unchanged): [`TaskError::NonFinite`], [`TaskError::Capacity`] if
 /// fewer than [`BOUNDARIES`] rows are free.
 ///
@@ -554,50 +556,73 @@ pub fn torso_workspace<T: RealField + Copy, const N: usize, const R: usize>(
     let jt = c.geometry.jacobian(q2, q3);
     let gains = &c.gains;
     let two: T = nalgebra::convert(2.0);
+    // Every row lives in the columns (i2, i3): j M⁻¹ jᵀ = lᵀ W l with l = (∂d/∂p_t)ᵀ J_t and W
+    // the 2×2 block of M⁻¹ on (i2, i3), W_ab = (L⁻¹ e_a)·(L⁻¹ e_b) for M = L Lᵀ: two forward
+    // substitutions (from the coordinate on) for all rows instead of one full solve per row.
+    let block =
+        if report.distances.iter().any(Option::is_some) { inverse_block(inertia, i2, i3) } else { [T::zero(); 3] };
+    let [w22, w23, w33] = block;
+    let (v2, v3) = (v.get(i2).copied().unwrap_or_else(T::zero), v.get(i3).copied().unwrap_or_else(T::zero));
     let mut new_rows =
         [TaskRow { jacobian: RowSVector::zeros(), force: T::zero(), potential: T::zero(), activation: T::zero() };
             BOUNDARIES];
     for ((row, distance), gradient) in new_rows.iter_mut().zip(report.distances.iter()).zip(gradients.iter()) {
         let Some(d) = *distance else { continue };
         let local = gradient.transpose() * jt;
+        let (l2, l3) = (local.x, local.y);
         let mut jacobian = RowSVector::<T, N>::zeros();
-        if let (Some(a), Some(b)) = (jacobian.get_mut(i2), local.get(0)) {
-            *a = *b;
+        if let Some(a) = jacobian.get_mut(i2) {
+            *a = l2;
         }
-        if let (Some(a), Some(b)) = (jacobian.get_mut(i3), local.get(1)) {
-            *a = *b;
+        if let Some(a) = jacobian.get_mut(i3) {
+            *a = l3;
         }
-        let rate = (jacobian * v).x;
+        let rate = l2 * v2 + l3 * v3;
         // Damping 2ξ√(k m) ḋ with m = 1/(j M⁻¹ jᵀ): 2ξ√k ḋ/√(j M⁻¹ jᵀ). At a singular row
         // (j → 0) both ḋ and √(j M⁻¹ jᵀ) vanish linearly; below the guard no damping.
         let stiffness = gains.stiffness(d);
-        let mobility = (jacobian * inertia.solve(&jacobian.transpose())).x.max(T::zero()).sqrt();
+        let mobility = (l2 * (l2 * w22 + l3 * w23) + l3 * (l2 * w23 + l3 * w33)).max(T::zero()).sqrt();
         let damping = crate::math::guarded_divide(
             two * gains.damping_ratio * stiffness.sqrt() * rate,
             mobility,
             T::default_epsilon(),
         )
         .unwrap_or_else(T::zero);
-        *row = TaskRow {
-            jacobian,
-            force: gains.force(d) - damping,
-            potential: gains.potential(d),
-            activation: transition_activation(d, gains.activation_full, gains.activation_start),
-        };
-    }
-    let finite = new_rows.iter().all(|r| {
-        r.force.is_finite()
-            && r.potential.is_finite()
-            && r.activation.is_finite()
-            && crate::math::all_finite(&r.jacobian)
-    });
-    if !finite {
-        return Err(TaskError::NonFinite);
+        let force = gains.force(d) - damping;
+        let potential = gains.potential(d);
+        let activation = transition_activation(d, gains.activation_full, gains.activation_start);
+        // The row is zero outside (i2, i3): checking its two entries checks the row.
+        let finite =
+            force.is_finite() && potential.is_finite() && activation.is_finite() && l2.is_finite() && l3.is_finite();
+        if !finite {
+            return Err(TaskError::NonFinite);
+        }
+        *row = TaskRow { jacobian, force, potential, activation };
     }
     for row in new_rows {
         rows.push(row)?;
     }
     Ok(report)
+}
+
+/// `(W₂₂, W₂₃, W₃₃)` of `W = M⁻¹` on the coordinates `(i2, i3)` from the Cholesky factor
+/// `M = L Lᵀ`: `W_ab = (L⁻¹ e_a)·(L⁻¹ e_b)`, two forward substitutions on the column-major
+/// factor ([`crate::math::damping::solve_lower_in_place`]; the leading zeros cost nothing).
+fn inverse_block<T: RealField + Copy, const N: usize>(inertia: &Cholesky<T, Const<N>>, i2: usize, i3: usize) -> [T; 3] {
+    let l = inertia.l_dirty().as_slice();
+    let unit = |i: usize| {
+        let mut e = SVector::<T, N>::zeros();
+        if let Some(x) = e.get_mut(i) {
+            *x = T::one();
+        }
+        solve_lower_in_place(l, e.as_mut_slice());
+        e
+    };
+    let (y2, y3) = (unit(i2), unit(i3));
+    let dot = |a: &SVector<T, N>, b: &SVector<T, N>| {
+        a.as_slice().iter().zip(b.as_slice().iter()).fold(T::zero(), |s, (x, y)| s + *x * *y)
+    };
+    [dot(&y2, &y2), dot(&y2, &y3), dot(&y3, &y3)]
 }
 
 #[cfg(test)]

@@ -383,3 +383,117 @@ fn invalid_configurations_are_rejected() {
         assert!(matches!(TorsoWorkspace::<f64, N4>::try_new(b), Err(TaskError::InvalidParameter { .. })), "{b:?}");
     }
 }
+
+/// The plain row loop (one full `Cholesky::solve` per row for `j M⁻¹ jᵀ`, nalgebra row products,
+/// finiteness of every row checked on its whole Jacobian): the reference for
+/// [`torso_workspace`].
+fn reference_torso_workspace<T: RealField + Copy, const N: usize, const R: usize>(
+    task: &TorsoWorkspace<T, N>,
+    q: &SVector<T, N>,
+    v: &SVector<T, N>,
+    inertia: &Cholesky<T, Const<N>>,
+    rows: &mut TaskRows<T, N, R>,
+) -> Result<TorsoWorkspaceReport<T>, TaskError> {
+    if !(crate::math::all_finite(q) && crate::math::all_finite(v)) {
+        return Err(TaskError::NonFinite);
+    }
+    if rows.len().saturating_add(BOUNDARIES) > R {
+        return Err(TaskError::Capacity { capacity: R });
+    }
+    let c = &task.config;
+    let [i2, i3] = c.coordinates;
+    let (Some(&q2), Some(&q3)) = (q.get(i2), q.get(i3)) else {
+        return Err(TaskError::InvalidParameter { name: "coordinates" });
+    };
+    let (report, gradients) = task.evaluate(q2, q3);
+    let jt = c.geometry.jacobian(q2, q3);
+    let gains = &c.gains;
+    let two: T = nalgebra::convert(2.0);
+    let mut new_rows =
+        [TaskRow { jacobian: RowSVector::zeros(), force: T::zero(), potential: T::zero(), activation: T::zero() };
+            BOUNDARIES];
+    for ((row, distance), gradient) in new_rows.iter_mut().zip(report.distances.iter()).zip(gradients.iter()) {
+        let Some(d) = *distance else { continue };
+        let local = gradient.transpose() * jt;
+        let mut jacobian = RowSVector::<T, N>::zeros();
+        if let (Some(a), Some(b)) = (jacobian.get_mut(i2), local.get(0)) {
+            *a = *b;
+        }
+        if let (Some(a), Some(b)) = (jacobian.get_mut(i3), local.get(1)) {
+            *a = *b;
+        }
+        let rate = (jacobian * v).x;
+        // Damping 2ξ√(k m) ḋ with m = 1/(j M⁻¹ jᵀ): 2ξ√k ḋ/√(j M⁻¹ jᵀ). At a singular row
+        // (j → 0) both ḋ and √(j M⁻¹ jᵀ) vanish linearly; below the guard no damping.
+        let stiffness = gains.stiffness(d);
+        let mobility = (jacobian * inertia.solve(&jacobian.transpose())).x.max(T::zero()).sqrt();
+        let damping = crate::math::guarded_divide(
+            two * gains.damping_ratio * stiffness.sqrt() * rate,
+            mobility,
+            T::default_epsilon(),
+        )
+        .unwrap_or_else(T::zero);
+        *row = TaskRow {
+            jacobian,
+            force: gains.force(d) - damping,
+            potential: gains.potential(d),
+            activation: transition_activation(d, gains.activation_full, gains.activation_start),
+        };
+    }
+    let finite = new_rows.iter().all(|r| {
+        r.force.is_finite()
+            && r.potential.is_finite()
+            && r.activation.is_finite()
+            && crate::math::all_finite(&r.jacobian)
+    });
+    if !finite {
+        return Err(TaskError::NonFinite);
+    }
+    for row in new_rows {
+        rows.push(row)?;
+    }
+    Ok(report)
+}
+
+/// [`torso_workspace`] against [`reference_torso_workspace`] on random torso states (near and
+/// inside every boundary), loads and velocities, f64 and f32: same rows to rounding.
+fn fast_matches_reference<T: RealField + Copy>(tolerance: f64) -> f64 {
+    let mut rng = Lcg(0xDEC0DE);
+    let mut worst = 0.0_f64;
+    let mut active = 0;
+    for case in 0..400 {
+        let (force, angle) = (300.0 + 700.0 * rng.next(), 360.0 * rng.next());
+        let task = TorsoWorkspace::<T, N4>::try_new(config(force, angle, 150.0 + 150.0 * rng.next())).unwrap();
+        let (q2, q3) = torso_sample(&mut rng);
+        let q = state::<T>(q2, q3);
+        let v = Vector4::new(rng.next() - 0.5, 2.0 * rng.next() - 1.0, rng.next(), 2.0 * rng.next() - 1.0).cast::<T>();
+        let (mut fast_rows, mut plain_rows) =
+            (TaskRows::<T, N4, BOUNDARIES>::new(), TaskRows::<T, N4, BOUNDARIES>::new());
+        let fast = torso_workspace(&task, &q, &v, &inertia(), &mut fast_rows).unwrap();
+        let plain = reference_torso_workspace(&task, &q, &v, &inertia(), &mut plain_rows).unwrap();
+        assert_eq!(fast, plain, "case {case}");
+        for (a, b) in fast_rows.rows().iter().zip(plain_rows.rows()) {
+            let to_f64 = |x: T| -> f64 { nalgebra::try_convert(x).unwrap() };
+            assert_eq!(a.jacobian, b.jacobian);
+            assert_eq!((a.potential, a.activation), (b.potential, b.activation));
+            let error = to_f64((a.force - b.force).abs()) / (to_f64(b.force.abs()) + 1.0);
+            worst = worst.max(error);
+            assert!(error <= tolerance, "case {case}: {} vs {}", a.force, b.force);
+            active += usize::from(b.activation > T::zero() && b.force != T::zero());
+        }
+    }
+    assert!(active > 50, "rows with force seen: {active}");
+    worst
+}
+
+#[test]
+fn row_loop_matches_the_reference_f64() {
+    let worst = fast_matches_reference::<f64>(1e-12);
+    eprintln!("torso fast vs reference, f64: {worst:e}");
+}
+
+#[test]
+fn row_loop_matches_the_reference_f32() {
+    let worst = fast_matches_reference::<f32>(1e-5);
+    eprintln!("torso fast vs reference, f32: {worst:e}");
+}
