@@ -42,23 +42,20 @@ pub use frame_jacobian::{frame_jacobian, point_jacobian};
 pub use gravity::gravity;
 pub use rnea::rnea;
 
-use nalgebra::{RealField, SMatrix, SVector};
+use nalgebra::{RealField, SVector, Vector6};
 
-use crate::model::JointDrive;
+use crate::model::{DriveTerm, JointDrive};
 
-/// `m += value · g_rowᵀ g_col`: adds a tree-level entry to a coordinate-level matrix through
-/// the drive rows of two joints.
-#[inline]
-fn add_coupled<T: RealField + Copy, const N: usize>(
-    m: &mut SMatrix<T, N, N>,
-    row: &JointDrive<T>,
-    col: &JointDrive<T>,
-    value: T,
-) {
-    for r in row.terms() {
-        for c in col.terms() {
-            if let Some(entry) = m.get_mut((r.coordinate, c.coordinate)) {
-                *entry += r.coefficient * c.coefficient * value;
+/// `m += value · g_rowᵀ g_col`: adds a tree-level entry to a coordinate-level N×N matrix,
+/// given as its column-major storage `m`, through the drive rows of two joints.
+#[inline(always)]
+fn add_coupled<T: RealField + Copy, const N: usize>(m: &mut [T], row: &[DriveTerm<T>], col: &[DriveTerm<T>], value: T) {
+    for c in col {
+        let scaled = c.coefficient * value;
+        let start = c.coordinate * N;
+        for r in row {
+            if let Some(entry) = m.get_mut(start + r.coordinate) {
+                *entry += r.coefficient * scaled;
             }
         }
     }
@@ -72,6 +69,30 @@ fn add_to_coordinates<T: RealField + Copy, const N: usize>(out: &mut SVector<T, 
             *entry += t.coefficient * value;
         }
     }
+}
+
+/// `a · b` of two spatial vectors, written out.
+#[inline(always)]
+fn dot6<T: RealField + Copy>(a: &Vector6<T>, b: &Vector6<T>) -> T {
+    let [a0, a1, a2, a3, a4, a5] = a.data.0[0];
+    let [b0, b1, b2, b3, b4, b5] = b.data.0[0];
+    a0 * b0 + a1 * b1 + a2 * b2 + a3 * b3 + a4 * b4 + a5 * b5
+}
+
+/// `a + k b` of two spatial vectors, written out.
+#[inline(always)]
+fn add_scaled6<T: RealField + Copy>(a: &Vector6<T>, b: &Vector6<T>, k: T) -> Vector6<T> {
+    let [a0, a1, a2, a3, a4, a5] = a.data.0[0];
+    let [b0, b1, b2, b3, b4, b5] = b.data.0[0];
+    Vector6::new(a0 + k * b0, a1 + k * b1, a2 + k * b2, a3 + k * b3, a4 + k * b4, a5 + k * b5)
+}
+
+/// `a + b` of two spatial vectors, written out.
+#[inline(always)]
+fn add6<T: RealField + Copy>(a: &Vector6<T>, b: &Vector6<T>) -> Vector6<T> {
+    let [a0, a1, a2, a3, a4, a5] = a.data.0[0];
+    let [b0, b1, b2, b3, b4, b5] = b.data.0[0];
+    Vector6::new(a0 + b0, a1 + b1, a2 + b2, a3 + b3, a4 + b4, a5 + b5)
 }
 
 /// Checks that every entry of a state vector is finite.
