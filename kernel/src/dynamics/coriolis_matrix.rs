@@ -5,8 +5,8 @@ use nalgebra::{RealField, SMatrix, Vector6};
 use super::crba::accumulate_world_composites;
 use super::rnea::force_cross;
 use super::{add6, add_coupled, add_scaled6, dot6};
-use crate::math::spatial::force_bar_matrix;
-use crate::model::{Data, Model};
+use crate::math::spatial::{SpatialForce, SpatialMatrix};
+use crate::model::{Data, Model, WorldInertia};
 
 /// Coriolis/centrifugal matrix `C(q, q̇)` of (2.1) built from the Christoffel symbols of the
 /// first kind, so that `Ṁ = C + Cᵀ` (2.7) and `C q̇` is the velocity-product term of RNEA.
@@ -71,7 +71,7 @@ pub fn coriolis_matrix<'d, T: RealField + Copy, const N: usize, const B: usize, 
         .zip(data.composite_momenta.iter())
     {
         *ic = c.matrix();
-        *bc = (rate.matrix() + force_bar_matrix(momentum)) * half;
+        *bc = coriolis_operator(rate, momentum, half);
     }
 
     let m = data.coriolis.as_mut_slice();
@@ -105,6 +105,29 @@ pub fn coriolis_matrix<'d, T: RealField + Copy, const N: usize, const B: usize, 
         }
     }
     &data.coriolis
+}
+
+/// The 6×6 operator `B = ½ İ + ½ (p)×̄` from the inertia rate `İ` (ten-parameter form, zero
+/// mass) and the momentum `p = (n; f)`, with `(p)×̄ = [[−[n]×, −[f]×], [−[f]×, 0]]`
+/// ([`crate::math::spatial::force_bar_matrix`]).
+fn coriolis_operator<T: RealField + Copy>(
+    rate: &WorldInertia<T>,
+    momentum: &SpatialForce<T>,
+    half: T,
+) -> SpatialMatrix<T> {
+    let [h0, h1, h2] = rate.first_moment.map(|x| x * half);
+    let [xx, yy, zz, xy, xz, yz] = rate.rotational.map(|x| x * half);
+    let [n0, n1, n2, f0, f1, f2] = momentum.data.0[0].map(|x| x * half);
+    let z = T::zero();
+    // Columns of ½ [[İ_rot, [ḣ]×], [−[ḣ]×, 0]] + ½ [[−[n]×, −[f]×], [−[f]×, 0]].
+    SpatialMatrix::from_data(nalgebra::ArrayStorage([
+        [xx, xy - n2, xz + n1, z, -h2 - f2, h1 + f1],
+        [xy + n2, yy, yz - n0, h2 + f2, z, -h0 - f0],
+        [xz - n1, yz + n0, zz, -h1 - f1, h0 + f0, z],
+        [z, h2 - f2, f1 - h1, z, z, z],
+        [f2 - h2, z, h0 - f0, z, z, z],
+        [h1 - f1, f0 - h0, z, z, z, z],
+    ]))
 }
 
 /// `k a`, written out.

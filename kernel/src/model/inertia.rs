@@ -147,13 +147,13 @@ impl<T: RealField + Copy> WorldInertia<T> {
     /// `self += other`.
     #[inline]
     pub fn add(&mut self, other: &Self) {
+        let [h0, h1, h2] = other.first_moment;
+        let [xx, yy, zz, xy, xz, yz] = other.rotational;
+        let [a0, a1, a2] = self.first_moment;
+        let [b0, b1, b2, b3, b4, b5] = self.rotational;
         self.mass += other.mass;
-        for (a, b) in self.first_moment.iter_mut().zip(other.first_moment.iter()) {
-            *a += *b;
-        }
-        for (a, b) in self.rotational.iter_mut().zip(other.rotational.iter()) {
-            *a += *b;
-        }
+        self.first_moment = [a0 + h0, a1 + h1, a2 + h2];
+        self.rotational = [b0 + xx, b1 + yy, b2 + zz, b3 + xy, b4 + xz, b5 + yz];
     }
 
     /// `I s` for a motion `s = (ω; u)`: `(Ī ω + h × u; m u − h × ω)`.
