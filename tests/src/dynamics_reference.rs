@@ -146,3 +146,43 @@ proptest! {
         check(&fast(&m32, &q, &v, &a), &reference, F32_RELATIVE)?;
     }
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// Justin's tree-sparse `M = Lᵀ L` (`kernel::dynamics::TreeFactorization`) against nalgebra's
+    /// dense Cholesky: `LᵀL = M`, equal solves (f64 tight, f32 loose), and branch-induced
+    /// sparsity (the elimination tree is not one chain; `L` is zero between the arms).
+    #[test]
+    fn justin_tree_factorization_matches_dense_cholesky(offset in vector::<20>(0.5), b in vector::<20>(10.0)) {
+        use kernel::dynamics::TreeFactorization;
+        let q = fixtures::justin::home_configuration::<f64>() + offset;
+        let model = fixtures::justin::model::<f64>().unwrap();
+        let mut data = Data::new(&model);
+        forward_kinematics(&model, &mut data, &q, &SVector::zeros()).unwrap();
+        let m = *crba(&model, &mut data);
+        let mut tree = TreeFactorization::new(&model);
+        tree.factorize(&m).unwrap();
+        let l = tree.factor();
+        prop_assert!((l.transpose() * l - m).amax() < 1e-12 * m.amax());
+        let dense = nalgebra::Cholesky::new(m).unwrap().solve(&b);
+        let mut x = b;
+        tree.solve_mut(&mut x);
+        prop_assert!((x - dense).amax() < 1e-9 * (1.0 + dense.amax()), "{}", (x - dense).amax());
+        let branches = tree.parents().iter().enumerate().filter(|(k, p)| **p != k.checked_sub(1)).count();
+        prop_assert!(branches >= 1, "no branch point in the elimination tree {:?}", tree.parents());
+        let zeros = (0..20).flat_map(|r| (0..r).map(move |c| (r, c))).filter(|&(r, c)| l[(r, c)] == 0.0).count();
+        prop_assert!(zeros > 0, "no branch-induced zeros in L");
+
+        let model32 = fixtures::justin::model::<f32>().unwrap();
+        let mut data32 = Data::new(&model32);
+        forward_kinematics(&model32, &mut data32, &q.cast(), &SVector::zeros()).unwrap();
+        let m32 = *crba(&model32, &mut data32);
+        let mut tree32 = TreeFactorization::new(&model32);
+        tree32.factorize(&m32).unwrap();
+        let mut x32 = b.cast::<f32>();
+        tree32.solve_mut(&mut x32);
+        let dense32 = nalgebra::Cholesky::new(m32.cast::<f64>()).unwrap().solve(&b);
+        prop_assert!((x32.cast::<f64>() - dense32).amax() < 1e-3 * (1.0 + dense32.amax()), "{}", (x32.cast::<f64>() - dense32).amax());
+    }
+}

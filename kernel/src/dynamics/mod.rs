@@ -14,6 +14,7 @@
 //! | [`crba`] | `M(q)` | O(B·depth) |
 //! | [`coriolis_matrix`] | `C(q, q̇)` with `Ṁ = C + Cᵀ` (2.7) | O(B·depth) |
 //! | [`mass_matrix_cholesky`], [`forward_dynamics`] | `M = L Lᵀ`, `q̈ = M⁻¹(τ − C q̇ − g)` | O(N³) |
+//! | [`TreeFactorization`] | `M = Lᵀ L` over the branch-induced sparsity, solves | O(Σ depth²) |
 //! | [`kinetic_energy`], [`potential_energy`] | `½ q̇ᵀ M q̇`, `−Σ m_i gᵀ c_i` | O(B) |
 //!
 //! With coupled joints the tree quantities are mapped through the constant drive matrix `G`
@@ -30,6 +31,7 @@ mod frame_drift;
 mod frame_jacobian;
 mod gravity;
 mod rnea;
+mod tree_factorization;
 
 pub use coriolis_matrix::coriolis_matrix;
 pub use crba::crba;
@@ -41,6 +43,7 @@ pub use frame_drift::{frame_drift, point_drift};
 pub use frame_jacobian::{frame_jacobian, point_jacobian};
 pub use gravity::gravity;
 pub use rnea::rnea;
+pub use tree_factorization::TreeFactorization;
 
 use nalgebra::{RealField, SVector, Vector6};
 
