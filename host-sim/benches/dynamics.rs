@@ -8,6 +8,10 @@
 //! - `<robot>/crba`, `rnea`, `coriolis_matrix`, `frame_jacobian`: the algorithm **alone**,
 //!   after one `forward_kinematics` at the same state outside the timed loop (every one of them
 //!   needs it; add the `forward_kinematics` figure for the cost from a fresh state).
+//! - `<robot>/fk+crba`, `fk+rnea`, `fk+coriolis_matrix`, `fk+frame_jacobian`:
+//!   `forward_kinematics` followed by the algorithm, the work Pinocchio's `crba(q)`,
+//!   `rnea(q, v, a)`, `computeCoriolisMatrix(q, v)` and `computeFrameJacobian(q, frame)` do
+//!   (compare with `fixtures/pinocchio/bench_pinocchio.sh` run on the same machine).
 //! - `justin/sim_physics_step`: one RK4 physics step of `host_sim::sim::Simulator` (four
 //!   evaluations of kinematics, RNEA, CRBA and a 17×17 Cholesky solve).
 //! - `justin/cartesian_impedance_step`: one `CartesianJointImpedance::step` through the `hal`
@@ -60,6 +64,29 @@ fn algorithms<const N: usize, const B: usize, const F: usize>(
     let mut jacobian = SMatrix::<f64, 6, N>::zeros();
     group.bench_function("frame_jacobian", |b| {
         b.iter(|| frame_jacobian(black_box(model), &data, black_box(tcp), &mut jacobian));
+    });
+    // From a fresh state, as Pinocchio's `crba(q)`, `rnea(q, v, a)`, `computeCoriolisMatrix(q, v)`
+    // and `computeFrameJacobian(q, frame)` (fixtures/pinocchio/bench_pinocchio.sh) are timed.
+    group.bench_function("fk+crba", |b| {
+        b.iter(|| forward_kinematics(model, &mut data, black_box(&q), black_box(&v)).map(|()| *crba(model, &mut data)));
+    });
+    group.bench_function("fk+rnea", |b| {
+        b.iter(|| {
+            forward_kinematics(model, &mut data, black_box(&q), black_box(&v))
+                .and_then(|()| rnea(model, &mut data, black_box(&a)).copied())
+        });
+    });
+    group.bench_function("fk+coriolis_matrix", |b| {
+        b.iter(|| {
+            forward_kinematics(model, &mut data, black_box(&q), black_box(&v))
+                .map(|()| *coriolis_matrix(model, &mut data))
+        });
+    });
+    group.bench_function("fk+frame_jacobian", |b| {
+        b.iter(|| {
+            forward_kinematics(model, &mut data, black_box(&q), black_box(&v))
+                .and_then(|()| frame_jacobian(model, &data, black_box(tcp), &mut jacobian))
+        });
     });
     group.finish();
 }

@@ -9,6 +9,8 @@ mod dynamics;
 #[cfg(test)]
 mod dynamics_properties;
 #[cfg(test)]
+mod dynamics_reference;
+#[cfg(test)]
 mod fixtures_models;
 #[cfg(test)]
 mod hierarchy;

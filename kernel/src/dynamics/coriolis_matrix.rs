@@ -1,11 +1,12 @@
 //! The Christoffel-consistent Coriolis/centrifugal matrix.
 
-use nalgebra::{RealField, SMatrix};
+use nalgebra::{RealField, SMatrix, Vector6};
 
-use super::add_coupled;
-use super::crba::accumulate_composites;
-use crate::math::spatial::{force_bar_matrix, force_cross_matrix, motion_cross, motion_cross_matrix};
-use crate::model::{BodyId, Data, Model};
+use super::crba::accumulate_world_composites;
+use super::rnea::force_cross;
+use super::{add6, add_coupled, add_scaled6, dot6};
+use crate::math::spatial::{SpatialForce, SpatialMatrix};
+use crate::model::{Data, Model, WorldInertia};
 
 /// Coriolis/centrifugal matrix `C(q, q̇)` of (2.1) built from the Christoffel symbols of the
 /// first kind, so that `Ṁ = C + Cᵀ` (2.7) and `C q̇` is the velocity-product term of RNEA.
@@ -15,59 +16,125 @@ use crate::model::{BodyId, Data, Model};
 /// `C = Σ_i J_iᵀ (I_i J̇_i + B_i J_i)`, with the body operator
 /// `B_i = ½ [(v_i ×*) I_i + (I_i v_i)×̄ − I_i (v_i ×)]`
 /// (Echeandia & Wensing's Christoffel-consistent factorization; `B_i + B_iᵀ = İ_i`, which is
-/// what makes `Ṁ = C + Cᵀ` hold, and `B_i v_i = v_i ×* I_i v_i`). It is evaluated with
-/// subtree composites `I^c`, `B^c` in O(B·depth): for each body `j`
+/// what makes `Ṁ = C + Cᵀ` hold, and `B_i v_i = v_i ×* I_i v_i`). Since `(v ×*) = −(v ×)ᵀ`,
+/// `B_i = ½ İ_i + ½ (I_i v_i)×̄`: a symmetric part that is the rate of the inertia (ten
+/// parameters, [`crate::model::WorldInertia::rate`]) and a skew part linear in the momentum. The subtree
+/// composites are therefore `B^c_j = ½ İ^c_j + ½ (p^c_j)×̄` with `İ^c_j = Σ İ_k` and momentum
+/// `p^c_j = Σ I_k v_k`, accumulated in one backward pass. Then, in O(B·depth), for each body `j`
 /// - `C[a][j] = S_aᵀ (I^c_j Ṡ_j + B^c_j S_j)` for `a` on the path from `j` to the root,
 /// - `C[j][b] = (I^c_j S_j)ᵀ Ṡ_b + (B^cᵀ_j S_j)ᵀ S_b` for `b` a strict ancestor of `j`,
 ///
-/// mapped to coordinates as `Gᵀ C_tree G`.
+/// with `B^c_j S = ½ İ^c_j S + ½ S ×* p^c_j` and `B^cᵀ_j S = ½ İ^c_j S − ½ S ×* p^c_j`,
+/// mapped to coordinates as `Gᵀ C_tree G`. Entries of bodies on different branches are zero
+/// and never visited.
 ///
-/// Precondition: [`super::forward_kinematics`] at `(q, q̇)`. Writes `composite_inertias`,
-/// `composite_coriolis` and `coriolis` (returned).
+/// Precondition: [`super::forward_kinematics`] at `(q, q̇)`. Writes `composite_world_inertias`,
+/// `composite_inertia_rates`, `composite_momenta`, the 6×6 `composite_inertias` and
+/// `composite_coriolis` (`B^c`), and `coriolis` (returned).
 pub fn coriolis_matrix<'d, T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
     model: &Model<T, N, B, F>,
     data: &'d mut Data<T, N, B, F>,
 ) -> &'d SMatrix<T, N, N> {
     let half = nalgebra::convert::<f64, T>(0.5);
-    for ((b, inertia), v) in
-        data.composite_coriolis.iter_mut().zip(data.body_inertias.iter()).zip(data.body_velocities.iter())
+    for (((rate, momentum), inertia), v) in data
+        .composite_inertia_rates
+        .iter_mut()
+        .zip(data.composite_momenta.iter_mut())
+        .zip(data.world_inertias.iter())
+        .zip(data.body_velocities.iter())
     {
-        let momentum = inertia * v;
-        *b = (force_cross_matrix(v) * inertia + force_bar_matrix(&momentum) - inertia * motion_cross_matrix(v)) * half;
+        *rate = inertia.rate(v);
+        *momentum = inertia.apply(v);
     }
-    let per_body = data.composite_coriolis;
-    accumulate_composites(model, &per_body, &mut data.composite_coriolis);
-    accumulate_composites(model, &data.body_inertias, &mut data.composite_inertias);
-
-    data.coriolis.fill(T::zero());
-    for (j, body) in model.bodies().iter().enumerate() {
-        let (Some(ic), Some(bc), Some(s_j), Some(v_j)) = (
-            data.composite_inertias.get(j),
-            data.composite_coriolis.get(j),
-            data.motion_subspaces.get(j),
-            data.body_velocities.get(j),
-        ) else {
+    accumulate_world_composites(model, &data.world_inertias, &mut data.composite_world_inertias);
+    for (i, body) in model.bodies().iter().enumerate().rev() {
+        let (Some(own_rate), Some(own_momentum)) =
+            (data.composite_inertia_rates.get(i).copied(), data.composite_momenta.get(i).copied())
+        else {
             continue;
         };
-        let s_dot_j = motion_cross(v_j, s_j);
-        let column_force = ic * s_dot_j + bc * s_j;
-        let row_inertia = ic * s_j;
-        let row_coriolis = bc.transpose() * s_j;
-        for a in model.support(BodyId(j)) {
-            let (Some(ancestor), Some(s_a), Some(v_a)) =
-                (model.body(a), data.motion_subspaces.get(a.0), data.body_velocities.get(a.0))
-            else {
-                continue;
-            };
-            add_coupled(&mut data.coriolis, &ancestor.drive, &body.drive, s_a.dot(&column_force));
-            if a.0 != j {
-                let s_dot_a = motion_cross(v_a, s_a);
-                let value = row_inertia.dot(&s_dot_a) + row_coriolis.dot(s_a);
-                add_coupled(&mut data.coriolis, &body.drive, &ancestor.drive, value);
+        if let Some(p) = body.parent {
+            if let Some(parent) = data.composite_inertia_rates.get_mut(p.0) {
+                parent.add(&own_rate);
+            }
+            if let Some(parent) = data.composite_momenta.get_mut(p.0) {
+                *parent = add6(parent, &own_momentum);
             }
         }
     }
+    for ((((ic, bc), c), rate), momentum) in data
+        .composite_inertias
+        .iter_mut()
+        .zip(data.composite_coriolis.iter_mut())
+        .zip(data.composite_world_inertias.iter())
+        .zip(data.composite_inertia_rates.iter())
+        .zip(data.composite_momenta.iter())
+    {
+        *ic = c.matrix();
+        *bc = coriolis_operator(rate, momentum, half);
+    }
+
+    let m = data.coriolis.as_mut_slice();
+    m.fill(T::zero());
+    let bodies = model.bodies();
+    let per_body = bodies
+        .iter()
+        .zip(data.composite_world_inertias.iter())
+        .zip(data.composite_inertia_rates.iter())
+        .zip(data.composite_momenta.iter())
+        .zip(data.motion_subspaces.iter().zip(data.subspace_rates.iter()));
+    for ((((body, ic), rate), momentum), (s_j, s_dot_j)) in per_body {
+        let d = scale6(&rate.apply(s_j), half);
+        let e = scale6(&force_cross(s_j, momentum), half);
+        let column_force = add6(&add6(&ic.apply(s_dot_j), &d), &e);
+        let row_inertia = ic.apply(s_j);
+        let row_coriolis = add_scaled6(&d, &e, -T::one());
+        let terms = body.drive.terms();
+        add_coupled::<T, N>(m, terms, terms, dot6(s_j, &column_force));
+        let mut next = body.parent;
+        while let Some(a) = next {
+            let (Some(ancestor), Some(s_a), Some(s_dot_a)) =
+                (bodies.get(a.0), data.motion_subspaces.get(a.0), data.subspace_rates.get(a.0))
+            else {
+                break;
+            };
+            add_coupled::<T, N>(m, ancestor.drive.terms(), terms, dot6(s_a, &column_force));
+            let value = dot6(&row_inertia, s_dot_a) + dot6(&row_coriolis, s_a);
+            add_coupled::<T, N>(m, terms, ancestor.drive.terms(), value);
+            next = ancestor.parent.filter(|p| p.0 < a.0);
+        }
+    }
     &data.coriolis
+}
+
+/// The 6×6 operator `B = ½ İ + ½ (p)×̄` from the inertia rate `İ` (ten-parameter form, zero
+/// mass) and the momentum `p = (n; f)`, with `(p)×̄ = [[−[n]×, −[f]×], [−[f]×, 0]]`
+/// ([`crate::math::spatial::force_bar_matrix`]).
+fn coriolis_operator<T: RealField + Copy>(
+    rate: &WorldInertia<T>,
+    momentum: &SpatialForce<T>,
+    half: T,
+) -> SpatialMatrix<T> {
+    let [h0, h1, h2] = rate.first_moment.map(|x| x * half);
+    let [xx, yy, zz, xy, xz, yz] = rate.rotational.map(|x| x * half);
+    let [n0, n1, n2, f0, f1, f2] = momentum.data.0[0].map(|x| x * half);
+    let z = T::zero();
+    // Columns of ½ [[İ_rot, [ḣ]×], [−[ḣ]×, 0]] + ½ [[−[n]×, −[f]×], [−[f]×, 0]].
+    SpatialMatrix::from_data(nalgebra::ArrayStorage([
+        [xx, xy - n2, xz + n1, z, -h2 - f2, h1 + f1],
+        [xy + n2, yy, yz - n0, h2 + f2, z, -h0 - f0],
+        [xz - n1, yz + n0, zz, -h1 - f1, h0 + f0, z],
+        [z, h2 - f2, f1 - h1, z, z, z],
+        [f2 - h2, z, h0 - f0, z, z, z],
+        [h1 - f1, f0 - h0, z, z, z, z],
+    ]))
+}
+
+/// `k a`, written out.
+#[inline(always)]
+fn scale6<T: RealField + Copy>(a: &Vector6<T>, k: T) -> Vector6<T> {
+    let [a0, a1, a2, a3, a4, a5] = a.data.0[0];
+    Vector6::new(k * a0, k * a1, k * a2, k * a3, k * a4, k * a5)
 }
 
 #[cfg(test)]

@@ -2,54 +2,60 @@
 
 use nalgebra::{RealField, SMatrix};
 
-use super::add_coupled;
-use crate::model::{Data, Model};
+use super::{add_coupled, dot6};
+use crate::model::{Data, Model, WorldInertia};
 
 /// Joint-space inertia matrix `M(q)` ((2.1)) by the composite rigid-body algorithm.
 ///
-/// Backward pass: composite inertias `I^c_p += I^c_i`. Then for every body `i` the force
-/// `F = I^c_i S_i` gives `M_tree[j][i] = S_jᵀ F` for each `j` on the path from `i` to the root
-/// (world coordinates need no transforms), mapped to coordinates as `Gᵀ M_tree G`. Both
-/// triangles are filled; `M` is symmetric positive definite for a valid model.
+/// Backward pass: composite inertias `I^c_p += I^c_i` (ten-parameter form). Then for every
+/// body `i` the force `F = I^c_i S_i` gives `M_tree[j][i] = S_jᵀ F` for each `j` on the path
+/// from `i` to the root (world coordinates need no transforms), mapped to coordinates as
+/// `Gᵀ M_tree G`. Entries of bodies on different branches are never visited (branch-induced
+/// sparsity: they are zero). Both triangles are filled; `M` is symmetric positive definite for a
+/// valid model.
 ///
-/// Precondition: [`super::forward_kinematics`] at `q`. Writes `composite_inertias` and
-/// `mass_matrix` (returned). Cost O(B·depth).
+/// Precondition: [`super::forward_kinematics`] at `q`. Writes `composite_world_inertias`,
+/// `composite_inertias` (6×6 form) and `mass_matrix` (returned). Cost O(B·depth).
 pub fn crba<'d, T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
     model: &Model<T, N, B, F>,
     data: &'d mut Data<T, N, B, F>,
 ) -> &'d SMatrix<T, N, N> {
-    accumulate_composites(model, &data.body_inertias, &mut data.composite_inertias);
-    data.mass_matrix.fill(T::zero());
-    for (i, body) in model.bodies().iter().enumerate() {
-        let (Some(composite), Some(s_i)) = (data.composite_inertias.get(i), data.motion_subspaces.get(i)) else {
-            continue;
-        };
-        let force = composite * s_i;
-        for j in model.support(crate::model::BodyId(i)) {
-            let (Some(ancestor), Some(s_j)) = (model.body(j), data.motion_subspaces.get(j.0)) else {
-                continue;
-            };
-            let value = s_j.dot(&force);
-            add_coupled(&mut data.mass_matrix, &ancestor.drive, &body.drive, value);
-            if j.0 != i {
-                add_coupled(&mut data.mass_matrix, &body.drive, &ancestor.drive, value);
-            }
+    accumulate_world_composites(model, &data.world_inertias, &mut data.composite_world_inertias);
+    for (out, c) in data.composite_inertias.iter_mut().zip(data.composite_world_inertias.iter()) {
+        *out = c.matrix();
+    }
+    let m = data.mass_matrix.as_mut_slice();
+    m.fill(T::zero());
+    let bodies = model.bodies();
+    for ((body, composite), s_i) in
+        bodies.iter().zip(data.composite_world_inertias.iter()).zip(data.motion_subspaces.iter())
+    {
+        let force = composite.apply(s_i);
+        let terms = body.drive.terms();
+        add_coupled::<T, N>(m, terms, terms, dot6(s_i, &force));
+        let mut next = body.parent;
+        while let Some(j) = next {
+            let (Some(ancestor), Some(s_j)) = (bodies.get(j.0), data.motion_subspaces.get(j.0)) else { break };
+            let value = dot6(s_j, &force);
+            add_coupled::<T, N>(m, ancestor.drive.terms(), terms, value);
+            add_coupled::<T, N>(m, terms, ancestor.drive.terms(), value);
+            next = ancestor.parent.filter(|p| p.0 < j.0);
         }
     }
     &data.mass_matrix
 }
 
-/// `out_i = Σ_{k ∈ subtree(i)} per_body_k` for 6×6 world-frame operators (one backward pass).
-pub(super) fn accumulate_composites<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
+/// `out_i = Σ_{k ∈ subtree(i)} per_body_k` for ten-parameter inertias (one backward pass).
+pub(super) fn accumulate_world_composites<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
     model: &Model<T, N, B, F>,
-    per_body: &[SMatrix<T, 6, 6>; B],
-    out: &mut [SMatrix<T, 6, 6>; B],
+    per_body: &[WorldInertia<T>; B],
+    out: &mut [WorldInertia<T>; B],
 ) {
     *out = *per_body;
     for (i, body) in model.bodies().iter().enumerate().rev() {
         let Some(own) = out.get(i).copied() else { continue };
         if let Some(parent) = body.parent.and_then(|p| out.get_mut(p.0)) {
-            *parent += own;
+            parent.add(&own);
         }
     }
 }

@@ -1,23 +1,25 @@
 //! Forward kinematics: placements, motion subspaces, velocities and velocity-product
 //! accelerations of every body, and frame placements.
 
-use nalgebra::{RealField, SVector, Vector3};
+use nalgebra::{ArrayStorage, Matrix3, RealField, Rotation3, SVector, Translation3, Vector6};
 
-use super::{check_finite, DynamicsError};
-use crate::math::spatial::{motion_cross, spatial, Motion, Placement};
-use crate::model::{Data, JointKind, Model};
+use super::{add_scaled6, check_finite, DynamicsError};
+use crate::math::spatial::{Motion, Placement};
+use crate::model::{Data, JointKind, Model, WorldInertia};
 
 /// Forward kinematics at state `(q, q̇)`.
 ///
 /// For each body `i` with parent `p` (world placements `⁰X`):
 /// `⁰X_i = ⁰X_p · X_J(placement) · X(q_i)`, motion subspace `S_i = (a; p_i × a)` for a revolute
 /// joint with world axis `a` through the body origin `p_i`, `S_i = (0; a)` for a prismatic one,
-/// velocity `v_i = v_p + S_i q̇_i`, drift `ζ_i = ζ_p + (v_i × S_i) q̇_i`, world spatial
-/// inertia `I_i`; then every frame placement. `q_i`, `q̇_i` are joint values through the drive
-/// (coupling) map.
+/// velocity `v_i = v_p + S_i q̇_i`, subspace rate `Ṡ_i = v_i × S_i`, drift
+/// `ζ_i = ζ_p + Ṡ_i q̇_i`, world spatial inertia `I_i` (Featherstone (2.63), as a 6×6 matrix and
+/// in ten-parameter form); then every frame placement. `q_i`, `q̇_i` are joint values through
+/// the drive (coupling) map. The placement products are written out on 3×3 arrays (no generic
+/// matrix iteration).
 ///
-/// Writes `q, v, body_placements, motion_subspaces, body_velocities,
-/// body_drift_accelerations, body_inertias, frame_placements`. Cost O(B + F).
+/// Writes `q, v, body_placements, motion_subspaces, subspace_rates, body_velocities,
+/// body_drift_accelerations, body_inertias, world_inertias, frame_placements`. Cost O(B + F).
 /// Errors: [`DynamicsError::NonFinite`] if `q` or `q̇` has NaN/inf (nothing written).
 pub fn forward_kinematics<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
     model: &Model<T, N, B, F>,
@@ -31,44 +33,144 @@ pub fn forward_kinematics<T: RealField + Copy, const N: usize, const B: usize, c
     data.v = *v;
     for (i, body) in model.bodies().iter().enumerate() {
         let parent = body.parent.map(|p| p.0);
-        let parent_placement = parent_entry(&data.body_placements, parent).unwrap_or_else(Placement::identity);
-        let parent_velocity = parent_entry(&data.body_velocities, parent).unwrap_or_else(Motion::zeros);
-        let parent_drift = parent_entry(&data.body_drift_accelerations, parent).unwrap_or_else(Motion::zeros);
+        let joint_frame = match parent.and_then(|p| data.body_placements.get(p)) {
+            Some(parent_placement) => compose(parent_placement, &body.joint_placement),
+            None => body.joint_placement,
+        };
+        let (parent_velocity, parent_drift) = match (
+            parent.and_then(|p| data.body_velocities.get(p)),
+            parent.and_then(|p| data.body_drift_accelerations.get(p)),
+        ) {
+            (Some(v), Some(z)) => (*v, *z),
+            _ => (Motion::zeros(), Motion::zeros()),
+        };
 
-        let joint_frame = parent_placement * body.joint_placement;
-        let placement = joint_frame * body.joint.motion(body.drive.evaluate(q, true));
-        let axis = joint_frame.rotation * body.joint.axis().into_inner();
-        let subspace = match body.joint {
-            JointKind::Revolute { .. } => spatial(&axis, &placement.translation.vector.cross(&axis)),
-            JointKind::Prismatic { .. } => spatial(&Vector3::zeros(), &axis),
+        let value = body.drive.evaluate(q, true);
+        let a = body.joint.axis().into_inner();
+        let r = columns(&joint_frame);
+        let axis = mul3(&r, &[a.x, a.y, a.z]);
+        let t = joint_frame.translation.vector;
+        let (placement, subspace) = match body.joint {
+            JointKind::Revolute { .. } => {
+                let rotated = mul33(&r, &axis_angle(&[a.x, a.y, a.z], value));
+                let [a0, a1, a2] = axis;
+                let lin = [t.y * a2 - t.z * a1, t.z * a0 - t.x * a2, t.x * a1 - t.y * a0];
+                (from_columns(rotated, [t.x, t.y, t.z]), Vector6::new(a0, a1, a2, lin[0], lin[1], lin[2]))
+            }
+            JointKind::Prismatic { .. } => {
+                let [a0, a1, a2] = axis;
+                let z = T::zero();
+                (
+                    from_columns(r, [t.x + a0 * value, t.y + a1 * value, t.z + a2 * value]),
+                    Vector6::new(z, z, z, a0, a1, a2),
+                )
+            }
         };
         let rate = body.drive.evaluate(v, false);
-        let velocity = parent_velocity + subspace * rate;
-        let drift = parent_drift + motion_cross(&velocity, &subspace) * rate;
+        let velocity = add_scaled6(&parent_velocity, &subspace, rate);
+        let subspace_rate = cross_motion(&velocity, &subspace);
+        let drift = add_scaled6(&parent_drift, &subspace_rate, rate);
+        let world_inertia = WorldInertia::from_body(&body.inertia, &placement);
 
         let slots = (
             data.body_placements.get_mut(i),
             data.motion_subspaces.get_mut(i),
+            data.subspace_rates.get_mut(i),
             data.body_velocities.get_mut(i),
             data.body_drift_accelerations.get_mut(i),
             data.body_inertias.get_mut(i),
+            data.world_inertias.get_mut(i),
         );
-        if let (Some(x), Some(s), Some(vel), Some(z), Some(inertia)) = slots {
+        if let (Some(x), Some(s), Some(sd), Some(vel), Some(z), Some(inertia), Some(wi)) = slots {
             *x = placement;
             *s = subspace;
+            *sd = subspace_rate;
             *vel = velocity;
             *z = drift;
-            *inertia = body.inertia.spatial_matrix(&placement);
+            *inertia = world_inertia.matrix();
+            *wi = world_inertia;
         }
     }
     for (frame, slot) in model.frames().iter().zip(data.frame_placements.iter_mut()) {
-        let parent = frame.parent.and_then(|p| data.body_placements.get(p.0)).copied();
-        *slot = parent.unwrap_or_else(Placement::identity) * frame.placement;
+        *slot = match frame.parent.and_then(|p| data.body_placements.get(p.0)) {
+            Some(parent) => compose(parent, &frame.placement),
+            None => frame.placement,
+        };
     }
     Ok(())
 }
 
-/// The parent's entry of a per-body array; `None` for a root body.
-fn parent_entry<X: Copy>(per_body: &[X], parent: Option<usize>) -> Option<X> {
-    parent.and_then(|p| per_body.get(p).copied())
+/// Columns of a 3×3 matrix (nalgebra's storage order).
+type Columns<T> = [[T; 3]; 3];
+
+/// The rotation of a placement as columns.
+#[inline]
+fn columns<T: RealField + Copy>(p: &Placement<T>) -> Columns<T> {
+    p.rotation.matrix().data.0
+}
+
+/// A placement from rotation columns and a translation.
+#[inline]
+fn from_columns<T: RealField + Copy>(r: Columns<T>, t: [T; 3]) -> Placement<T> {
+    let [t0, t1, t2] = t;
+    Placement::from_parts(
+        Translation3::new(t0, t1, t2),
+        Rotation3::from_matrix_unchecked(Matrix3::from_data(ArrayStorage(r))),
+    )
+}
+
+/// `R x` for `R` given by columns.
+#[inline]
+fn mul3<T: RealField + Copy>(r: &Columns<T>, x: &[T; 3]) -> [T; 3] {
+    let [c0, c1, c2] = r;
+    let [x0, x1, x2] = *x;
+    [c0[0] * x0 + c1[0] * x1 + c2[0] * x2, c0[1] * x0 + c1[1] * x1 + c2[1] * x2, c0[2] * x0 + c1[2] * x1 + c2[2] * x2]
+}
+
+/// `A B` for matrices given by columns.
+#[inline]
+fn mul33<T: RealField + Copy>(a: &Columns<T>, b: &Columns<T>) -> Columns<T> {
+    let [b0, b1, b2] = b;
+    [mul3(a, b0), mul3(a, b1), mul3(a, b2)]
+}
+
+/// `a · b` for placements: `(R_a R_b, R_a t_b + t_a)`.
+#[inline]
+fn compose<T: RealField + Copy>(a: &Placement<T>, b: &Placement<T>) -> Placement<T> {
+    let ra = columns(a);
+    let tb = b.translation.vector;
+    let ta = a.translation.vector;
+    let [x, y, z] = mul3(&ra, &[tb.x, tb.y, tb.z]);
+    from_columns(mul33(&ra, &columns(b)), [x + ta.x, y + ta.y, z + ta.z])
+}
+
+/// Rotation by `angle` about the unit axis `a` (Rodrigues): `cos θ 1 + sin θ [a]× + (1 − cos θ) a aᵀ`,
+/// as columns.
+#[inline]
+fn axis_angle<T: RealField + Copy>(a: &[T; 3], angle: T) -> Columns<T> {
+    let (s, c) = angle.sin_cos();
+    let k = T::one() - c;
+    let [x, y, z] = *a;
+    let (kx, ky, kz) = (k * x, k * y, k * z);
+    let (sx, sy, sz) = (s * x, s * y, s * z);
+    [
+        [kx * x + c, kx * y + sz, kx * z - sy],
+        [kx * y - sz, ky * y + c, ky * z + sx],
+        [kx * z + sy, ky * z - sx, kz * z + c],
+    ]
+}
+
+/// Motion cross product `m × u = (ω×ω_u; ω×v_u + v×ω_u)` written out on the six entries.
+#[inline]
+pub(super) fn cross_motion<T: RealField + Copy>(m: &Motion<T>, u: &Motion<T>) -> Motion<T> {
+    let [w0, w1, w2, v0, v1, v2] = m.data.0[0];
+    let [a0, a1, a2, b0, b1, b2] = u.data.0[0];
+    Vector6::new(
+        w1 * a2 - w2 * a1,
+        w2 * a0 - w0 * a2,
+        w0 * a1 - w1 * a0,
+        w1 * b2 - w2 * b1 + v1 * a2 - v2 * a1,
+        w2 * b0 - w0 * b2 + v2 * a0 - v0 * a2,
+        w0 * b1 - w1 * b0 + v0 * a1 - v1 * a0,
+    )
 }

@@ -1,9 +1,8 @@
 //! Geometric Jacobians of body points and frames.
 
-use nalgebra::{RealField, SMatrix, Vector3, Vector6};
+use nalgebra::{RealField, SMatrix, Vector3};
 
 use super::DynamicsError;
-use crate::math::spatial::{angular, linear_at_point};
 use crate::model::{BodyId, Data, FrameId, Model};
 
 /// Jacobian of the point `point` (world coordinates, m) rigidly attached to body `body`:
@@ -22,24 +21,29 @@ pub fn point_jacobian<T: RealField + Copy, const N: usize, const B: usize, const
     point: &Vector3<T>,
     jacobian: &mut SMatrix<T, 6, N>,
 ) -> Result<(), DynamicsError> {
-    model.body(body).ok_or(DynamicsError::UnknownBody)?;
-    jacobian.fill(T::zero());
-    for id in model.support(body) {
-        let (Some(joint), Some(s)) = (model.body(id), data.motion_subspaces.get(id.0)) else {
-            continue;
+    let bodies = model.bodies();
+    let mut next = Some(body);
+    bodies.get(body.0).ok_or(DynamicsError::UnknownBody)?;
+    let out = jacobian.as_mut_slice();
+    out.fill(T::zero());
+    let [p0, p1, p2] = [point.x, point.y, point.z];
+    while let Some(id) = next {
+        let (Some(joint), Some(s)) = (bodies.get(id.0), data.motion_subspaces.get(id.0)) else {
+            break;
         };
-        let v = linear_at_point(s, point);
-        let w = angular(s);
-        let column = Vector6::new(v.x, v.y, v.z, w.x, w.y, w.z);
+        // (s_lin + s_ang × p; s_ang): linear velocity of the point, then angular velocity.
+        let [w0, w1, w2, v0, v1, v2] = s.data.0[0];
+        let column = [v0 + w1 * p2 - w2 * p1, v1 + w2 * p0 - w0 * p2, v2 + w0 * p1 - w1 * p0, w0, w1, w2];
         for term in joint.drive.terms() {
             // Column-major storage: column `k` is entries `6k..6k + 6` (O(1), no panic path).
             let start = term.coordinate.saturating_mul(6);
-            if let Some(c) = jacobian.as_mut_slice().get_mut(start..start.saturating_add(6)) {
+            if let Some(c) = out.get_mut(start..start.saturating_add(6)) {
                 for (x, v) in c.iter_mut().zip(column.iter()) {
                     *x += *v * term.coefficient;
                 }
             }
         }
+        next = joint.parent.filter(|p| p.0 < id.0);
     }
     Ok(())
 }
@@ -76,7 +80,7 @@ pub fn frame_jacobian<T: RealField + Copy, const N: usize, const B: usize, const
     match f.parent {
         Some(body) => point_jacobian(model, data, body, &origin, jacobian),
         None => {
-            jacobian.fill(T::zero());
+            jacobian.as_mut_slice().fill(T::zero());
             Ok(())
         }
     }

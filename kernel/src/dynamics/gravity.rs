@@ -1,9 +1,8 @@
 //! Generalized gravity.
 
-use nalgebra::{RealField, SVector, Vector3};
+use nalgebra::{RealField, SVector};
 
-use super::rnea::backward_project;
-use crate::math::spatial::spatial;
+use super::rnea::{backward_project, gravity_acceleration};
 use crate::model::{Data, Model};
 
 /// Generalized gravity `g(q) = ∂V_g/∂q` ((2.1)): RNEA with `q̇ = 0`, `q̈ = 0`, i.e. every body
@@ -15,9 +14,9 @@ pub fn gravity<'d, T: RealField + Copy, const N: usize, const B: usize, const F:
     model: &Model<T, N, B, F>,
     data: &'d mut Data<T, N, B, F>,
 ) -> &'d SVector<T, N> {
-    let base = spatial(&Vector3::zeros(), &(-model.gravity));
-    for (force, inertia) in data.body_forces.iter_mut().zip(data.body_inertias.iter()) {
-        *force = inertia * base;
+    let base = gravity_acceleration(model);
+    for (force, inertia) in data.body_forces.iter_mut().zip(data.world_inertias.iter()) {
+        *force = inertia.apply(&base);
     }
     backward_project(model, data);
     data.gravity_torque = data.tau;

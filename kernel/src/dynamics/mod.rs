@@ -14,6 +14,7 @@
 //! | [`crba`] | `M(q)` | O(B·depth) |
 //! | [`coriolis_matrix`] | `C(q, q̇)` with `Ṁ = C + Cᵀ` (2.7) | O(B·depth) |
 //! | [`mass_matrix_cholesky`], [`forward_dynamics`] | `M = L Lᵀ`, `q̈ = M⁻¹(τ − C q̇ − g)` | O(N³) |
+//! | [`TreeFactorization`] | `M = Lᵀ L` over the branch-induced sparsity, solves | O(Σ depth²) |
 //! | [`kinetic_energy`], [`potential_energy`] | `½ q̇ᵀ M q̇`, `−Σ m_i gᵀ c_i` | O(B) |
 //!
 //! With coupled joints the tree quantities are mapped through the constant drive matrix `G`
@@ -30,6 +31,7 @@ mod frame_drift;
 mod frame_jacobian;
 mod gravity;
 mod rnea;
+mod tree_factorization;
 
 pub use coriolis_matrix::coriolis_matrix;
 pub use crba::crba;
@@ -41,24 +43,29 @@ pub use frame_drift::{frame_drift, point_drift};
 pub use frame_jacobian::{frame_jacobian, point_jacobian};
 pub use gravity::gravity;
 pub use rnea::rnea;
+pub use tree_factorization::TreeFactorization;
 
-use nalgebra::{RealField, SMatrix, SVector};
+use nalgebra::{RealField, SVector, Vector6};
 
-use crate::model::JointDrive;
+use crate::model::{DriveTerm, JointDrive};
 
-/// `m += value · g_rowᵀ g_col`: adds a tree-level entry to a coordinate-level matrix through
-/// the drive rows of two joints.
-#[inline]
-fn add_coupled<T: RealField + Copy, const N: usize>(
-    m: &mut SMatrix<T, N, N>,
-    row: &JointDrive<T>,
-    col: &JointDrive<T>,
-    value: T,
-) {
-    for r in row.terms() {
-        for c in col.terms() {
-            if let Some(entry) = m.get_mut((r.coordinate, c.coordinate)) {
-                *entry += r.coefficient * c.coefficient * value;
+/// `m += value · g_rowᵀ g_col`: adds a tree-level entry to a coordinate-level N×N matrix,
+/// given as its column-major storage `m`, through the drive rows of two joints.
+#[inline(always)]
+fn add_coupled<T: RealField + Copy, const N: usize>(m: &mut [T], row: &[DriveTerm<T>], col: &[DriveTerm<T>], value: T) {
+    if let ([r], [c]) = (row, col) {
+        // One term each (every ordinary joint): a single entry.
+        if let Some(entry) = m.get_mut(c.coordinate * N + r.coordinate) {
+            *entry += r.coefficient * c.coefficient * value;
+        }
+        return;
+    }
+    for c in col {
+        let scaled = c.coefficient * value;
+        let start = c.coordinate * N;
+        for r in row {
+            if let Some(entry) = m.get_mut(start + r.coordinate) {
+                *entry += r.coefficient * scaled;
             }
         }
     }
@@ -72,6 +79,30 @@ fn add_to_coordinates<T: RealField + Copy, const N: usize>(out: &mut SVector<T, 
             *entry += t.coefficient * value;
         }
     }
+}
+
+/// `a · b` of two spatial vectors, written out.
+#[inline(always)]
+fn dot6<T: RealField + Copy>(a: &Vector6<T>, b: &Vector6<T>) -> T {
+    let [a0, a1, a2, a3, a4, a5] = a.data.0[0];
+    let [b0, b1, b2, b3, b4, b5] = b.data.0[0];
+    a0 * b0 + a1 * b1 + a2 * b2 + a3 * b3 + a4 * b4 + a5 * b5
+}
+
+/// `a + k b` of two spatial vectors, written out.
+#[inline(always)]
+fn add_scaled6<T: RealField + Copy>(a: &Vector6<T>, b: &Vector6<T>, k: T) -> Vector6<T> {
+    let [a0, a1, a2, a3, a4, a5] = a.data.0[0];
+    let [b0, b1, b2, b3, b4, b5] = b.data.0[0];
+    Vector6::new(a0 + k * b0, a1 + k * b1, a2 + k * b2, a3 + k * b3, a4 + k * b4, a5 + k * b5)
+}
+
+/// `a + b` of two spatial vectors, written out.
+#[inline(always)]
+fn add6<T: RealField + Copy>(a: &Vector6<T>, b: &Vector6<T>) -> Vector6<T> {
+    let [a0, a1, a2, a3, a4, a5] = a.data.0[0];
+    let [b0, b1, b2, b3, b4, b5] = b.data.0[0];
+    Vector6::new(a0 + b0, a1 + b1, a2 + b2, a3 + b3, a4 + b4, a5 + b5)
 }
 
 /// Checks that every entry of a state vector is finite.
@@ -89,3 +120,150 @@ fn check_finite<T: RealField + Copy, const R: usize>(
 
 mod jacobian_derivative;
 pub use jacobian_derivative::{frame_jacobian_derivative, point_jacobian_derivative};
+
+/// The plain reference algorithms (test-only; also included by the `thesis-tests` crate).
+#[cfg(test)]
+#[allow(clippy::indexing_slicing, dead_code, reason = "test reference")]
+pub(crate) mod reference {
+    use crate as kernel;
+    include!("reference.rs");
+}
+
+#[cfg(test)]
+mod reference_tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
+    //! The fast algorithms against [`super::reference`] on the branched test model (prismatic
+    //! root, skewed axes, a branch point, a coupled joint) at random states.
+    use super::*;
+    use crate::model::{BodyId, Data, Model};
+    use crate::test_models::{branched, state, B, F, N};
+    use nalgebra::{RealField, SMatrix};
+    use proptest::prelude::*;
+
+    /// Largest absolute difference of two equally long sequences.
+    fn diff<'a>(a: impl IntoIterator<Item = &'a f64>, b: impl IntoIterator<Item = &'a f64>) -> f64 {
+        a.into_iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
+    }
+
+    /// Every output of the fast algorithms, cast to f64.
+    struct Outputs {
+        m: SMatrix<f64, N, N>,
+        c: SMatrix<f64, N, N>,
+        bc: [SMatrix<f64, 6, 6>; B],
+        g: SVector<f64, N>,
+        tau: SVector<f64, N>,
+        jacobians: [SMatrix<f64, 6, N>; 2],
+        kinematics: std::vec::Vec<f64>,
+    }
+
+    fn fast<T: RealField + Copy>(
+        model: &Model<T, N, B, F>,
+        q: &SVector<f64, N>,
+        v: &SVector<f64, N>,
+        a: &SVector<f64, N>,
+    ) -> Outputs {
+        let cast = |x: &SVector<f64, N>| x.map(|e| nalgebra::convert::<f64, T>(e));
+        let mut data = Data::new(model);
+        forward_kinematics(model, &mut data, &cast(q), &cast(v)).unwrap();
+        let m = crba(model, &mut data).map(|e| nalgebra::try_convert(e).unwrap());
+        let c = coriolis_matrix(model, &mut data).map(|e| nalgebra::try_convert(e).unwrap());
+        let bc = data.composite_coriolis.map(|x| x.map(|e| nalgebra::try_convert(e).unwrap()));
+        let g = gravity(model, &mut data).map(|e| nalgebra::try_convert(e).unwrap());
+        let tau = rnea(model, &mut data, &cast(a)).unwrap().map(|e| nalgebra::try_convert(e).unwrap());
+        let mut jacobians = [SMatrix::zeros(); 2];
+        for (k, out) in jacobians.iter_mut().enumerate() {
+            let mut j = SMatrix::<T, 6, N>::zeros();
+            frame_jacobian(model, &data, crate::model::FrameId(k), &mut j).unwrap();
+            *out = j.map(|e| nalgebra::try_convert(e).unwrap());
+        }
+        Outputs { m, c, bc, g, tau, jacobians, kinematics: kinematics(&data) }
+    }
+
+    fn reference_outputs(
+        model: &Model<f64, N, B, F>,
+        q: &SVector<f64, N>,
+        v: &SVector<f64, N>,
+        a: &SVector<f64, N>,
+    ) -> Outputs {
+        let mut data = Data::new(model);
+        reference::forward_kinematics(model, &mut data, q, v);
+        let (c, bc) = reference::coriolis(model, &data);
+        // g(q) = RNEA(q, 0, 0).
+        let mut at_rest = Data::new(model);
+        reference::forward_kinematics(model, &mut at_rest, q, &SVector::zeros());
+        let mut jacobians = [SMatrix::zeros(); 2];
+        for (k, out) in jacobians.iter_mut().enumerate() {
+            let frame = &model.frames()[k];
+            let p = data.frame_placements[k].translation.vector;
+            *out = reference::point_jacobian(model, &data, frame.parent.unwrap_or(BodyId(0)), &p);
+        }
+        Outputs {
+            m: reference::crba(model, &data),
+            c,
+            bc,
+            g: reference::rnea(model, &at_rest, &SVector::zeros()),
+            tau: reference::rnea(model, &data, a),
+            jacobians,
+            kinematics: kinematics(&data),
+        }
+    }
+
+    /// Placements, subspaces, velocities, drifts, 6×6 inertias and frame placements, flattened.
+    fn kinematics<T: RealField + Copy>(data: &Data<T, N, B, F>) -> std::vec::Vec<f64> {
+        let mut out = std::vec::Vec::new();
+        let mut push = |x: &[T]| out.extend(x.iter().map(|e| nalgebra::try_convert::<T, f64>(*e).unwrap()));
+        for i in 0..B {
+            push(data.body_placements[i].to_homogeneous().as_slice());
+            push(data.motion_subspaces[i].as_slice());
+            push(data.body_velocities[i].as_slice());
+            push(data.body_drift_accelerations[i].as_slice());
+            push(data.body_inertias[i].as_slice());
+        }
+        for f in &data.frame_placements {
+            push(f.to_homogeneous().as_slice());
+        }
+        out
+    }
+
+    /// `fast` within `tol · (1 + max |reference|)` of `reference`, output by output.
+    fn check(fast: &Outputs, reference: &Outputs, tol: f64) -> Result<(), TestCaseError> {
+        let close = |name: &str, a: &[f64], b: &[f64]| -> Result<(), TestCaseError> {
+            let scale = 1.0 + b.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            let d = diff(a, b);
+            prop_assert!(d <= tol * scale, "{name}: difference {d:e} (scale {scale:e})");
+            Ok(())
+        };
+        close("kinematics", &fast.kinematics, &reference.kinematics)?;
+        close("M", fast.m.as_slice(), reference.m.as_slice())?;
+        close("C", fast.c.as_slice(), reference.c.as_slice())?;
+        for (a, b) in fast.bc.iter().zip(reference.bc.iter()) {
+            close("B^c", a.as_slice(), b.as_slice())?;
+        }
+        close("g", fast.g.as_slice(), reference.g.as_slice())?;
+        close("rnea", fast.tau.as_slice(), reference.tau.as_slice())?;
+        for (a, b) in fast.jacobians.iter().zip(reference.jacobians.iter()) {
+            close("J", a.as_slice(), b.as_slice())?;
+        }
+        Ok(())
+    }
+
+    proptest! {
+        /// f64: the fast FK, CRBA, Coriolis matrix (and `B^c`), gravity, RNEA and frame
+        /// Jacobians equal the reference to rounding.
+        #[test]
+        fn fast_equals_reference_f64(seed in any::<u64>()) {
+            let model = branched::<f64>();
+            let (q, v, a) = (state(seed, 2.0), state(seed ^ 5, 2.0), state(seed ^ 9, 3.0));
+            check(&fast(&model, &q, &v, &a), &reference_outputs(&model, &q, &v, &a), 1e-12)?;
+        }
+
+        /// f32: the fast algorithms in single precision stay within f32 rounding of the f64
+        /// reference.
+        #[test]
+        fn fast_f32_is_within_tolerance_of_reference_f64(seed in any::<u64>()) {
+            let (m64, m32) = (branched::<f64>(), branched::<f32>());
+            let (q, v, a) = (state(seed, 2.0), state(seed ^ 5, 2.0), state(seed ^ 9, 3.0));
+            check(&fast(&m32, &q, &v, &a), &reference_outputs(&m64, &q, &v, &a), 2e-5)?;
+        }
+    }
+}

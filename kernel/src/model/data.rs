@@ -2,7 +2,7 @@
 
 use nalgebra::{RealField, SMatrix, SVector};
 
-use super::Model;
+use super::{Model, WorldInertia};
 use crate::math::spatial::{Motion, Placement, SpatialForce, SpatialMatrix};
 
 /// Every buffer the dynamics algorithms write. Create it once per model with [`Data::new`];
@@ -30,6 +30,18 @@ pub struct Data<T: RealField, const N: usize, const B: usize, const F: usize> {
     pub body_accelerations: [Motion<T>; B],
     /// Spatial inertia `I_i` of each body, world frame.
     pub body_inertias: [SpatialMatrix<T>; B],
+    /// The same inertias `I_i` in ten-parameter form (written by `forward_kinematics`).
+    pub world_inertias: [WorldInertia<T>; B],
+    /// `Ṡ_i = v_i × S_i`, the time derivative of each world motion subspace
+    /// (written by `forward_kinematics`).
+    pub subspace_rates: [Motion<T>; B],
+    /// Composite inertia `I^c_i` of each subtree in ten-parameter form (`crba`,
+    /// `coriolis_matrix`).
+    pub composite_world_inertias: [WorldInertia<T>; B],
+    /// Time derivative `İ^c_i` of each composite inertia (`coriolis_matrix`).
+    pub composite_inertia_rates: [WorldInertia<T>; B],
+    /// Momentum `Σ_{k ∈ subtree(i)} I_k v_k` of each subtree (`coriolis_matrix`).
+    pub composite_momenta: [SpatialForce<T>; B],
     /// Composite inertia of each body's subtree (written by `crba` and `coriolis_matrix`).
     pub composite_inertias: [SpatialMatrix<T>; B],
     /// Composite Christoffel-consistent Coriolis operator of each subtree (`coriolis_matrix`).
@@ -60,6 +72,11 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize> Data<T
             body_drift_accelerations: [Motion::zeros(); B],
             body_accelerations: [Motion::zeros(); B],
             body_inertias: [SpatialMatrix::zeros(); B],
+            world_inertias: [WorldInertia::zero(); B],
+            subspace_rates: [Motion::zeros(); B],
+            composite_world_inertias: [WorldInertia::zero(); B],
+            composite_inertia_rates: [WorldInertia::zero(); B],
+            composite_momenta: [SpatialForce::zeros(); B],
             composite_inertias: [SpatialMatrix::zeros(); B],
             composite_coriolis: [SpatialMatrix::zeros(); B],
             body_forces: [SpatialForce::zeros(); B],

@@ -14,7 +14,7 @@ mod joint;
 pub use crate::math::spatial::Placement;
 pub use data::Data;
 pub use error::ModelError;
-pub use inertia::Inertia;
+pub use inertia::{Inertia, WorldInertia};
 pub use joint::{DriveTerm, JointDrive, JointKind, MAX_DRIVE_TERMS};
 
 use heapless::Vec;
