@@ -67,7 +67,7 @@ use crate::tasks::cartesian_impedance::{
     cartesian_impedance, AxisMask, CartesianImpedance, CartesianImpedanceConfig, CartesianTarget, StiffnessFrame,
 };
 use crate::tasks::collision::{
-    collision_rows_from_geometry, self_collision_rows, CollisionData, CollisionModel, CollisionParameters,
+    collision_rows_shared, CollisionData, CollisionModel, CollisionParameters, PairRowCache,
 };
 use crate::tasks::end_stops::{end_stops, EndStop, EndStopConfig};
 use crate::tasks::joint_impedance::{joint_impedance, JointImpedance, JointImpedanceConfig, JointTarget};
@@ -643,6 +643,7 @@ impl<
         let mut scratch = Scratch {
             collision: &mut self.collision_data,
             geometry_current: false,
+            pair_rows: PairRowCache::default(),
             cartesian_damping: [Vector6::zeros(); 2],
         };
         for (index, entry) in self.hierarchy.iter().enumerate() {
@@ -914,11 +915,13 @@ impl<
 }
 
 /// What the task evaluations of one cycle share: the collision geometry and whether it is
-/// current (updated this cycle), and the Cartesian damping force of each hand (task axes) for
-/// the command-side force limit ([`force_limit`]).
-struct Scratch<'a, T: RealField, const V: usize, const P: usize> {
+/// current (updated this cycle), the pair rows the collision fields evaluated (the strong
+/// field's pairs are mostly among the weak field's), and the Cartesian damping force of each
+/// hand (task axes) for the command-side force limit ([`force_limit`]).
+struct Scratch<'a, T: RealField, const N: usize, const V: usize, const P: usize> {
     collision: &'a mut CollisionData<T, V, P>,
     geometry_current: bool,
+    pair_rows: PairRowCache<T, N, P, MAX_TASK_ROWS>,
     cartesian_damping: [Vector6<T>; 2],
 }
 
@@ -946,7 +949,7 @@ fn evaluate<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
     kind: TaskKind,
     cx: &EvaluationContext<'_, T, N, B, F, V, P>,
     data: &mut Data<T, N, B, F>,
-    scratch: &mut Scratch<'_, T, V, P>,
+    scratch: &mut Scratch<'_, T, N, V, P>,
     rows: &mut TaskRows<T, N, MAX_TASK_ROWS>,
     telemetry: &mut Telemetry<T, N>,
 ) -> Result<(), Fault> {
@@ -978,24 +981,26 @@ fn evaluate<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
         }
         TaskKind::CollisionAvoidance(field) => {
             let Some(parameters) = cx.tasks.collision.get(field.index()) else { return Ok(()) };
-            // The geometry (volumes in the world, all pair distances) depends only on this cycle's
-            // kinematics: the first collision entry of the cycle updates it, the later ones (the
-            // other field) reuse it. Same rows as updating twice.
+            // The geometry (volumes in the world, all pair distances) and the pair rows' Jacobians
+            // and reflected masses depend only on this cycle's kinematics and inertia: the first
+            // collision entry of the cycle updates the geometry, the later ones (the other field)
+            // reuse it and the rows already evaluated. Same rows as evaluating each field alone.
             let (model, data_ref, factor, collision_model) = (cx.model, &*data, cx.factor, cx.collision_model);
-            let report = if scratch.geometry_current {
-                collision_rows_from_geometry(
-                    collision_model,
-                    scratch.collision,
-                    model,
-                    data_ref,
-                    factor,
-                    parameters,
-                    rows,
-                )
-            } else {
-                self_collision_rows(collision_model, scratch.collision, model, data_ref, factor, parameters, rows)
-            };
-            scratch.geometry_current = true;
+            if !scratch.geometry_current {
+                collision_model.update(data_ref, scratch.collision);
+                scratch.pair_rows.clear();
+                scratch.geometry_current = true;
+            }
+            let report = collision_rows_shared(
+                collision_model,
+                scratch.collision,
+                model,
+                data_ref,
+                factor,
+                parameters,
+                &mut scratch.pair_rows,
+                rows,
+            );
             let report = report.map_err(Fault::Task)?;
             telemetry.min_collision_distance = report.min_distance;
             telemetry.collision_rows += report.rows;

@@ -52,7 +52,8 @@ pub use model::{
     Volume, VolumeId,
 };
 pub use pair::{
-    collision_rows_from_geometry, evaluate_pair, factor_rows, inverse_reflected_mass, inverse_reflected_masses,
-    pair_damping, self_collision_rows, CollisionParameters, CollisionReport, PairEvaluation,
+    collision_rows_from_geometry, collision_rows_shared, evaluate_pair, factor_rows, inverse_reflected_mass,
+    inverse_reflected_masses, pair_damping, self_collision_rows, CollisionParameters, CollisionReport, PairEvaluation,
+    PairRowCache,
 };
 pub use volumes::{closest_points, proximity, Core, Proximity, SweptSphere};

@@ -473,14 +473,68 @@ fn projected_jacobian_into<T: RealField + Copy, const N: usize, const B: usize, 
     Ok(())
 }
 
+/// The configuration-dependent part of the pair rows of one cycle, shared by the collision
+/// fields that evaluate the same geometry (the strong and the weak field of Fig. 6.3): per pair,
+/// the row Jacobian `eᵀ(J_{x,q,j} − J_{x,q,i})` (3.17)–(3.18) and the sum of the inverse
+/// reflected masses `m_i⁻¹ + m_j⁻¹` (3.20). A pair whose row one field computed costs the next
+/// field only its force law. Valid for one geometry: [`Self::clear`] it when the kinematics or
+/// the inertia factor change (every cycle). Holds up to `C` pairs; a pair that does not fit is
+/// computed again, never dropped.
+#[derive(Clone, Debug)]
+pub struct PairRowCache<T: RealField, const N: usize, const P: usize, const C: usize> {
+    /// Entry of each pair in `entries` (`u16::MAX`: none).
+    slot: [u16; P],
+    entries: Vec<CachedPairRow<T, N>, C>,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct CachedPairRow<T: RealField, const N: usize> {
+    jacobian: RowSVector<T, N>,
+    inverse_mass_sum: T,
+}
+
+impl<T: RealField + Copy, const N: usize, const P: usize, const C: usize> Default for PairRowCache<T, N, P, C> {
+    fn default() -> Self {
+        Self { slot: [u16::MAX; P], entries: Vec::new() }
+    }
+}
+
+impl<T: RealField + Copy, const N: usize, const P: usize, const C: usize> PairRowCache<T, N, P, C> {
+    /// Forgets every pair (a new geometry or inertia factor).
+    pub fn clear(&mut self) {
+        self.slot = [u16::MAX; P];
+        self.entries.clear();
+    }
+
+    fn get(&self, pair: usize) -> Option<&CachedPairRow<T, N>> {
+        let k = usize::from(*self.slot.get(pair)?);
+        self.entries.get(k)
+    }
+
+    fn insert(&mut self, pair: usize, row: CachedPairRow<T, N>) {
+        let (Some(slot), Ok(k)) = (self.slot.get_mut(pair), u16::try_from(self.entries.len())) else {
+            return;
+        };
+        if self.entries.push(row).is_ok() {
+            *slot = k;
+        }
+    }
+}
+
 /// The row of pair `pair` (as [`evaluate_pair`]`(..).row`, equal to rounding) without the
-/// pair's intermediate results: the two projected Jacobians written in place
-/// ([`projected_jacobian_into`]), both inverse reflected masses (3.20) by one forward
-/// substitution over `factor_rows` ([`inverse_reflected_masses`]; skipped for a world-fixed
-/// volume, whose mass is infinite, and when the stiffness and so the damping is zero), and the
+/// pair's intermediate results: the row Jacobian and the inverse reflected masses from `cache`,
+/// or from [`pair_kinematics`] (then cached), the force law (3.10) of `parameters` and the
 /// damping constant of (3.23) in the closed form `c = 2 ξ √(k / (m_i⁻¹ + m_j⁻¹))` (see
 /// [`pair_damping`]). The proximity must have a direction.
-fn pair_row<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const V: usize, const P: usize>(
+fn pair_row<
+    T: RealField + Copy,
+    const N: usize,
+    const B: usize,
+    const F: usize,
+    const V: usize,
+    const P: usize,
+    const C: usize,
+>(
     collision_model: &CollisionModel<T, V, P>,
     collision: &CollisionData<T, V, P>,
     model: &Model<T, N, B, F>,
@@ -488,16 +542,63 @@ fn pair_row<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
     factor_rows: &SMatrix<T, N, N>,
     parameters: &CollisionParameters<T>,
     pair: usize,
+    cache: &mut PairRowCache<T, N, P, C>,
 ) -> Result<TaskRow<T, N>, TaskError> {
     let invalid = TaskError::InvalidParameter { name: "pair" };
-    let &CollisionPair { first, second } = collision_model.pairs().get(pair).ok_or(invalid)?;
     let proximity: &Proximity<T> = collision.proximities.get(pair).ok_or(invalid)?;
+    let d = proximity.distance;
+    let cached = match cache.get(pair) {
+        Some(entry) => *entry,
+        None => {
+            let entry = pair_kinematics(collision_model, proximity, model, data, factor_rows, pair)?;
+            cache.insert(pair, entry);
+            entry
+        }
+    };
+    let stiffness = parameters.stiffness(d);
+    let c = if stiffness > T::zero() && cached.inverse_mass_sum > T::zero() {
+        convert::<f64, T>(2.0) * parameters.damping_ratio * (stiffness / cached.inverse_mass_sum).sqrt()
+    } else {
+        T::zero()
+    };
+    let rate = cached.jacobian.as_slice().iter().zip(data.v.as_slice()).fold(T::zero(), |r, (&j, &v)| r + j * v);
+    let row = TaskRow {
+        jacobian: cached.jacobian,
+        force: parameters.force(d) - c * rate,
+        potential: parameters.potential(d),
+        activation: parameters.activation(d),
+    };
+    if !(row.force.is_finite() && row.potential.is_finite() && row.activation.is_finite()) {
+        return Err(TaskError::NonFinite);
+    }
+    Ok(row)
+}
+
+/// The configuration-dependent part of pair `pair`'s row: the two projected Jacobians written in
+/// place ([`projected_jacobian_into`]), their difference, and both inverse reflected masses
+/// (3.20) by one forward substitution over `factor_rows` ([`inverse_reflected_masses`]; none
+/// for a world-fixed volume, whose mass is infinite). The proximity must have a direction.
+fn pair_kinematics<
+    T: RealField + Copy,
+    const N: usize,
+    const B: usize,
+    const F: usize,
+    const V: usize,
+    const P: usize,
+>(
+    collision_model: &CollisionModel<T, V, P>,
+    proximity: &Proximity<T>,
+    model: &Model<T, N, B, F>,
+    data: &Data<T, N, B, F>,
+    factor_rows: &SMatrix<T, N, N>,
+    pair: usize,
+) -> Result<CachedPairRow<T, N>, TaskError> {
+    let invalid = TaskError::InvalidParameter { name: "pair" };
+    let &CollisionPair { first, second } = collision_model.pairs().get(pair).ok_or(invalid)?;
     let (Some(a), Some(b)) = (collision_model.volume(first), collision_model.volume(second)) else {
         return Err(invalid);
     };
     let e = proximity.direction.ok_or(TaskError::Singular)?.into_inner();
-    let d = proximity.distance;
-    let stiffness = parameters.stiffness(d);
     let mut jacobian_first = [T::zero(); N];
     let mut jacobian_second = [T::zero(); N];
     if let Some(body) = a.body {
@@ -506,49 +607,23 @@ fn pair_row<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
     if let Some(body) = b.body {
         projected_jacobian_into(model, data, body, &proximity.core_second, &e, &mut jacobian_second)?;
     }
-    let inverse_mass_sum = if stiffness <= T::zero() {
-        T::zero()
-    } else {
-        match (a.body.is_some(), b.body.is_some()) {
-            (true, true) => {
-                let [wi, wj] = inverse_reflected_masses(factor_rows, [&jacobian_first, &jacobian_second])?;
-                wi + wj
-            }
-            (true, false) => inverse_reflected_masses(factor_rows, [&jacobian_first])?[0],
-            (false, true) => inverse_reflected_masses(factor_rows, [&jacobian_second])?[0],
-            (false, false) => T::zero(),
+    let inverse_mass_sum = match (a.body.is_some(), b.body.is_some()) {
+        (true, true) => {
+            let [wi, wj] = inverse_reflected_masses(factor_rows, [&jacobian_first, &jacobian_second])?;
+            wi + wj
         }
+        (true, false) => inverse_reflected_masses(factor_rows, [&jacobian_first])?[0],
+        (false, true) => inverse_reflected_masses(factor_rows, [&jacobian_second])?[0],
+        (false, false) => T::zero(),
     };
-    if !inverse_mass_sum.is_finite() {
-        return Err(TaskError::NonFinite);
-    }
-    let c = if stiffness > T::zero() && inverse_mass_sum > T::zero() {
-        convert::<f64, T>(2.0) * parameters.damping_ratio * (stiffness / inverse_mass_sum).sqrt()
-    } else {
-        T::zero()
-    };
-    let mut row = TaskRow {
-        jacobian: RowSVector::<T, N>::zeros(),
-        force: T::zero(),
-        potential: parameters.potential(d),
-        activation: parameters.activation(d),
-    };
-    let mut rate = T::zero();
-    for (((x, &ji), &jj), &v) in
-        row.jacobian.as_mut_slice().iter_mut().zip(&jacobian_first).zip(&jacobian_second).zip(data.v.as_slice())
-    {
+    let mut jacobian = RowSVector::<T, N>::zeros();
+    for ((x, &ji), &jj) in jacobian.as_mut_slice().iter_mut().zip(&jacobian_first).zip(&jacobian_second) {
         *x = jj - ji;
-        rate += *x * v;
     }
-    row.force = parameters.force(d) - c * rate;
-    let finite = row.force.is_finite()
-        && row.potential.is_finite()
-        && row.activation.is_finite()
-        && row.jacobian.as_slice().iter().all(|x| x.is_finite());
-    if !finite {
+    if !(inverse_mass_sum.is_finite() && jacobian.as_slice().iter().all(|x| x.is_finite())) {
         return Err(TaskError::NonFinite);
     }
-    Ok(row)
+    Ok(CachedPairRow { jacobian, inverse_mass_sum })
 }
 
 /// What [`self_collision_rows`] did in one cycle (telemetry).
@@ -653,6 +728,35 @@ pub fn collision_rows_from_geometry<
     parameters: &CollisionParameters<T>,
     rows: &mut TaskRows<T, N, R>,
 ) -> Result<CollisionReport<T>, TaskError> {
+    let mut cache = PairRowCache::<T, N, P, R>::default();
+    collision_rows_shared(collision_model, collision, model, data, mass_cholesky, parameters, &mut cache, rows)
+}
+
+/// [`collision_rows_from_geometry`] with the pair rows shared between fields through `cache`:
+/// a pair another field of this cycle already evaluated costs only its force law. `cache`
+/// must be cleared ([`PairRowCache::clear`]) whenever the geometry or the inertia factor
+/// change; with a cleared cache the rows are those of [`collision_rows_from_geometry`], and
+/// with a filled one they are equal to them (the same arithmetic).
+#[allow(clippy::too_many_arguments, reason = "the inputs of collision_rows_from_geometry and the cache")]
+pub fn collision_rows_shared<
+    T: RealField + Copy,
+    const N: usize,
+    const B: usize,
+    const F: usize,
+    const V: usize,
+    const P: usize,
+    const C: usize,
+    const R: usize,
+>(
+    collision_model: &CollisionModel<T, V, P>,
+    collision: &CollisionData<T, V, P>,
+    model: &Model<T, N, B, F>,
+    data: &Data<T, N, B, F>,
+    mass_cholesky: &Cholesky<T, Const<N>>,
+    parameters: &CollisionParameters<T>,
+    cache: &mut PairRowCache<T, N, P, C>,
+    rows: &mut TaskRows<T, N, R>,
+) -> Result<CollisionReport<T>, TaskError> {
     let free = R.saturating_sub(rows.len());
     let limit = parameters.emit_distance();
     let mut report = CollisionReport { candidates: 0, rows: 0, dropped: 0, undefined_direction: 0, min_distance: None };
@@ -696,7 +800,7 @@ pub fn collision_rows_from_geometry<
     if !selected.is_empty() {
         let factor = factor_rows(mass_cholesky);
         for (index, _) in chosen.iter().enumerate().filter(|(_, &flag)| flag) {
-            let row = pair_row(collision_model, collision, model, data, &factor, parameters, index)?;
+            let row = pair_row(collision_model, collision, model, data, &factor, parameters, index, cache)?;
             staged.push(row).map_err(|_| TaskError::Capacity { capacity: R })?;
         }
     }
@@ -959,7 +1063,8 @@ mod tests {
         // reference `evaluate_pair` to rounding, `fast_rows_match_the_reference_*`).
         let rows_of_l = factor_rows(&factor);
         for (row, pair) in few.rows()[1..].iter().zip(&closest) {
-            assert_eq!(*row, pair_row(&cm, &cd, &robot, &data, &rows_of_l, &p, *pair).unwrap());
+            let mut cache = PairRowCache::<f64, N, P, 4>::default();
+            assert_eq!(*row, pair_row(&cm, &cd, &robot, &data, &rows_of_l, &p, *pair, &mut cache).unwrap());
             let e = evaluate_pair(&cm, &cd, &robot, &data, &factor, &p, *pair).unwrap();
             assert!(row_difference(row, &e.row) <= 1e-12, "{row:?} vs {:?}", e.row);
         }
@@ -997,6 +1102,10 @@ mod tests {
         let mut cd = CollisionData::new(&cm);
         let mut data = Data::new(&robot);
         let p = parameters::<T>(0.7);
+        let other_field =
+            CollisionParameters::try_new(convert(150.0), convert(0.3), convert(1.0), convert(0.0), convert(1.2))
+                .unwrap();
+        let fresh_cache = PairRowCache::<T, N, P, P>::default;
         let (mut compared, mut damped) = (0, 0);
         for seed in 0..200 {
             let (q, v) = (state(seed, 1.5).cast::<T>(), state(seed + 500, 1.0).cast::<T>());
@@ -1011,7 +1120,12 @@ mod tests {
                     continue;
                 }
                 let reference = evaluate_pair(&cm, &cd, &robot, &data, &factor, &p, pair).unwrap();
-                let fast = pair_row(&cm, &cd, &robot, &data, &rows_of_l, &p, pair).unwrap();
+                let fast = pair_row(&cm, &cd, &robot, &data, &rows_of_l, &p, pair, &mut fresh_cache()).unwrap();
+                // Shared with another field (other force law and damping): the row from the
+                // cache that field filled is the same row, to the bit.
+                let mut shared = fresh_cache();
+                pair_row(&cm, &cd, &robot, &data, &rows_of_l, &other_field, pair, &mut shared).unwrap();
+                assert_eq!(pair_row(&cm, &cd, &robot, &data, &rows_of_l, &p, pair, &mut shared).unwrap(), fast);
                 let difference = row_difference(&fast, &reference.row);
                 assert!(
                     difference <= tolerance,
