@@ -760,8 +760,10 @@ pub fn collision_rows_shared<
     let free = R.saturating_sub(rows.len());
     let limit = parameters.emit_distance();
     let mut report = CollisionReport { candidates: 0, rows: 0, dropped: 0, undefined_direction: 0, min_distance: None };
-    // The `free` closest candidates: (distance, pair index).
+    // The `free` closest candidates: (distance, pair index), and where the farthest of them is
+    // (searched again only after it was replaced, not for every dropped candidate).
     let mut selected: Vec<(T, usize), R> = Vec::new();
+    let mut farthest: Option<(usize, T)> = None;
     for (index, proximity) in collision.proximities.iter().take(collision_model.pairs().len()).enumerate() {
         let d = proximity.distance;
         if !d.is_finite() {
@@ -781,11 +783,23 @@ pub fn collision_rows_shared<
             continue;
         }
         report.dropped += 1;
-        let farthest = selected.iter_mut().reduce(|a, b| if b.0 > a.0 { b } else { a });
-        if let Some(slot) = farthest {
-            if d < slot.0 {
-                *slot = (d, index);
+        let (slot, distance) = match farthest {
+            Some(known) => known,
+            None => selected.iter().enumerate().fold((0, T::min_value().unwrap_or_else(T::zero)), |(k, m), (i, c)| {
+                if c.0 > m {
+                    (i, c.0)
+                } else {
+                    (k, m)
+                }
+            }),
+        };
+        if d < distance {
+            if let Some(entry) = selected.get_mut(slot) {
+                *entry = (d, index);
             }
+            farthest = None;
+        } else {
+            farthest = Some((slot, distance));
         }
     }
     // Rows in pair order: a pass over a membership mask of the pairs instead of a sort, whose
