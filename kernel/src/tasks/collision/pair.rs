@@ -526,6 +526,7 @@ impl<T: RealField + Copy, const N: usize, const P: usize, const C: usize> PairRo
 /// or from [`pair_kinematics`] (then cached), the force law (3.10) of `parameters` and the
 /// damping constant of (3.23) in the closed form `c = 2 ξ √(k / (m_i⁻¹ + m_j⁻¹))` (see
 /// [`pair_damping`]). The proximity must have a direction.
+#[allow(clippy::too_many_arguments, reason = "the inputs of pair_kinematics, the force law and the cache")]
 fn pair_row<
     T: RealField + Copy,
     const N: usize,
