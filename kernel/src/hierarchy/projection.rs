@@ -133,6 +133,8 @@ pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS
     };
     let mut first_slot = 0;
     let mut identity = true;
+    // The working projector is still exactly `I` (no rank-one update applied to it yet).
+    let mut working_identity = true;
     for (level, (level_diagnostics, level_torque)) in
         levels.iter_mut().zip(level_torques.iter_mut()).enumerate().take(level_count)
     {
@@ -178,20 +180,23 @@ pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS
         if !last || config.diagnose_last_level {
             if config.recursion == Recursion::Successive {
                 *level_projector = SMatrix::identity();
+                working_identity = true;
             }
             for (slot, r) in rows.iter_mut().skip(first_slot).zip(on_level()) {
                 let working = match config.recursion {
                     Recursion::Successive => &mut *level_projector,
                     Recursion::Augmented | Recursion::Unprojected => &mut *projector,
                 };
-                let (activation, ratio) = update_row(
+                let (activation, ratio, updated) = update_row(
                     config,
                     metric_inverse.as_ref(),
                     working,
+                    working_identity,
                     r.row.jacobian.as_slice(),
                     r.row.activation,
                     &mut scratch,
                 );
+                working_identity &= !updated;
                 slot.activation = activation;
                 slot.projected_norm_ratio = ratio;
             }
@@ -222,15 +227,18 @@ impl<T: RealField + Copy, const N: usize> Default for Scratch<T, N> {
 }
 
 /// The rank-one update `N ← N − a (N j̄ᵀ) wᵀ / s` of one row (the remark after Table 4.3,
-/// (4.13) with (4.70)–(4.72)); returns its activation `a` and norm ratio `ρ`.
+/// (4.13) with (4.70)–(4.72)); returns its activation `a`, norm ratio `ρ` and whether the
+/// projector was updated. While `working` is exactly `I` (`identity`), `j̄ᵀ = N jᵀ = jᵀ`,
+/// `N j̄ᵀ = jᵀ`, `W⁻¹j̄ᵀ = W⁻¹jᵀ` and `s = jW⁻¹jᵀ` are taken without their mat-vecs.
 fn update_row<T: RealField + Copy, const N: usize>(
     config: &HierarchyConfig<'_, T, N>,
     metric_inverse: Option<&SMatrix<T, N, N>>,
     working: &mut SMatrix<T, N, N>,
+    identity: bool,
     row: &[T],
     task_activation: T,
     scratch: &mut Scratch<T, N>,
-) -> (T, T) {
+) -> (T, T, bool) {
     // jW⁻¹jᵀ (or |j|²); W⁻¹jᵀ skips the zero entries of the row.
     let reference = match metric_inverse {
         Some(inverse) => {
@@ -240,16 +248,24 @@ fn update_row<T: RealField + Copy, const N: usize>(
         None => norm_squared(row),
     };
     if !reference.is_finite() || reference <= T::zero() {
-        return (T::zero(), T::zero());
+        return (T::zero(), T::zero(), false);
     }
-    mat_vec::<T, N>(working.as_slice(), row, scratch.projected.as_mut_slice());
     // w = W⁻¹j̄ᵀ, s = j̄ w (or w = j̄ᵀ, s = |j̄|²).
-    let s = match metric_inverse {
-        Some(inverse) => {
-            mat_vec::<T, N>(inverse.as_slice(), scratch.projected.as_slice(), scratch.w.as_mut_slice());
-            dot(scratch.projected.as_slice(), scratch.w.as_slice())
+    let s = if identity {
+        // W⁻¹jᵀ is already in `scratch.w`.
+        for (p, &j) in scratch.projected.as_mut_slice().iter_mut().zip(row) {
+            *p = j;
         }
-        None => norm_squared(scratch.projected.as_slice()),
+        reference
+    } else {
+        mat_vec::<T, N>(working.as_slice(), row, scratch.projected.as_mut_slice());
+        match metric_inverse {
+            Some(inverse) => {
+                mat_vec::<T, N>(inverse.as_slice(), scratch.projected.as_slice(), scratch.w.as_mut_slice());
+                dot(scratch.projected.as_slice(), scratch.w.as_slice())
+            }
+            None => norm_squared(scratch.projected.as_slice()),
+        }
     };
     let ratio = (s.max(T::zero()) / reference).sqrt();
     let clamped = task_activation.max(T::zero()).min(T::one());
@@ -265,15 +281,21 @@ fn update_row<T: RealField + Copy, const N: usize>(
             }
         }
     };
-    if activation > T::zero() && s > T::zero() && config.recursion != Recursion::Unprojected {
-        mat_vec::<T, N>(working.as_slice(), scratch.projected.as_slice(), scratch.u.as_mut_slice());
+    let updated = activation > T::zero() && s > T::zero() && config.recursion != Recursion::Unprojected;
+    if updated {
+        let u = if identity {
+            scratch.projected.as_slice()
+        } else {
+            mat_vec::<T, N>(working.as_slice(), scratch.projected.as_slice(), scratch.u.as_mut_slice());
+            scratch.u.as_slice()
+        };
         let w = match metric_inverse {
             Some(_) => scratch.w.as_slice(),
             None => scratch.projected.as_slice(),
         };
-        rank_one_update::<T, N>(working.as_mut_slice(), scratch.u.as_slice(), w, activation / s);
+        rank_one_update::<T, N>(working.as_mut_slice(), u, w, activation / s);
     }
-    (activation, ratio)
+    (activation, ratio, updated)
 }
 
 /// `‖N_in jᵀ‖ / ‖jᵀ‖` (the acceleration-based projector: `‖M N M⁻¹ jᵀ‖ / ‖jᵀ‖`), 1 for a zero
