@@ -299,20 +299,46 @@ fn update_row<T: RealField + Copy, const N: usize>(
 }
 
 /// `‖N_in jᵀ‖ / ‖jᵀ‖` (the acceleration-based projector: `‖M N M⁻¹ jᵀ‖ / ‖jᵀ‖`), 1 for a zero
-/// row. `tmp` receives the projected row.
+/// row. `tmp` receives the projected row (acceleration-based projector only; the others form
+/// both norms in one pass, [`projected_norm_squared`]).
 fn transmission<T: RealField + Copy, const N: usize>(
     weighting: &Weighting<'_, T, N>,
     input: &SMatrix<T, N, N>,
     row: &[T],
     tmp: &mut SVector<T, N>,
 ) -> T {
-    let row_squared = norm_squared(row);
+    let (row_squared, projected_squared) = match weighting {
+        Weighting::AccelerationBased(_) => {
+            let row_squared = norm_squared(row);
+            if row_squared > T::zero() {
+                apply_projector(weighting, input, row, tmp);
+            }
+            (row_squared, norm_squared(tmp.as_slice()))
+        }
+        _ => projected_norm_squared::<T, N>(input.as_slice(), row),
+    };
     if row_squared > T::zero() {
-        apply_projector(weighting, input, row, tmp);
-        (norm_squared(tmp.as_slice()) / row_squared).sqrt()
+        (projected_squared / row_squared).sqrt()
     } else {
         T::one()
     }
+}
+
+/// `(‖x‖², ‖A x‖²)` for the column-major `N × N` matrix `a` in one pass over the nonzero entries
+/// of `x`: `A x` is accumulated in registers as in [`mat_vec`] and never stored. The sums equal
+/// those of [`norm_squared`] and [`mat_vec`] bit for bit (the skipped terms are `+0`).
+fn projected_norm_squared<T: RealField + Copy, const N: usize>(a: &[T], x: &[T]) -> (T, T) {
+    let mut sum = [T::zero(); N];
+    let mut x_squared = T::zero();
+    for (column, &xc) in a.chunks_exact(N.max(1)).zip(x) {
+        if xc != T::zero() {
+            x_squared += xc * xc;
+            for (v, &aic) in sum.iter_mut().zip(column) {
+                *v += aic * xc;
+            }
+        }
+    }
+    (x_squared, norm_squared(&sum))
 }
 
 /// `out = N τ`, or `M N M⁻¹ τ` for the acceleration-based projector (4.38).
