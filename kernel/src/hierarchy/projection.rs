@@ -239,12 +239,14 @@ fn update_row<T: RealField + Copy, const N: usize>(
     task_activation: T,
     scratch: &mut Scratch<T, N>,
 ) -> (T, T, bool) {
-    // jW⁻¹jᵀ (or |j|²); W⁻¹jᵀ skips the zero entries of the row.
+    // jW⁻¹jᵀ (or |j|²); W⁻¹jᵀ skips the zero entries of the row and is kept only while the
+    // working projector is `I` (then it is also `w`).
     let reference = match metric_inverse {
-        Some(inverse) => {
+        Some(inverse) if identity => {
             mat_vec::<T, N>(inverse.as_slice(), row, scratch.w.as_mut_slice());
             dot(row, scratch.w.as_slice())
         }
+        Some(inverse) => quadratic_form::<T, N>(inverse.as_slice(), row),
         None => norm_squared(row),
     };
     if !reference.is_finite() || reference <= T::zero() {
@@ -322,6 +324,21 @@ fn transmission<T: RealField + Copy, const N: usize>(
     } else {
         T::one()
     }
+}
+
+/// `xᵀ A x` for the column-major `N × N` matrix `a`: `A x` over the nonzero entries of `x`,
+/// accumulated in registers as in [`mat_vec`] and never stored, then dotted with `x` (bit for
+/// bit the sums of [`mat_vec`] and [`dot`]).
+fn quadratic_form<T: RealField + Copy, const N: usize>(a: &[T], x: &[T]) -> T {
+    let mut sum = [T::zero(); N];
+    for (column, &xc) in a.chunks_exact(N.max(1)).zip(x) {
+        if xc != T::zero() {
+            for (v, &aic) in sum.iter_mut().zip(column) {
+                *v += aic * xc;
+            }
+        }
+    }
+    dot(x, &sum)
 }
 
 /// `(‖x‖², ‖A x‖²)` for the column-major `N × N` matrix `a` in one pass over the nonzero entries
