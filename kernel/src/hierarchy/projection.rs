@@ -424,23 +424,23 @@ fn cholesky_inverse<T: RealField + Copy, const N: usize>(l: &[T]) -> SMatrix<T, 
         let Some(&diagonal) = l.get(i * n + i) else {
             break;
         };
+        // Σ_{k<i} L_ik y_k accumulated with `+` (the same roundings as `−` from 0, by symmetry);
+        // y_k[i] = 0 for k < i, so entry i is `1 − (±0)`.
         let mut sum = [T::zero(); N];
-        if let Some(unit) = sum.get_mut(i) {
-            *unit = T::one();
-        }
-        let Some((done, rest)) = y.as_mut_slice().split_at_mut_checked(i * n) else {
-            break;
-        };
-        for (yk, lk) in done.chunks_exact(n).zip(l.chunks_exact(n)) {
+        for (yk, lk) in y.as_slice().chunks_exact(n).zip(l.chunks_exact(n)).take(i) {
             let lik = lk.get(i).copied().unwrap_or_else(T::zero);
             if lik != T::zero() {
                 for (v, &ykj) in sum.iter_mut().zip(yk) {
-                    *v -= lik * ykj;
+                    *v += lik * ykj;
                 }
             }
         }
-        for (yi, v) in rest.iter_mut().zip(sum) {
-            *yi = v / diagonal;
+        let Some(column) = y.as_mut_slice().chunks_exact_mut(n).nth(i) else {
+            break;
+        };
+        for (j, (yi, v)) in column.iter_mut().zip(sum).enumerate() {
+            let unit = if j == i { T::one() } else { T::zero() };
+            *yi = (unit - v) / diagonal;
         }
     }
     let mut inverse = SMatrix::<T, N, N>::zeros();
