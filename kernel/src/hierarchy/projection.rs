@@ -786,6 +786,37 @@ mod tests {
         }
     }
 
+    /// [`quadratic_form`] and [`projected_norm_squared`] (one pass, nothing stored) give bit for
+    /// bit the sums of the plain [`mat_vec`], [`dot`] and [`norm_squared`] they replace, in f64
+    /// and f32, on random matrices and sparse random vectors (including the zero vector).
+    #[test]
+    fn fused_norms_equal_the_plain_mat_vec_bit_for_bit() {
+        fn check<T: RealField + Copy, const M: usize>(a: &SMatrix<T, M, M>, x: &SVector<T, M>) {
+            let mut ax = SVector::<T, M>::zeros();
+            mat_vec::<T, M>(a.as_slice(), x.as_slice(), ax.as_mut_slice());
+            let quadratic = quadratic_form::<T, M>(a.as_slice(), x.as_slice());
+            assert_eq!(quadratic, dot(x.as_slice(), ax.as_slice()));
+            let (x_squared, ax_squared) = projected_norm_squared::<T, M>(a.as_slice(), x.as_slice());
+            assert_eq!(x_squared, norm_squared(x.as_slice()));
+            assert_eq!(ax_squared, norm_squared(ax.as_slice()));
+            // Not vacuous: the plain mat-vec agrees with nalgebra's product to rounding.
+            let expected = a * x;
+            assert!((ax - expected).amax() <= T::from_f64(1e-5).unwrap() * (T::one() + expected.amax()));
+        }
+        let mut rng = reference::TestRng::new(77);
+        for case in 0..200 {
+            let density = [0.0, 0.2, 0.5, 1.0][case % 4];
+            let a = SMatrix::<f64, 20, 20>::from_fn(|_, _| rng.symmetric());
+            let x = SVector::<f64, 20>::from_fn(|_, _| if rng.unit() < density { rng.symmetric() } else { 0.0 });
+            check(&a, &x);
+            check(&a.cast::<f32>(), &x.cast::<f32>());
+            let a = reference::random_spd::<N>(&mut rng);
+            let x = SVector::<f64, N>::from_fn(|_, _| if rng.unit() < density { rng.symmetric() } else { 0.0 });
+            check(&a, &x);
+            check(&a.cast::<f32>(), &x.cast::<f32>());
+        }
+    }
+
     #[test]
     fn f32_agrees_with_f64() {
         let stack = random_stack(5, &[0, 0, 1, 2]);
