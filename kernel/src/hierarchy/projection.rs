@@ -263,8 +263,7 @@ fn update_row<T: RealField + Copy, const N: usize>(
         mat_vec::<T, N>(working.as_slice(), row, scratch.projected.as_mut_slice());
         match metric_inverse {
             Some(inverse) => {
-                mat_vec::<T, N>(inverse.as_slice(), scratch.projected.as_slice(), scratch.w.as_mut_slice());
-                dot(scratch.projected.as_slice(), scratch.w.as_slice())
+                mat_vec_dot::<T, N>(inverse.as_slice(), scratch.projected.as_slice(), scratch.w.as_mut_slice())
             }
             None => norm_squared(scratch.projected.as_slice()),
         }
@@ -399,6 +398,23 @@ fn mat_vec<T: RealField + Copy, const N: usize>(a: &[T], x: &[T], y: &mut [T]) {
     for (v, s) in y.iter_mut().zip(sum) {
         *v = s;
     }
+}
+
+/// `y = A x` as [`mat_vec`], returning `x · y` formed from the registers (bit for bit
+/// [`dot`]`(x, y)`).
+fn mat_vec_dot<T: RealField + Copy, const N: usize>(a: &[T], x: &[T], y: &mut [T]) -> T {
+    let mut sum = [T::zero(); N];
+    for (column, &xc) in a.chunks_exact(N.max(1)).zip(x) {
+        if xc != T::zero() {
+            for (v, &aic) in sum.iter_mut().zip(column) {
+                *v += aic * xc;
+            }
+        }
+    }
+    for (v, s) in y.iter_mut().zip(sum) {
+        *v = s;
+    }
+    dot(x, &sum)
 }
 
 /// `A ← A − u (c w)ᵀ` in place on the column-major `N × N` matrix `a`.
@@ -786,7 +802,7 @@ mod tests {
         }
     }
 
-    /// [`quadratic_form`] and [`projected_norm_squared`] (one pass, nothing stored) give bit for
+    /// [`quadratic_form`], [`mat_vec_dot`] and [`projected_norm_squared`] (one pass) give bit for
     /// bit the sums of the plain [`mat_vec`], [`dot`] and [`norm_squared`] they replace, in f64
     /// and f32, on random matrices and sparse random vectors (including the zero vector).
     #[test]
@@ -796,6 +812,9 @@ mod tests {
             mat_vec::<T, M>(a.as_slice(), x.as_slice(), ax.as_mut_slice());
             let quadratic = quadratic_form::<T, M>(a.as_slice(), x.as_slice());
             assert_eq!(quadratic, dot(x.as_slice(), ax.as_slice()));
+            let mut fused = SVector::<T, M>::zeros();
+            assert_eq!(mat_vec_dot::<T, M>(a.as_slice(), x.as_slice(), fused.as_mut_slice()), quadratic);
+            assert_eq!(fused, ax);
             let (x_squared, ax_squared) = projected_norm_squared::<T, M>(a.as_slice(), x.as_slice());
             assert_eq!(x_squared, norm_squared(x.as_slice()));
             assert_eq!(ax_squared, norm_squared(ax.as_slice()));
