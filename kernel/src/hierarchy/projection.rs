@@ -133,6 +133,8 @@ pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS
     };
     let mut first_slot = 0;
     let mut identity = true;
+    // The working projector is still exactly `I` (no rank-one update applied to it yet).
+    let mut working_identity = true;
     for (level, (level_diagnostics, level_torque)) in
         levels.iter_mut().zip(level_torques.iter_mut()).enumerate().take(level_count)
     {
@@ -178,20 +180,23 @@ pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS
         if !last || config.diagnose_last_level {
             if config.recursion == Recursion::Successive {
                 *level_projector = SMatrix::identity();
+                working_identity = true;
             }
             for (slot, r) in rows.iter_mut().skip(first_slot).zip(on_level()) {
                 let working = match config.recursion {
                     Recursion::Successive => &mut *level_projector,
                     Recursion::Augmented | Recursion::Unprojected => &mut *projector,
                 };
-                let (activation, ratio) = update_row(
+                let (activation, ratio, updated) = update_row(
                     config,
                     metric_inverse.as_ref(),
                     working,
+                    working_identity,
                     r.row.jacobian.as_slice(),
                     r.row.activation,
                     &mut scratch,
                 );
+                working_identity &= !updated;
                 slot.activation = activation;
                 slot.projected_norm_ratio = ratio;
             }
@@ -222,34 +227,46 @@ impl<T: RealField + Copy, const N: usize> Default for Scratch<T, N> {
 }
 
 /// The rank-one update `N ← N − a (N j̄ᵀ) wᵀ / s` of one row (the remark after Table 4.3,
-/// (4.13) with (4.70)–(4.72)); returns its activation `a` and norm ratio `ρ`.
+/// (4.13) with (4.70)–(4.72)); returns its activation `a`, norm ratio `ρ` and whether the
+/// projector was updated. While `working` is exactly `I` (`identity`), `j̄ᵀ = N jᵀ = jᵀ`,
+/// `N j̄ᵀ = jᵀ`, `W⁻¹j̄ᵀ = W⁻¹jᵀ` and `s = jW⁻¹jᵀ` are taken without their mat-vecs.
 fn update_row<T: RealField + Copy, const N: usize>(
     config: &HierarchyConfig<'_, T, N>,
     metric_inverse: Option<&SMatrix<T, N, N>>,
     working: &mut SMatrix<T, N, N>,
+    identity: bool,
     row: &[T],
     task_activation: T,
     scratch: &mut Scratch<T, N>,
-) -> (T, T) {
-    // jW⁻¹jᵀ (or |j|²); W⁻¹jᵀ skips the zero entries of the row.
+) -> (T, T, bool) {
+    // jW⁻¹jᵀ (or |j|²); W⁻¹jᵀ skips the zero entries of the row and is kept only while the
+    // working projector is `I` (then it is also `w`).
     let reference = match metric_inverse {
-        Some(inverse) => {
+        Some(inverse) if identity => {
             mat_vec::<T, N>(inverse.as_slice(), row, scratch.w.as_mut_slice());
             dot(row, scratch.w.as_slice())
         }
+        Some(inverse) => quadratic_form::<T, N>(inverse.as_slice(), row),
         None => norm_squared(row),
     };
     if !reference.is_finite() || reference <= T::zero() {
-        return (T::zero(), T::zero());
+        return (T::zero(), T::zero(), false);
     }
-    mat_vec::<T, N>(working.as_slice(), row, scratch.projected.as_mut_slice());
     // w = W⁻¹j̄ᵀ, s = j̄ w (or w = j̄ᵀ, s = |j̄|²).
-    let s = match metric_inverse {
-        Some(inverse) => {
-            mat_vec::<T, N>(inverse.as_slice(), scratch.projected.as_slice(), scratch.w.as_mut_slice());
-            dot(scratch.projected.as_slice(), scratch.w.as_slice())
+    let s = if identity {
+        // W⁻¹jᵀ is already in `scratch.w`.
+        for (p, &j) in scratch.projected.as_mut_slice().iter_mut().zip(row) {
+            *p = j;
         }
-        None => norm_squared(scratch.projected.as_slice()),
+        reference
+    } else {
+        mat_vec::<T, N>(working.as_slice(), row, scratch.projected.as_mut_slice());
+        match metric_inverse {
+            Some(inverse) => {
+                mat_vec_dot::<T, N>(inverse.as_slice(), scratch.projected.as_slice(), scratch.w.as_mut_slice())
+            }
+            None => norm_squared(scratch.projected.as_slice()),
+        }
     };
     let ratio = (s.max(T::zero()) / reference).sqrt();
     let clamped = task_activation.max(T::zero()).min(T::one());
@@ -265,32 +282,79 @@ fn update_row<T: RealField + Copy, const N: usize>(
             }
         }
     };
-    if activation > T::zero() && s > T::zero() && config.recursion != Recursion::Unprojected {
-        mat_vec::<T, N>(working.as_slice(), scratch.projected.as_slice(), scratch.u.as_mut_slice());
+    let updated = activation > T::zero() && s > T::zero() && config.recursion != Recursion::Unprojected;
+    if updated {
+        let u = if identity {
+            scratch.projected.as_slice()
+        } else {
+            mat_vec::<T, N>(working.as_slice(), scratch.projected.as_slice(), scratch.u.as_mut_slice());
+            scratch.u.as_slice()
+        };
         let w = match metric_inverse {
             Some(_) => scratch.w.as_slice(),
             None => scratch.projected.as_slice(),
         };
-        rank_one_update::<T, N>(working.as_mut_slice(), scratch.u.as_slice(), w, activation / s);
+        rank_one_update::<T, N>(working.as_mut_slice(), u, w, activation / s);
     }
-    (activation, ratio)
+    (activation, ratio, updated)
 }
 
 /// `‖N_in jᵀ‖ / ‖jᵀ‖` (the acceleration-based projector: `‖M N M⁻¹ jᵀ‖ / ‖jᵀ‖`), 1 for a zero
-/// row. `tmp` receives the projected row.
+/// row. `tmp` receives the projected row (acceleration-based projector only; the others form
+/// both norms in one pass, [`projected_norm_squared`]).
 fn transmission<T: RealField + Copy, const N: usize>(
     weighting: &Weighting<'_, T, N>,
     input: &SMatrix<T, N, N>,
     row: &[T],
     tmp: &mut SVector<T, N>,
 ) -> T {
-    let row_squared = norm_squared(row);
+    let (row_squared, projected_squared) = match weighting {
+        Weighting::AccelerationBased(_) => {
+            let row_squared = norm_squared(row);
+            if row_squared > T::zero() {
+                apply_projector(weighting, input, row, tmp);
+            }
+            (row_squared, norm_squared(tmp.as_slice()))
+        }
+        _ => projected_norm_squared::<T, N>(input.as_slice(), row),
+    };
     if row_squared > T::zero() {
-        apply_projector(weighting, input, row, tmp);
-        (norm_squared(tmp.as_slice()) / row_squared).sqrt()
+        (projected_squared / row_squared).sqrt()
     } else {
         T::one()
     }
+}
+
+/// `xᵀ A x` for the column-major `N × N` matrix `a`: `A x` over the nonzero entries of `x`,
+/// accumulated in registers as in [`mat_vec`] and never stored, then dotted with `x` (bit for
+/// bit the sums of [`mat_vec`] and [`dot`]).
+fn quadratic_form<T: RealField + Copy, const N: usize>(a: &[T], x: &[T]) -> T {
+    let mut sum = [T::zero(); N];
+    for (column, &xc) in a.chunks_exact(N.max(1)).zip(x) {
+        if xc != T::zero() {
+            for (v, &aic) in sum.iter_mut().zip(column) {
+                *v += aic * xc;
+            }
+        }
+    }
+    dot(x, &sum)
+}
+
+/// `(‖x‖², ‖A x‖²)` for the column-major `N × N` matrix `a` in one pass over the nonzero entries
+/// of `x`: `A x` is accumulated in registers as in [`mat_vec`] and never stored. The sums equal
+/// those of [`norm_squared`] and [`mat_vec`] bit for bit (the skipped terms are `+0`).
+fn projected_norm_squared<T: RealField + Copy, const N: usize>(a: &[T], x: &[T]) -> (T, T) {
+    let mut sum = [T::zero(); N];
+    let mut x_squared = T::zero();
+    for (column, &xc) in a.chunks_exact(N.max(1)).zip(x) {
+        if xc != T::zero() {
+            x_squared += xc * xc;
+            for (v, &aic) in sum.iter_mut().zip(column) {
+                *v += aic * xc;
+            }
+        }
+    }
+    (x_squared, norm_squared(&sum))
 }
 
 /// `out = N τ`, or `M N M⁻¹ τ` for the acceleration-based projector (4.38).
@@ -336,6 +400,23 @@ fn mat_vec<T: RealField + Copy, const N: usize>(a: &[T], x: &[T], y: &mut [T]) {
     }
 }
 
+/// `y = A x` as [`mat_vec`], returning `x · y` formed from the registers (bit for bit
+/// [`dot`]`(x, y)`).
+fn mat_vec_dot<T: RealField + Copy, const N: usize>(a: &[T], x: &[T], y: &mut [T]) -> T {
+    let mut sum = [T::zero(); N];
+    for (column, &xc) in a.chunks_exact(N.max(1)).zip(x) {
+        if xc != T::zero() {
+            for (v, &aic) in sum.iter_mut().zip(column) {
+                *v += aic * xc;
+            }
+        }
+    }
+    for (v, s) in y.iter_mut().zip(sum) {
+        *v = s;
+    }
+    dot(x, &sum)
+}
+
 /// `A ← A − u (c w)ᵀ` in place on the column-major `N × N` matrix `a`.
 fn rank_one_update<T: RealField + Copy, const N: usize>(a: &mut [T], u: &[T], w: &[T], c: T) {
     for (column, &wc) in a.chunks_exact_mut(N.max(1)).zip(w) {
@@ -359,23 +440,23 @@ fn cholesky_inverse<T: RealField + Copy, const N: usize>(l: &[T]) -> SMatrix<T, 
         let Some(&diagonal) = l.get(i * n + i) else {
             break;
         };
+        // Σ_{k<i} L_ik y_k accumulated with `+` (the same roundings as `−` from 0, by symmetry);
+        // y_k[i] = 0 for k < i, so entry i is `1 − (±0)`.
         let mut sum = [T::zero(); N];
-        if let Some(unit) = sum.get_mut(i) {
-            *unit = T::one();
-        }
-        let Some((done, rest)) = y.as_mut_slice().split_at_mut_checked(i * n) else {
-            break;
-        };
-        for (yk, lk) in done.chunks_exact(n).zip(l.chunks_exact(n)) {
+        for (yk, lk) in y.as_slice().chunks_exact(n).zip(l.chunks_exact(n)).take(i) {
             let lik = lk.get(i).copied().unwrap_or_else(T::zero);
             if lik != T::zero() {
                 for (v, &ykj) in sum.iter_mut().zip(yk) {
-                    *v -= lik * ykj;
+                    *v += lik * ykj;
                 }
             }
         }
-        for (yi, v) in rest.iter_mut().zip(sum) {
-            *yi = v / diagonal;
+        let Some(column) = y.as_mut_slice().chunks_exact_mut(n).nth(i) else {
+            break;
+        };
+        for (j, (yi, v)) in column.iter_mut().zip(sum).enumerate() {
+            let unit = if j == i { T::one() } else { T::zero() };
+            *yi = (unit - v) / diagonal;
         }
     }
     let mut inverse = SMatrix::<T, N, N>::zeros();
@@ -718,6 +799,40 @@ mod tests {
             let stack = reference::random_stack::<20, 24>(&mut rng, 2 + seed as usize % 3);
             reference::compare_f64::<20, 24, 24, 4>(&stack, &mass, &stiffness, 1e-9);
             reference::compare_f32::<20, 24, 24, 4>(&stack, &mass, &stiffness, 4.0, 1e-6);
+        }
+    }
+
+    /// [`quadratic_form`], [`mat_vec_dot`] and [`projected_norm_squared`] (one pass) give bit for
+    /// bit the sums of the plain [`mat_vec`], [`dot`] and [`norm_squared`] they replace, in f64
+    /// and f32, on random matrices and sparse random vectors (including the zero vector).
+    #[test]
+    fn fused_norms_equal_the_plain_mat_vec_bit_for_bit() {
+        fn check<T: RealField + Copy, const M: usize>(a: &SMatrix<T, M, M>, x: &SVector<T, M>) {
+            let mut ax = SVector::<T, M>::zeros();
+            mat_vec::<T, M>(a.as_slice(), x.as_slice(), ax.as_mut_slice());
+            let quadratic = quadratic_form::<T, M>(a.as_slice(), x.as_slice());
+            assert_eq!(quadratic, dot(x.as_slice(), ax.as_slice()));
+            let mut fused = SVector::<T, M>::zeros();
+            assert_eq!(mat_vec_dot::<T, M>(a.as_slice(), x.as_slice(), fused.as_mut_slice()), quadratic);
+            assert_eq!(fused, ax);
+            let (x_squared, ax_squared) = projected_norm_squared::<T, M>(a.as_slice(), x.as_slice());
+            assert_eq!(x_squared, norm_squared(x.as_slice()));
+            assert_eq!(ax_squared, norm_squared(ax.as_slice()));
+            // Not vacuous: the plain mat-vec agrees with nalgebra's product to rounding.
+            let expected = a * x;
+            assert!((ax - expected).amax() <= T::from_f64(1e-5).unwrap() * (T::one() + expected.amax()));
+        }
+        let mut rng = reference::TestRng::new(77);
+        for case in 0..200 {
+            let density = [0.0, 0.2, 0.5, 1.0][case % 4];
+            let a = SMatrix::<f64, 20, 20>::from_fn(|_, _| rng.symmetric());
+            let x = SVector::<f64, 20>::from_fn(|_, _| if rng.unit() < density { rng.symmetric() } else { 0.0 });
+            check(&a, &x);
+            check(&a.cast::<f32>(), &x.cast::<f32>());
+            let a = reference::random_spd::<N>(&mut rng);
+            let x = SVector::<f64, N>::from_fn(|_, _| if rng.unit() < density { rng.symmetric() } else { 0.0 });
+            check(&a, &x);
+            check(&a.cast::<f32>(), &x.cast::<f32>());
         }
     }
 
