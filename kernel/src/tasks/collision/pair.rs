@@ -614,11 +614,15 @@ fn pair_kinematics<
         (false, true) => inverse_reflected_masses(factor_rows, [&jacobian_second])?[0],
         (false, false) => T::zero(),
     };
+    // The difference and its finiteness in one pass (no early exit: a branch-free flag).
     let mut jacobian = RowSVector::<T, N>::zeros();
+    let mut finite = inverse_mass_sum.is_finite();
     for ((x, &ji), &jj) in jacobian.as_mut_slice().iter_mut().zip(&jacobian_first).zip(&jacobian_second) {
-        *x = jj - ji;
+        let value = jj - ji;
+        finite &= value.is_finite();
+        *x = value;
     }
-    if !(inverse_mass_sum.is_finite() && jacobian.as_slice().iter().all(|x| x.is_finite())) {
+    if !finite {
         return Err(TaskError::NonFinite);
     }
     Ok(CachedPairRow { jacobian, inverse_mass_sum })
