@@ -400,34 +400,31 @@ pub fn inverse_reflected_masses<T: RealField + Copy, const N: usize, const K: us
     // serves every right-hand side.
     let mut y = [[T::zero(); K]; N];
     let start = rhs.iter().map(|b| b.iter().position(|x| !x.is_zero()).unwrap_or(N)).fold(N, usize::min);
-    for (i, row) in factor_rows.as_slice().chunks_exact(N).enumerate().skip(start) {
-        let (Some(before), Some(&diag)) = (row.get(start..i), row.get(i)) else {
+    let rows = factor_rows.as_slice().chunks_exact(N).skip(start);
+    for (i, row) in (start..N).zip(rows) {
+        let (Some(before), Some(&diag), Some(done)) = (row.get(start..i), row.get(i), y.get(start..i)) else {
             break;
         };
         if diag.is_zero() {
             return Err(TaskError::Singular);
         }
-        let Some((done, current)) = y.split_at_mut_checked(i) else {
-            break;
-        };
-        let (Some(yi), Some(done)) = (current.first_mut(), done.get(start..)) else {
-            break;
-        };
         let mut sum = [T::zero(); K];
         for (s, b) in sum.iter_mut().zip(rhs) {
             *s = b.get(i).copied().unwrap_or_else(T::zero);
         }
-        for (&l, yk) in before.iter().zip(done.iter()) {
+        for (&l, yk) in before.iter().zip(done) {
             for (s, &x) in sum.iter_mut().zip(yk) {
                 *s += -(x * l);
             }
         }
-        for (x, s) in yi.iter_mut().zip(sum) {
-            *x = s / diag;
+        if let Some(yi) = y.get_mut(i) {
+            for (x, s) in yi.iter_mut().zip(sum) {
+                *x = s / diag;
+            }
         }
     }
     let mut norms = [T::zero(); K];
-    for yk in &y {
+    for yk in y.get(start..).unwrap_or_default() {
         for (n, &x) in norms.iter_mut().zip(yk) {
             *n += x * x;
         }
@@ -617,11 +614,15 @@ fn pair_kinematics<
         (false, true) => inverse_reflected_masses(factor_rows, [&jacobian_second])?[0],
         (false, false) => T::zero(),
     };
+    // The difference and its finiteness in one pass (no early exit: a branch-free flag).
     let mut jacobian = RowSVector::<T, N>::zeros();
+    let mut finite = inverse_mass_sum.is_finite();
     for ((x, &ji), &jj) in jacobian.as_mut_slice().iter_mut().zip(&jacobian_first).zip(&jacobian_second) {
-        *x = jj - ji;
+        let value = jj - ji;
+        finite &= value.is_finite();
+        *x = value;
     }
-    if !(inverse_mass_sum.is_finite() && jacobian.as_slice().iter().all(|x| x.is_finite())) {
+    if !finite {
         return Err(TaskError::NonFinite);
     }
     Ok(CachedPairRow { jacobian, inverse_mass_sum })
