@@ -9,7 +9,7 @@ use fixtures::justin::JustinModel;
 use hal::{JointSample, PlatformSample};
 use kernel::controller::config::{Field, Hand};
 use kernel::controller::messages::Command;
-use kernel::controller::{Controller, SensorFrame};
+use kernel::controller::SensorFrame;
 use kernel::dynamics::{coriolis_matrix, crba, forward_kinematics, frame_jacobian, gravity, mass_matrix_cholesky};
 use kernel::hierarchy::{project, HierarchyConfig, HierarchyData, Stack};
 use kernel::math::CholeskyFactor;
@@ -148,15 +148,7 @@ pub fn case_input(case: u32) -> (SVector<S, N>, SVector<S, N>) {
 /// Upper-body joints of the Justin-like robot.
 pub const U: usize = justin::UPPER_DOF;
 /// The whole-body controller of Fig. 6.3 for the right hand, every one of the 214 pairs enabled.
-pub type JustinController = Controller<
-    S,
-    N,
-    { justin::BODIES },
-    { justin::FRAMES },
-    U,
-    { justin::collision::VOLUMES },
-    { justin::collision::PAIRS },
->;
+pub type JustinController = whole_body::JustinController<S>;
 /// One sensor frame.
 pub type Frame = SensorFrame<S, U>;
 

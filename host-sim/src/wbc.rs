@@ -12,7 +12,7 @@ use fixtures::justin::{self, collision, whole_body};
 use hal::{JointTorqueInterface, PlatformVelocityInterface};
 use kernel::controller::config::{ControllerConfig, Hand, TaskKind, TaskSpec, MAX_LEVELS};
 use kernel::controller::faults::SafeOutput;
-use kernel::controller::{Controller, SensorFrame};
+use kernel::controller::SensorFrame;
 use kernel::tasks::collision::SweptSphere;
 use nalgebra::SVector;
 
@@ -29,8 +29,7 @@ pub const PAIRS: usize = collision::PAIRS + 27 * MAX_ENVIRONMENT;
 /// The Justin-like simulator.
 pub type JustinSim = Simulator<{ justin::N }, { justin::BODIES }, { justin::FRAMES }, { justin::UPPER_DOF }>;
 /// The whole-body controller of the Justin-like robot, `f64`.
-pub type JustinController =
-    Controller<f64, { justin::N }, { justin::BODIES }, { justin::FRAMES }, { justin::UPPER_DOF }, VOLUMES, PAIRS>;
+pub type JustinController = justin::whole_body::WholeBodyController<f64, VOLUMES, PAIRS>;
 
 /// Base velocity-loop lag of the simulated platform (s): an imperfect velocity loop, as in the
 /// `mobile_impedance` scenarios.

@@ -45,7 +45,7 @@ use nalgebra::{convert, RealField, SVector, UnitQuaternion, Vector3};
 const N: usize = justin::N;
 const U: usize = justin::UPPER_DOF;
 
-type Justin<T> = Controller<T, N, { justin::BODIES }, { justin::FRAMES }, U, { jc::VOLUMES }, { jc::PAIRS }>;
+use fixtures::justin::whole_body::JustinController as Justin;
 
 /// Floating-point type of a test run, with its comparison tolerance.
 trait Float: RealField + Copy {

@@ -23,13 +23,12 @@ use kernel::controller::config::{
 };
 use kernel::controller::faults::SafeOutput;
 use kernel::controller::messages::{encode_command, Command, Pose};
-use kernel::controller::{Controller, SensorFrame, PLATFORM_DOF};
+use kernel::controller::{SensorFrame, PLATFORM_DOF};
 use nalgebra::{convert, RealField};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, TestRunner};
 use std::sync::atomic::{AtomicU64, Ordering};
 
-const N: usize = justin::N;
 const U: usize = justin::UPPER_DOF;
 /// Cases when `FUZZ_CASES` is not set.
 const DEFAULT_CASES: u32 = 2000;
@@ -49,7 +48,7 @@ fn tally<E>(result: Result<(), E>) {
     count(if result.is_ok() { 2 } else { 3 });
 }
 
-type Justin<T> = Controller<T, N, { justin::BODIES }, { justin::FRAMES }, U, { jc::VOLUMES }, { jc::PAIRS }>;
+use fixtures::justin::whole_body::JustinController as Justin;
 
 fn cases() -> u32 {
     std::env::var("FUZZ_CASES").ok().and_then(|s| s.parse().ok()).unwrap_or(DEFAULT_CASES)
