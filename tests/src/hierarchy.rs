@@ -47,7 +47,6 @@ use kernel::hierarchy::{
     project, push_transitioning, HierarchyConfig, HierarchyData, LevelDiagnostics, Recursion, RowDiagnostics, Shaping,
     Stack, Weighting,
 };
-use kernel::math::switching::transition_activation;
 use kernel::math::CholeskyFactor;
 use kernel::model::FrameId;
 use kernel::tasks::{TaskRow, TaskRows};

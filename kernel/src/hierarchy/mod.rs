@@ -28,6 +28,7 @@ pub use transition::{push_scaled, push_transitioning, transition_weight};
 
 use core::fmt;
 
+use crate::math::switching::transition_activation;
 use crate::math::CholeskyFactor;
 
 /// How the null space projector of a level is built from the levels above it.
@@ -77,6 +78,27 @@ pub enum Shaping<T> {
         /// Rank threshold `ε` on `ρ`.
         singular_threshold: T,
     },
+}
+
+impl<T: nalgebra::RealField + Copy> Shaping<T> {
+    /// The activation with which a row updates the projector: its task activation (clamped to
+    /// `[0, 1]`) shaped by its projected-row norm ratio `ρ`: (4.68) over the singular band for
+    /// [`Shaping::Continuous`], the classical switch (4.62) for [`Shaping::Discontinuous`].
+    pub fn row_activation(&self, task_activation: T, ratio: T) -> T {
+        let clamped = task_activation.max(T::zero()).min(T::one());
+        match *self {
+            Self::Continuous { singular_full, singular_start } => {
+                clamped * (T::one() - transition_activation(ratio, singular_full, singular_start))
+            }
+            Self::Discontinuous { singular_threshold } => {
+                if clamped > T::zero() && ratio > singular_threshold {
+                    T::one()
+                } else {
+                    T::zero()
+                }
+            }
+        }
+    }
 }
 
 /// Configuration of one projection.

@@ -3,7 +3,6 @@
 use nalgebra::{RealField, SMatrix, SVector};
 
 use super::{HierarchyConfig, HierarchyError, Recursion, Shaping, Stack, Weighting};
-use crate::math::switching::transition_activation;
 #[cfg(test)]
 use {
     super::push_transitioning,
@@ -269,19 +268,7 @@ fn update_row<T: RealField + Copy, const N: usize>(
         }
     };
     let ratio = (s.max(T::zero()) / reference).sqrt();
-    let clamped = task_activation.max(T::zero()).min(T::one());
-    let activation = match config.shaping {
-        Shaping::Continuous { singular_full, singular_start } => {
-            clamped * (T::one() - transition_activation(ratio, singular_full, singular_start))
-        }
-        Shaping::Discontinuous { singular_threshold } => {
-            if clamped > T::zero() && ratio > singular_threshold {
-                T::one()
-            } else {
-                T::zero()
-            }
-        }
-    };
+    let activation = config.shaping.row_activation(task_activation, ratio);
     let updated = activation > T::zero() && s > T::zero() && config.recursion != Recursion::Unprojected;
     if updated {
         let u = if identity {

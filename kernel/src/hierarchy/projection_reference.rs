@@ -7,7 +7,7 @@
 //! The including module provides the names it uses (`use super::*`): nalgebra's `RealField`,
 //! `RowSVector`, `SMatrix`, `SVector`, the hierarchy's `HierarchyConfig`, `HierarchyData`,
 //! `Recursion`, `Shaping`, `Stack`, `Weighting`, `RowDiagnostics`, `LevelDiagnostics`,
-//! `push_transitioning`, the tasks' `TaskRow`, `TaskRows`, and `transition_activation`; and a
+//! `push_transitioning`, the tasks' `TaskRow` and `TaskRows`; and a
 //! function `project` with the signature of the kernel's.
 #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "test support: a failure is a test failure")]
 
@@ -114,19 +114,7 @@ fn update_row<T: RealField + Copy, const N: usize>(
         return RowDiagnostics { level: 0, activation: T::zero(), projected_norm_ratio: T::zero(), transmission };
     }
     let ratio = (s.max(T::zero()) / reference).sqrt();
-    let clamped = task_activation.max(T::zero()).min(T::one());
-    let activation = match config.shaping {
-        Shaping::Continuous { singular_full, singular_start } => {
-            clamped * (T::one() - transition_activation(ratio, singular_full, singular_start))
-        }
-        Shaping::Discontinuous { singular_threshold } => {
-            if clamped > T::zero() && ratio > singular_threshold {
-                T::one()
-            } else {
-                T::zero()
-            }
-        }
-    };
+    let activation = config.shaping.row_activation(task_activation, ratio);
     if activation > T::zero() && s > T::zero() && config.recursion != Recursion::Unprojected {
         let u = *working * projected;
         *working -= u * (w.transpose() * (activation / s));
