@@ -86,7 +86,7 @@ use nalgebra::{Cholesky, Const, Matrix3, RealField, SMatrix, SVector, Vector6};
 
 use super::config::RobotLayout;
 use crate::dynamics::{frame_jacobian, DynamicsError};
-use crate::math::damping::{cholesky_in_place, solve_lower_in_place, solve_lower_transpose_in_place};
+use crate::math::cholesky::{cholesky_in_place, solve_lower_in_place, solve_lower_transpose_in_place};
 use crate::model::{Data, Model};
 
 /// Parameters of the contact-force limiter.

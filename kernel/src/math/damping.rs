@@ -11,6 +11,7 @@ use core::fmt;
 
 use nalgebra::{RealField, SMatrix, SVector};
 
+use super::cholesky::{cholesky_in_place, solve_lower_in_place, solve_lower_transpose_in_place};
 use super::eigen::symmetric_eigen;
 
 /// The inertia given to [`double_diagonalization`]: either `Λ` itself or its inverse
@@ -216,89 +217,6 @@ fn symmetrise<T: RealField + Copy, const D: usize>(a: &mut SMatrix<T, D, D>, hal
     }
 }
 
-/// Cholesky factorisation `A = L Lᵀ` in place on the column-major storage of an `n×n`
-/// symmetric matrix (`a.len() = n²`; the lower triangle is read): on success the lower
-/// triangle holds `L` (positive diagonal) and the strict upper triangle is left as it was.
-/// Left-looking, column by column, the same operation order as nalgebra's `Cholesky::new`.
-/// Returns `false` (the storage then holds a partial factor) if a pivot is zero, negative or
-/// NaN. Cost n³/6 multiply-adds.
-pub fn cholesky_in_place<T: RealField + Copy>(a: &mut [T], n: usize) -> bool {
-    if n == 0 || a.len() != n * n {
-        return n == 0 && a.is_empty();
-    }
-    for j in 0..n {
-        let Some((previous, rest)) = a.split_at_mut_checked(j * n) else { return false };
-        let Some(column) = rest.get_mut(..n) else { return false };
-        let Some(below) = column.get_mut(j..) else { return false };
-        for l_column in previous.chunks_exact(n) {
-            let Some(l_tail) = l_column.get(j..) else { return false };
-            let Some(&l_jk) = l_tail.first() else { return false };
-            if l_jk != T::zero() {
-                for (x, l) in below.iter_mut().zip(l_tail.iter()) {
-                    *x -= l_jk * *l;
-                }
-            }
-        }
-        let Some((diagonal, tail)) = below.split_first_mut() else { return false };
-        if (*diagonal).partial_cmp(&T::zero()) != Some(core::cmp::Ordering::Greater) {
-            return false;
-        }
-        let root = diagonal.sqrt();
-        *diagonal = root;
-        for x in tail.iter_mut() {
-            *x /= root;
-        }
-    }
-    true
-}
-
-/// Forward substitution `L y = b` in place (`b ← L⁻¹ b`) with the column-major `n×n` lower
-/// factor `l` of [`cholesky_in_place`] (`n = b.len()`, only the lower triangle is read).
-/// Column-oriented: leading zeros of `b` cost nothing. Returns `false` if the sizes differ.
-pub fn solve_lower_in_place<T: RealField + Copy>(l: &[T], b: &mut [T]) -> bool {
-    let n = b.len();
-    if n == 0 || l.len() != n * n {
-        return n == 0 && l.is_empty();
-    }
-    for (j, column) in l.chunks_exact(n).enumerate() {
-        let (Some((y, rest)), Some((diagonal, below))) =
-            (b.get_mut(j..).and_then(|s| s.split_first_mut()), column.get(j..).and_then(|s| s.split_first()))
-        else {
-            return false;
-        };
-        if *y == T::zero() {
-            continue;
-        }
-        *y /= *diagonal;
-        let y = *y;
-        for (x, l_ij) in rest.iter_mut().zip(below.iter()) {
-            *x -= y * *l_ij;
-        }
-    }
-    true
-}
-
-/// Backward substitution `Lᵀ x = y` in place (`y ← L⁻ᵀ y`) with the column-major lower factor
-/// `l` of [`cholesky_in_place`] (`n = y.len()`): `x_j = (y_j − Σ_{i>j} L_ij x_i)/L_jj`, a dot
-/// product with the contiguous part of column `j` below the diagonal. Returns `false` if the
-/// sizes differ.
-pub fn solve_lower_transpose_in_place<T: RealField + Copy>(l: &[T], y: &mut [T]) -> bool {
-    let n = y.len();
-    if n == 0 || l.len() != n * n {
-        return n == 0 && l.is_empty();
-    }
-    for (j, column) in l.chunks_exact(n).enumerate().rev() {
-        let (Some((x, rest)), Some((diagonal, below))) =
-            (y.get_mut(j..).and_then(|s| s.split_first_mut()), column.get(j..).and_then(|s| s.split_first()))
-        else {
-            return false;
-        };
-        let sum = below.iter().zip(rest.iter()).fold(*x, |s, (l_ij, x_i)| s - *l_ij * *x_i);
-        *x = sum / *diagonal;
-    }
-    true
-}
-
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
@@ -411,36 +329,6 @@ mod tests {
         fast_matches_reference::<2>();
         fast_matches_reference::<3>();
         fast_matches_reference::<6>();
-    }
-
-    #[test]
-    fn triangular_kernels_invert_the_factor() {
-        let mut x = 77_u64;
-        for _ in 0..20 {
-            let a = SMatrix::<f64, 7, 7>::from_fn(|_, _| uniform(&mut x));
-            let m = a * a.transpose() + SMatrix::identity() * 0.1;
-            let mut l = m;
-            assert!(cholesky_in_place(l.as_mut_slice(), 7));
-            let reference = Cholesky::new(m).unwrap();
-            assert!((l.lower_triangle() - reference.l()).amax() < 1e-12);
-            // Upper triangle untouched.
-            assert_eq!(
-                l.upper_triangle(),
-                m.upper_triangle() - SMatrix::from_diagonal(&m.diagonal()) + SMatrix::from_diagonal(&l.diagonal())
-            );
-            let b = SVector::<f64, 7>::from_fn(|i, _| if i < 2 { 0.0 } else { uniform(&mut x) });
-            let mut y = b;
-            assert!(solve_lower_in_place(l.as_slice(), y.as_mut_slice()));
-            assert!((reference.l() * y - b).amax() < 1e-12);
-            let mut z = y;
-            assert!(solve_lower_transpose_in_place(l.as_slice(), z.as_mut_slice()));
-            assert!((m * z - b).amax() < 1e-10 * (1.0 + b.amax()));
-        }
-        let mut indefinite = Matrix2::new(1.0_f32, 2.0, 2.0, 1.0);
-        assert!(!cholesky_in_place(indefinite.as_mut_slice(), 2));
-        let mut nan = Matrix2::new(f32::NAN, 0.0, 0.0, 1.0);
-        assert!(!cholesky_in_place(nan.as_mut_slice(), 2));
-        assert!(!solve_lower_in_place(&[1.0_f32; 3], &mut [1.0, 2.0]));
     }
 
     /// Damping ratios of the closed loop Λẍ + Dẋ + Kx = 0 from the eigenvalues of its state

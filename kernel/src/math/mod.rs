@@ -1,7 +1,8 @@
 //! Numerical building blocks shared by every layer above: spatial (6-D) vector algebra,
-//! guarded scalar operations, a bounded-cost symmetric eigensolver, the damping design and the
+//! guarded scalar operations, Cholesky factorisation and triangular substitutions, a bounded-cost symmetric eigensolver, the damping design and the
 //! transition shaping of Sec. 4.4.
 
+pub mod cholesky;
 pub mod damping;
 pub mod eigen;
 pub mod guard;

@@ -56,9 +56,8 @@ use nalgebra::{Matrix3, Matrix6, RealField, RowSVector, SMatrix, SVector, UnitQu
 
 use super::{TaskError, TaskRow, TaskRows};
 use crate::dynamics::{frame_jacobian, DynamicsError};
-use crate::math::damping::{
-    cholesky_in_place, double_diagonalization_factored, solve_lower_in_place, DampingError, ReflectedInertia,
-};
+use crate::math::cholesky::{cholesky_in_place, solve_lower_in_place};
+use crate::math::damping::{double_diagonalization_factored, DampingError, ReflectedInertia};
 use crate::math::spatial::{skew, Placement};
 use crate::model::{Data, FrameId, Model};
 
@@ -460,7 +459,7 @@ fn symmetric_times<T: RealField + Copy>(s: &Matrix6<T>, x: &Vector6<T>) -> Vecto
 /// has `L_ii² ≤ 100 ε max_i Λ⁻¹_ii`.
 ///
 /// With `M = L Lᵀ`: `Y = L⁻¹ J_xᵀ` by forward substitution of the selected rows only (tight
-/// loops on the column-major factor, [`crate::math::damping::solve_lower_in_place`]) and
+/// loops on the column-major factor, [`crate::math::cholesky::solve_lower_in_place`]) and
 /// `Λ⁻¹ = Yᵀ Y` (exactly symmetric). The factor of `Λ⁻¹` that checks the pivots is handed to
 /// [`crate::math::damping::double_diagonalization_factored`].
 fn damping_matrix<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(

@@ -65,7 +65,7 @@ use nalgebra::{Cholesky, Const, RealField, RowSVector, SVector, Vector2};
 use self::distance::ArcBoundary;
 use self::kinematics::{wrap_from, wrap_to_pi};
 use super::{TaskError, TaskRow, TaskRows};
-use crate::math::damping::solve_lower_in_place;
+use crate::math::cholesky::solve_lower_in_place;
 use crate::math::switching::transition_activation;
 
 /// Number of workspace boundaries (rows) of the torso.
@@ -607,7 +607,7 @@ pub fn torso_workspace<T: RealField + Copy, const N: usize, const R: usize>(
 
 /// `(W₂₂, W₂₃, W₃₃)` of `W = M⁻¹` on the coordinates `(i2, i3)` from the Cholesky factor
 /// `M = L Lᵀ`: `W_ab = (L⁻¹ e_a)·(L⁻¹ e_b)`, two forward substitutions on the column-major
-/// factor ([`crate::math::damping::solve_lower_in_place`]; the leading zeros cost nothing).
+/// factor ([`crate::math::cholesky::solve_lower_in_place`]; the leading zeros cost nothing).
 fn inverse_block<T: RealField + Copy, const N: usize>(inertia: &Cholesky<T, Const<N>>, i2: usize, i3: usize) -> [T; 3] {
     let l = inertia.l_dirty().as_slice();
     let unit = |i: usize| {
