@@ -32,6 +32,7 @@ use nalgebra::{RealField, RowSVector, Vector3};
 use super::cartesian_impedance::AxisMask;
 use super::{TaskError, TaskRow, TaskRows};
 use crate::dynamics::DynamicsError;
+use crate::math::cholesky::{cholesky_in_place, solve_lower_in_place, solve_lower_transpose_in_place};
 use crate::math::spatial::{angular, linear_at_point};
 use crate::math::switching::transition_activation;
 use crate::model::{Data, FrameId, Model};
@@ -188,36 +189,42 @@ pub fn manipulability<T: RealField + Copy, const N: usize, const B: usize, const
         }
     }
 
-    // A = J̃ J̃ᵀ (lower triangle of the selected rows, packed to the first `r` entries).
-    let mut gram = [[T::zero(); 6]; 6];
+    // A = J̃ J̃ᵀ of the selected rows: the lower triangle of an r × r column-major block.
+    let mut storage = [T::zero(); 36];
+    let Some(gram) = storage.get_mut(..r * r) else {
+        return Ok(singular);
+    };
     for (column, _) in columns.iter().zip(coordinates.iter()).filter(|(_, s)| **s) {
         let packed = pack(&axes, column);
-        for (i, (row, x)) in gram.iter_mut().zip(packed.iter()).enumerate().take(r) {
-            for (entry, y) in row.iter_mut().zip(packed.iter()).take(i + 1) {
+        for (j, (a_column, y)) in gram.chunks_exact_mut(r.max(1)).zip(packed.iter()).enumerate() {
+            for (entry, x) in a_column.iter_mut().zip(packed.iter()).skip(j) {
                 *entry += *x * *y;
             }
         }
     }
-    let Some(factor) = cholesky(&gram, r) else {
-        return Ok(singular);
-    };
     // A pivot at rounding level means a rank-deficient J (e.g. more rows than joints on the
     // frame's path): treat it as singular rather than differentiate rounding noise. The floor is
     // taken relative to the largest diagonal entry of `J̃ J̃ᵀ + (I − S)` (1 on unselected rows).
-    let largest = gram.iter().enumerate().take(r).fold(if r < 6 { T::one() } else { T::zero() }, |m, (i, row)| {
-        m.max(row.get(i).copied().unwrap_or_else(T::zero))
-    });
+    let largest = diagonal(gram, r).fold(if r < 6 { T::one() } else { T::zero() }, |m, x| m.max(x));
     let floor = nalgebra::convert::<f64, T>(100.0) * T::default_epsilon() * largest;
-    let pivots = factor.diagonal.iter().take(r);
-    if pivots.clone().any(|l| *l * *l <= floor) || (r < 6 && T::one() <= floor) {
+    if !cholesky_in_place(gram, r) {
         return Ok(singular);
     }
-    let value = pivots.fold(T::one(), |m, l| m * *l);
+    let factor = &*gram;
+    if diagonal(factor, r).any(|l| l * l <= floor) || (r < 6 && T::one() <= floor) {
+        return Ok(singular);
+    }
+    let value = diagonal(factor, r).fold(T::one(), |m, l| m * l);
 
     // W_k = A⁻¹ J̃_k of the selected coordinates, unpacked to the six rows (0 on unselected rows).
     let mut weights = [[T::zero(); 6]; N];
     for ((w, column), _) in weights.iter_mut().zip(columns.iter()).zip(coordinates.iter()).filter(|(_, s)| **s) {
-        *w = unpack(&axes, &factor.solve(&pack(&axes, column), r));
+        let mut x = pack(&axes, column);
+        if let Some(selected) = x.get_mut(..r) {
+            solve_lower_in_place(factor, selected);
+            solve_lower_transpose_in_place(factor, selected);
+        }
+        *w = unpack(&axes, &x);
     }
 
     // One walk from the body to the root: `at_or_below` = Σ (v_j × V_j,lin + a_j × V_j,ang) and
@@ -256,6 +263,11 @@ pub fn manipulability<T: RealField + Copy, const N: usize, const B: usize, const
     Ok(ManipulabilityMeasure { value, gradient, singular: false })
 }
 
+/// The diagonal of the column-major `r × r` matrix `a`.
+fn diagonal<T: Copy>(a: &[T], r: usize) -> impl Iterator<Item = T> + '_ {
+    (0..r).filter_map(move |i| a.get(i * r + i).copied())
+}
+
 /// The selected entries of a 6-vector, in order, in the first `rows.count()` places.
 fn pack<T: RealField + Copy>(axes: &[bool; 6], full: &[T; 6]) -> [T; 6] {
     let mut packed = [T::zero(); 6];
@@ -272,69 +284,6 @@ fn unpack<T: RealField + Copy>(axes: &[bool; 6], packed: &[T; 6]) -> [T; 6] {
         *f = *p;
     }
     full
-}
-
-/// Lower Cholesky factor `A = L Lᵀ` of a small symmetric matrix (its leading `r×r` block).
-struct SmallCholesky<T> {
-    /// Rows of `L` (strictly lower part; the upper part is 0).
-    lower: [[T; 6]; 6],
-    /// `L_ii`.
-    diagonal: [T; 6],
-    /// `1 / L_ii`.
-    inverse: [T; 6],
-}
-
-/// Cholesky factor of the leading `r×r` block of `a` (lower triangle read); `None` if a pivot
-/// is not positive (or not a number), like [`nalgebra::Cholesky::new`].
-fn cholesky<T: RealField + Copy>(a: &[[T; 6]; 6], r: usize) -> Option<SmallCholesky<T>> {
-    let mut f = SmallCholesky { lower: [[T::zero(); 6]; 6], diagonal: [T::one(); 6], inverse: [T::one(); 6] };
-    for (i, a_row) in a.iter().enumerate().take(r) {
-        let (done, rest) = f.lower.split_at_mut(i);
-        let row = rest.first_mut()?;
-        for (j, (prev, inverse)) in done.iter().zip(f.inverse.iter()).enumerate() {
-            let dot = row.iter().zip(prev.iter()).take(j).fold(T::zero(), |s, (x, y)| s + *x * *y);
-            let entry = (a_row.get(j).copied()? - dot) * *inverse;
-            *row.get_mut(j)? = entry;
-        }
-        let d = a_row.get(i).copied()? - row.iter().take(i).fold(T::zero(), |s, x| s + *x * *x);
-        if d.partial_cmp(&T::zero()) != Some(core::cmp::Ordering::Greater) {
-            return None;
-        }
-        let l = d.sqrt();
-        *f.diagonal.get_mut(i)? = l;
-        *f.inverse.get_mut(i)? = T::one() / l;
-    }
-    Some(f)
-}
-
-impl<T: RealField + Copy> SmallCholesky<T> {
-    /// `x = A⁻¹ b` on the leading `r` entries (forward then backward substitution).
-    fn solve(&self, b: &[T; 6], r: usize) -> [T; 6] {
-        let mut y = [T::zero(); 6];
-        for (i, ((row, bi), inverse)) in self.lower.iter().zip(b.iter()).zip(self.inverse.iter()).enumerate().take(r) {
-            let s = row.iter().zip(y.iter()).take(i).fold(*bi, |s, (l, y)| s - *l * *y);
-            if let Some(yi) = y.get_mut(i) {
-                *yi = s * *inverse;
-            }
-        }
-        // Backward: x_i = (y_i − Σ_{k > i} L_ki x_k) / L_ii, from the last entry up.
-        let mut x = [T::zero(); 6];
-        for i in (0..r.min(6)).rev() {
-            let s = self
-                .lower
-                .iter()
-                .zip(x.iter())
-                .take(r)
-                .skip(i + 1)
-                .fold(y.get(i).copied().unwrap_or_else(T::zero), |s, (row, xk)| {
-                    s - row.get(i).copied().unwrap_or_else(T::zero) * *xk
-                });
-            if let (Some(xi), Some(inverse)) = (x.get_mut(i), self.inverse.get(i)) {
-                *xi = s * *inverse;
-            }
-        }
-        x
-    }
 }
 
 /// What one call of [`manipulability_avoidance`] found.
