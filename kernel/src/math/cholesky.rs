@@ -5,6 +5,8 @@
 
 use nalgebra::RealField;
 
+use crate::math::sqrt;
+
 /// Cholesky factorisation `A = L Lᵀ` in place on the column-major storage of an `n×n`
 /// symmetric matrix (`a.len() = n²`; the lower triangle is read): on success the lower
 /// triangle holds `L` (positive diagonal) and the strict upper triangle is left as it was.
@@ -32,7 +34,7 @@ pub fn cholesky_in_place<T: RealField + Copy>(a: &mut [T], n: usize) -> bool {
         if (*diagonal).partial_cmp(&T::zero()) != Some(core::cmp::Ordering::Greater) {
             return false;
         }
-        let root = diagonal.sqrt();
+        let root = sqrt(*diagonal);
         *diagonal = root;
         for x in tail.iter_mut() {
             *x /= root;

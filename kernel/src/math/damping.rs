@@ -13,6 +13,7 @@ use nalgebra::{RealField, SMatrix, SVector};
 
 use super::cholesky::{cholesky_in_place, solve_lower_in_place, solve_lower_transpose_in_place};
 use super::eigen::symmetric_eigen;
+use crate::math::sqrt;
 
 /// The inertia given to [`double_diagonalization`]: either `Λ` itself or its inverse
 /// `Λ⁻¹ = J M⁻¹ Jᵀ`, which is what a task computes directly (no matrix inverse is formed).
@@ -190,7 +191,7 @@ pub fn double_diagonalization_factored<T: RealField + Copy, const D: usize>(
         if *k <= tolerance {
             continue;
         }
-        let d0 = two * *xi * k.sqrt();
+        let d0 = two * *xi * sqrt(*k);
         for (d_column, q_j) in damping.as_mut_slice().chunks_exact_mut(D).zip(q_column.iter()) {
             let scale = d0 * *q_j;
             for (d, q_i) in d_column.iter_mut().zip(q_column.iter()) {

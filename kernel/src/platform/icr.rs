@@ -42,6 +42,7 @@
 use nalgebra::{Matrix2, RealField, Vector2, Vector3};
 
 use super::{PlatformError, LEGS};
+use crate::math::sqrt;
 use crate::math::switching::transition_activation;
 
 /// The platform twist in its own (body) frame: `(ẋ, ẏ, θ̇)` of Fig. 3.7.
@@ -322,7 +323,7 @@ impl<T: RealField + Copy> IcrRepulsion<T> {
             wheels.iter().zip(self.leg_units.iter()).zip(leg_lengths.iter()).enumerate()
         {
             let offset = p - wheel;
-            let distance = offset.norm();
+            let distance = sqrt(offset.norm_squared());
             if nearest.is_some_and(|n| n.distance <= distance) {
                 continue;
             }
@@ -340,7 +341,7 @@ impl<T: RealField + Copy> IcrRepulsion<T> {
         let min_rate = self.config.min_yaw_rate;
         let fade = T::one() - transition_activation(twist.yaw_rate.abs(), min_rate, min_rate + min_rate);
         let (force, potential) = (force * fade, potential * fade);
-        let radius = p.norm();
+        let radius = sqrt(p.norm_squared());
         if force <= T::zero() || radius <= tiny() {
             return Ok(Repulsion { force, potential, ..Repulsion::idle(icr, nearest) });
         }

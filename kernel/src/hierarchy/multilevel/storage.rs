@@ -3,6 +3,7 @@
 use nalgebra::{RealField, SVector};
 
 use super::{ComplianceStack, Decomposition, DynamicsTerms, MultilevelConfig, MultilevelError};
+use crate::math::sqrt;
 
 /// Energy bookkeeping of one priority level.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -107,7 +108,7 @@ pub fn storage_functions<T: RealField + Copy, const N: usize, const R: usize, co
             power += row.velocity * row.basis.transpose().dot(&torque);
             residual += static_force * static_force / row.inertia;
         }
-        let static_residual = residual.sqrt();
+        let static_residual = sqrt(residual);
         inside = inside && kinetic <= config.kinetic_tolerance && static_residual <= config.residual_tolerance;
         *slot = LevelStorage {
             kinetic,

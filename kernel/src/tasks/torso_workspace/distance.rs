@@ -10,6 +10,7 @@
 use nalgebra::{RealField, Vector2};
 
 use super::kinematics::{direction, Arc};
+use crate::math::sqrt;
 
 /// A boundary arc prepared for distance queries.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -51,7 +52,7 @@ impl<T: RealField + Copy> ArcBoundary<T> {
     /// formula is used.
     pub fn signed_distance(&self, p: &Vector2<T>, feasible: bool, tiny: T) -> (T, Vector2<T>) {
         let v = p - self.arc.center;
-        let rho = v.norm();
+        let rho = sqrt(v.norm_squared());
         let sign = if self.feasible_inside { T::one() } else { -T::one() };
         let radial = |rho: T| {
             let unit = if rho > tiny { v / rho } else { self.mid };
@@ -67,7 +68,7 @@ impl<T: RealField + Copy> ArcBoundary<T> {
         let [a, b] = self.ends;
         let (wa, wb) = (p - a, p - b);
         let w = if wa.norm_squared() <= wb.norm_squared() { wa } else { wb };
-        let dist = w.norm();
+        let dist = sqrt(w.norm_squared());
         if dist <= tiny {
             return radial(rho);
         }

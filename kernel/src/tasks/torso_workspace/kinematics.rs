@@ -12,6 +12,7 @@
 
 use nalgebra::{Matrix2, RealField, Vector2};
 
+use crate::math::sqrt;
 use crate::tasks::TaskError;
 
 /// The unit vector `e(θ) = (sin θ, cos θ)` of the torso plane, `θ` measured from +Z towards +X.
@@ -276,7 +277,7 @@ impl<T: RealField + Copy> TorsoGeometry<T> {
                 let (s, c) = v.sin_cos();
                 let offset = (l3 * s).atan2(l2 + l3 * c);
                 let two: T = nalgebra::convert(2.0);
-                let radius = (l2 * l2 + l3 * l3 + two * l2 * l3 * c).max(T::zero()).sqrt();
+                let radius = sqrt((l2 * l2 + l3 * l3 + two * l2 * l3 * c).max(T::zero()));
                 let start = j2.min.max(sum.min - v);
                 let end = j2.max.min(sum.max - v);
                 (Vector2::zeros(), radius, start + offset, end + offset)
