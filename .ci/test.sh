@@ -7,6 +7,7 @@
 #   4. a QEMU smoke run of that image on Cortex-M7 (mps2-an500) and Cortex-M4F (mps2-an386)
 #   5. the link-time panic check: Controller::step linked with an undefined panic handler
 #   6. formatting (`cargo fmt --check`) and rustdoc with warnings as errors
+#   7. coverage-guided fuzzing (cargo fuzz): every target for 20 s from the committed seeds
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # Incremental caches double the size of the debug target and a CI build is never incremental.
@@ -25,7 +26,7 @@ if ! command -v qemu-system-arm >/dev/null; then
 fi
 
 step "formatting (rustfmt.toml) of the workspace, the firmware and its host bench"
-for manifest in Cargo.toml firmware/Cargo.toml firmware/wcet/host/Cargo.toml; do
+for manifest in Cargo.toml firmware/Cargo.toml firmware/wcet/host/Cargo.toml fuzz/Cargo.toml; do
     cargo fmt --manifest-path "$manifest" --all --check
 done
 
@@ -67,3 +68,11 @@ RUSTDOCFLAGS="-D warnings" cargo doc --locked --workspace --no-deps
 
 step "workspace tests"
 cargo test --locked --workspace
+
+# The sanitizer build of the fuzz targets needs ~1.3 GB: on a small disk, free the workspace's
+# target first (a developer's machine with room keeps it).
+if [ "$(df --output=avail -k . | tail -n 1)" -lt $((8 * 1024 * 1024)) ]; then
+    rm -rf target
+fi
+step "coverage-guided fuzzing, 20 s per target (bash fuzz/run.sh; long runs: bash fuzz/run.sh 3600)"
+bash fuzz/run.sh 20

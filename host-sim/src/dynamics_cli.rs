@@ -75,13 +75,16 @@ pub fn run(urdf: &Path, frame: &str, states: &Path) -> Result<String, String> {
 
 /// One input state: joint positions and velocities in the robot's joint order.
 #[derive(Clone, Debug, PartialEq)]
-struct State {
-    q: Vec<f64>,
-    v: Vec<f64>,
+pub struct State {
+    /// Joint positions (rad, m).
+    pub q: Vec<f64>,
+    /// Joint velocities (rad/s, m/s).
+    pub v: Vec<f64>,
 }
 
-/// Parses and checks the states array for a robot with `n` coordinates.
-fn parse_states(text: &str, n: usize) -> Result<Vec<State>, String> {
+/// Parses and checks the states array for a robot with `n` coordinates (errors name the
+/// offending entry; the fuzz target `host_parsers` runs it on arbitrary text).
+pub fn parse_states(text: &str, n: usize) -> Result<Vec<State>, String> {
     let value: Value = serde_json::from_str(text).map_err(|e| json_error(text, &e))?;
     let Value::Array(items) = value else {
         return Err("expected a JSON array of {\"q\": [..], \"v\": [..]} objects".to_owned());

@@ -1,6 +1,9 @@
 //! Cross-crate integration tests: the thesis' results as executable checks, one module per
 //! subject (dynamics against independent references and properties, simulation, fixtures).
-//! The tests live in `#[cfg(test)]` modules; the library itself is empty.
+//! The tests live in `#[cfg(test)]` modules; the library holds only the oracles that other
+//! test harnesses share ([`contract`]).
+
+pub mod contract;
 
 #[cfg(test)]
 mod collision;

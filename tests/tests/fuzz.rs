@@ -21,7 +21,6 @@ use hal::{JointSample, PlatformSample};
 use kernel::controller::config::{
     CartesianParameters, CollisionFieldParameters, Field, Hand, JointGroup, TaskKind, TaskSpec,
 };
-use kernel::controller::faults::SafeOutput;
 use kernel::controller::messages::{encode_command, Command, Pose};
 use kernel::controller::{SensorFrame, PLATFORM_DOF};
 use nalgebra::{convert, RealField};
@@ -236,24 +235,17 @@ fn case() -> impl Strategy<Value = Vec<(FrameSpec, Input)>> {
 
 /// Floating-point type under test.
 trait Float: RealField + Copy + serde::de::DeserializeOwned + serde::Serialize {
-    fn to_f64(self) -> f64;
     /// The command in this type (`None` if it does not convert).
     fn command(command: &Command<f64>) -> Option<Command<Self>>;
 }
 
 impl Float for f64 {
-    fn to_f64(self) -> f64 {
-        self
-    }
     fn command(command: &Command<f64>) -> Option<Command<Self>> {
         Some(command.clone())
     }
 }
 
 impl Float for f32 {
-    fn to_f64(self) -> f64 {
-        f64::from(self)
-    }
     fn command(command: &Command<f64>) -> Option<Command<Self>> {
         // Through JSON: commands with non-finite values (written as `null`) do not convert.
         serde_json::from_str(&serde_json::to_string(command).ok()?).ok()
@@ -328,30 +320,7 @@ fn located(command: &Command<f64>) -> Command<f64> {
 }
 
 fn check<T: Float>(controller: &Justin<T>) -> Result<(), TestCaseError> {
-    let out = controller.output();
-    let effort = controller.model().limits.effort;
-    let limits = &controller.config().output_limits;
-    for (i, tau) in out.torque.iter().enumerate() {
-        let (tau, e) = (tau.to_f64(), effort[i + PLATFORM_DOF].to_f64());
-        prop_assert!(tau.is_finite() && tau.abs() <= e * (1.0 + 1e-6), "τ_{} = {} (limit {})", i, tau, e);
-    }
-    for (axis, v) in out.platform.velocity.iter().enumerate() {
-        let (v, vmax) = (v.to_f64(), limits.base_velocity[axis].to_f64());
-        prop_assert!(
-            v.is_finite() && v.abs() <= vmax * (1.0 + 1e-6),
-            "base velocity {} = {} (limit {})",
-            axis,
-            v,
-            vmax
-        );
-    }
-    for r in &out.platform.leg_rates {
-        prop_assert!(r.is_finite() && r.to_f64().abs() <= limits.leg_rate.to_f64() * (1.0 + 1e-6), "leg rate {:?}", r);
-    }
-    let fault = controller.telemetry().fault;
-    prop_assert_eq!(fault.is_none(), out.mode == SafeOutput::Normal, "mode {:?} with fault {:?}", out.mode, fault);
-    prop_assert_eq!(out.brake, out.mode == SafeOutput::Brake);
-    Ok(())
+    thesis_tests::contract::check_output(controller).map_err(TestCaseError::fail)
 }
 
 fn run<T: Float>(steps: &[(FrameSpec, Input)]) -> Result<(), TestCaseError> {
