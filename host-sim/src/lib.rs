@@ -9,6 +9,7 @@
 //! - [`urdf`]: URDF → kernel [`kernel::Model`] (fixed links lumped into their parents).
 //! - [`dynamics_cli`]: the `dynamics` subcommand (M, C, g, J of a URDF at given states).
 //! - [`sim`]: the simulator and its `hal` implementations.
+//! - [`plant`]: the realistic plant's friction, torque lag, delay and sensor noise.
 //! - [`controllers`]: controllers run in the loop by scenarios.
 //! - [`output`]: the scenario output convention (CSV, summary JSON, SVG plots).
 //! - [`scenario`]: the registry of named scenarios.
@@ -21,6 +22,7 @@ pub mod controllers;
 pub mod dynamics_cli;
 pub mod mobile_controller;
 pub mod output;
+pub mod plant;
 pub mod scenario;
 pub mod sim;
 pub mod urdf;

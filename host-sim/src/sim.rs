@@ -43,10 +43,15 @@
 //!   evaluated at every Runge–Kutta stage like the dynamics (the parallel springs of Fig. 4.3,
 //!   (4.43), and the viscous joint friction of Fig. 4.11). None by default. The torque sensors
 //!   measure the motor torque only.
-//! - Joint position limits (end stops) are not simulated; there is no other friction and no
-//!   noise.
+//! - **Joint end stops** (optional, [`Simulator::set_joint_stops`]).
+//! - **Plant**: ideal by default (the torque acts exactly and at once, the sensors read the
+//!   state and the applied torque exactly, no friction). [`Simulator::set_plant_model`] makes it
+//!   realistic ([`crate::plant`]): link friction in every Runge–Kutta stage, the torque loop's
+//!   first-order lag per physics step, one control cycle between a command and its set point
+//!   (the cycle starts when the controller reads the joint sensors), noisy, offset and
+//!   quantised joint sensors.
 //!
-//! The simulator is ideal: reads never fail. A non-finite command is refused with a
+//! Reads never fail. A non-finite command is refused with a
 //! [`SimError`] of kind [`ErrorKind::OutOfRange`] and triggers the documented safe reaction
 //! (brakes for the upper body, a stop for the base), see the trait implementations.
 //!
@@ -64,6 +69,8 @@ use kernel::dynamics::{
 };
 use kernel::model::{Data, FrameId, Model, Placement};
 use nalgebra::{Cholesky, SMatrix, SVector, Unit, Vector3};
+
+use crate::plant::{PlantModel, RealisticJoints};
 
 /// Default physics step (s): 1/6000 s, twice the rate of Rollin' Justin's 3 kHz torque loop.
 pub const DEFAULT_PHYSICS_STEP_S: f64 = 1.0 / 6000.0;
@@ -368,6 +375,7 @@ pub struct Simulator<const N: usize, const B: usize, const F: usize, const U: us
     surfaces: Vec<Surface>,
     passive: PassiveJoints<U>,
     stops: Option<JointStops>,
+    realistic: Option<RealisticJoints<U>>,
 }
 
 impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N, B, F, U> {
@@ -400,6 +408,7 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N
             surfaces: Vec::new(),
             passive: PassiveJoints::none(),
             stops: None,
+            realistic: None,
         })
     }
 
@@ -581,6 +590,21 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N
         Ok(())
     }
 
+    /// The realistic plant of `model` ([`crate::plant`]), or the ideal one for `None` (the
+    /// default). Takes effect at once; the applied torque keeps its value and follows the next
+    /// command. Errors: [`SimError::InvalidConfig`] naming a magnitude out of range.
+    pub fn set_plant_model(&mut self, model: Option<PlantModel>) -> Result<(), SimError> {
+        self.realistic = match model {
+            Some(model) => {
+                model.validate().map_err(|field| SimError::InvalidConfig { field })?;
+                let effort: SVector<f64, U> = upper(&self.model.limits.effort, self.base_dof);
+                Some(RealisticJoints::new(model, &effort))
+            }
+            None => None,
+        };
+        Ok(())
+    }
+
     /// The installed passive joint elements.
     pub fn passive_joints(&self) -> &PassiveJoints<U> {
         &self.passive
@@ -624,6 +648,9 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N
         let bias = *rnea(&self.model, &mut self.data, &qdd)?;
         let (qu, vu) = (upper(q, b), upper(v, b));
         let mut rhs: SVector<f64, U> = self.torque - upper(&bias, b) + self.passive.torque(&qu, &vu);
+        if let Some(plant) = &self.realistic {
+            rhs += plant.friction(&vu);
+        }
         if let Some(stops) = self.stops {
             let (lower, high): (SVector<f64, U>, SVector<f64, U>) =
                 (upper(&self.model.limits.position_lower, b), upper(&self.model.limits.position_upper, b));
@@ -700,6 +727,9 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N
                 *v = *qd;
                 *d = *cmd;
             }
+        }
+        if let (Some(plant), false) = (&self.realistic, self.brakes) {
+            plant.follow(&mut self.torque, h);
         }
         let qu0 = self.upper_q();
         let vu0 = if self.brakes { SVector::zeros() } else { self.upper_v() };
@@ -803,11 +833,22 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> ErrorType f
 impl<const N: usize, const B: usize, const F: usize, const U: usize> JointTorqueInterface<f64, U>
     for Simulator<N, B, F, U>
 {
+    /// The joint sensors; with the realistic plant this starts a control cycle (the command
+    /// of the last cycle becomes the torque set point) and the readings are noisy.
     fn read(&mut self) -> Result<JointSample<f64, U>, SimError> {
+        let (q, v) = (self.upper_q(), if self.brakes { SVector::zeros() } else { self.upper_v() });
+        let (position, velocity, torque) = match &mut self.realistic {
+            Some(plant) => {
+                plant.next_cycle();
+                let velocity = if self.brakes { v } else { plant.sense_velocity(&v) };
+                (plant.sense_position(&q), velocity, plant.sense_torque(&self.torque))
+            }
+            None => (q, v, self.torque),
+        };
         Ok(JointSample {
-            position: self.upper_q().into(),
-            velocity: if self.brakes { [0.0; U] } else { self.upper_v().into() },
-            torque: self.torque.into(),
+            position: position.into(),
+            velocity: velocity.into(),
+            torque: torque.into(),
             cycle: self.steps,
         })
     }
@@ -816,16 +857,23 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> JointTorque
         if !torque.iter().all(|x| x.is_finite()) {
             self.brakes = true;
             self.torque = SVector::zeros();
+            if let Some(plant) = &mut self.realistic {
+                plant.stop();
+            }
             self.torque_saturated = false;
             self.v.fixed_rows_mut::<U>(self.base_dof).fill(0.0);
             return Err(SimError::NonFinite { what: "torque command" });
         }
         let limits: SVector<f64, U> = upper(&self.model.limits.effort, self.base_dof);
+        let mut clamped = SVector::<f64, U>::zeros();
         let mut saturated = false;
-        for ((applied, commanded), limit) in self.torque.iter_mut().zip(torque.iter()).zip(limits.iter()) {
-            let clamped = commanded.clamp(-limit, *limit);
-            saturated |= clamped != *commanded;
-            *applied = clamped;
+        for ((slot, commanded), limit) in clamped.iter_mut().zip(torque.iter()).zip(limits.iter()) {
+            *slot = commanded.clamp(-limit, *limit);
+            saturated |= *slot != *commanded;
+        }
+        match &mut self.realistic {
+            Some(plant) => plant.command(&clamped),
+            None => self.torque = clamped,
         }
         self.torque_saturated = saturated;
         self.brakes = false;
