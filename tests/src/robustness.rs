@@ -8,7 +8,10 @@
 //!   mode `Hold`, the torque `g(q) − D_safe q̇` through the torque and torque-rate guards
 //!   (finite, within the effort limits, rate-limited from the previous torque), the platform
 //!   velocity ramped to zero at the acceleration limit, the legs stopped, the brakes after
-//!   `brake_after_cycles` consecutive faulty cycles, and `Normal` again on the first valid frame.
+//!   `brake_after_cycles` consecutive faulty cycles, and the return without chatter
+//!   ([`kernel::controller::recovery`]): the hold and the fault's report last for
+//!   `valid_cycles` valid frames, then the output is `Normal` and its torque blends from the hold
+//!   torque within the rate limits.
 //! - **Guards** on the full controller: a huge TCP goal step keeps every cycle's torque inside
 //!   the effort and rate limits, reports the saturation, and scales lower levels before higher
 //!   ones.
@@ -295,15 +298,31 @@ fn check_fault<T: Float>(row: &Case<T>) {
     if !row.recovers {
         return;
     }
-    // Recovery: the first valid frame is served normally, and the following ones too.
-    let f = stream.next();
-    stream.send(&mut controller, &f);
-    let t = controller.telemetry();
-    assert_eq!(t.fault, None, "{}: no recovery", row.name);
-    assert_eq!(t.fault_cycles, 0);
-    assert_eq!(controller.output().mode, SafeOutput::Normal);
-    assert!(!controller.output().brake);
-    stream.valid(&mut controller, 50);
+    // Recovery: `valid_cycles` valid frames still hold and report the fault (no brakes, the
+    // fault count reset), then the output is normal and blends in within the rate limits.
+    let waiting = config.recovery.valid_cycles;
+    for k in 1..=waiting {
+        let f = stream.next();
+        stream.send(&mut controller, &f);
+        let t = controller.telemetry();
+        let what = format!("{}, valid cycle {k} of the wait", row.name);
+        assert!(t.fault.is_some_and(|fault| (row.expect)(&fault)), "{what}: {:?}", t.fault);
+        assert_eq!(t.fault_cycles, 0, "{what}");
+        assert_eq!(controller.output().mode, SafeOutput::Hold, "{what}");
+        assert!(!controller.output().brake, "{what}");
+    }
+    let blend_cycles = (config.recovery.blend_s / dt).to_f64().ceil() as usize;
+    for _ in 0..blend_cycles + 10 {
+        let previous = *controller.output();
+        stream.valid(&mut controller, 1);
+        for i in 0..U {
+            let j = i + PLATFORM_DOF;
+            let step = (controller.output().torque[i] - previous.torque[i]).to_f64().abs();
+            let rate = (config.output_limits.torque_rate[j] * dt).to_f64();
+            assert!(step <= rate * (1.0 + 1e-6) + tol * effort[j].to_f64(), "{}: joint {i} jumped {step}", row.name);
+        }
+    }
+    assert_eq!(controller.telemetry().mode_changes, 4, "{}: Normal → Hold → Brake → Hold → Normal", row.name);
 }
 
 fn nan<T: Float>() -> T {
@@ -335,6 +354,41 @@ fn non_finite_cases<T: Float>() -> Vec<Case<T>> {
         }
     }
     cases
+}
+
+/// A joint speed that alternates just below and just above its fault threshold (1.49× and
+/// 1.51× `velocity_factor` × the limit): the output enters the hold once and stays (the wait
+/// needs speeds below the threshold tightened by the margin), then returns to normal once
+/// after `valid_cycles` quiet frames — two mode changes, no chatter.
+fn speed_at_the_threshold_does_not_chatter<T: Float>() {
+    let mut controller = controller::<T>();
+    let mut stream = Stream::<T>::new();
+    stream.valid(&mut controller, 5);
+    let config = *controller.config();
+    let threshold = controller.model().limits.velocity[8] * config.input_limits.velocity_factor;
+    // Fewer cycles than `brake_after_cycles`: every one of them is a fault (0.99 × the
+    // threshold fails the tightened one), so the brakes would follow.
+    let cycles = config.input_limits.brake_after_cycles.min(150);
+    for k in 0..cycles {
+        let mut f = stream.next();
+        f.joints.velocity[8 - PLATFORM_DOF] = threshold * c(if k % 2 == 0 { 1.01 } else { 0.99 });
+        stream.send(&mut controller, &f);
+        assert_eq!(controller.output().mode, SafeOutput::Hold, "cycle {k}");
+    }
+    assert_eq!(controller.telemetry().mode_changes, 1);
+    for _ in 0..config.recovery.valid_cycles {
+        let f = stream.next();
+        stream.send(&mut controller, &f);
+        assert_eq!(controller.output().mode, SafeOutput::Hold);
+    }
+    stream.valid(&mut controller, 10);
+    assert_eq!(controller.telemetry().mode_changes, 2);
+}
+
+#[test]
+fn a_speed_at_the_threshold_holds_once_without_chatter_in_f64_and_f32() {
+    speed_at_the_threshold_does_not_chatter::<f64>();
+    speed_at_the_threshold_does_not_chatter::<f32>();
 }
 
 #[test]
@@ -629,12 +683,17 @@ fn faults_in_closed_loop_hold_the_robot_and_recover() {
         rig.sim.advance(CONTROL_PERIOD_S).unwrap();
         assert!(rig.sim.q().iter().chain(rig.sim.v().iter()).all(|x| x.is_finite()));
     }
+    // Each fault holds until `valid_cycles` valid frames have passed (the recovery's wait).
+    let wait = rig.controller.config().recovery.valid_cycles as usize;
     let normal = |range: core::ops::Range<usize>| modes[range].iter().all(|m| *m == SafeOutput::Normal);
-    assert!(normal(0..700) && normal(1000..1200) && normal(1251..2500), "modes: unexpected faults");
+    assert!(normal(0..700) && normal(1000 + wait..1200) && normal(1250 + wait..2500), "modes: unexpected faults");
     let brake_after = rig.controller.config().input_limits.brake_after_cycles as usize;
     assert!(modes[700..699 + brake_after].iter().all(|m| *m == SafeOutput::Hold));
     assert!(modes[699 + brake_after..1000].iter().all(|m| *m == SafeOutput::Brake));
-    assert!(modes[1200..1250].iter().all(|m| *m == SafeOutput::Hold));
+    assert!(modes[1000..1000 + wait].iter().all(|m| *m == SafeOutput::Hold));
+    assert!(modes[1200..1250 + wait].iter().all(|m| *m == SafeOutput::Hold));
+    // Normal → Hold → Brake → Hold (waiting, the brakes released) → Normal, twice Hold ↔ Normal.
+    assert_eq!(rig.controller.telemetry().mode_changes, 6);
     // Back on the goal after the faults.
     let error = rig.controller.telemetry().tcp_error[0];
     assert!(error.fixed_rows::<3>(0).norm() < 0.03, "TCP error after recovery {error}");

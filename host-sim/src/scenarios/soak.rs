@@ -11,15 +11,16 @@
 //!   [`PUSH_DURATION_S`].
 //!
 //! All intervals are uniform in their ranges, drawn from a xorshift generator seeded with
-//! [`SEED`]. The simulated duration is `SOAK_SECONDS` (environment, default
-//! [`DEFAULT_SECONDS`]); `SOAK_SECONDS=3600` is the one-hour soak.
+//! `SOAK_SEED` (environment, default [`SEED`]). The simulated duration is `SOAK_SECONDS`
+//! (environment, default [`DEFAULT_SECONDS`]); `SOAK_SECONDS=3600` is the one-hour soak.
 //!
 //! Reported: the largest torque rate (absolute and relative to its limit), the largest
 //! `|τ_i|/τ_max,i`, the largest controller energy (kinetic energy with the closed-loop inertia
 //! plus the task potentials), the smallest collision distance (a collision is a pair at
-//! distance ≤ 0), the number of cycles with a non-finite state or command, and the number of
-//! faulty cycles. Claims: no NaN, no collision, torques within their effort and rate limits,
-//! energy below [`ENERGY_BOUND_J`].
+//! distance ≤ 0), the number of cycles with a non-finite state or command, the number of
+//! faulty cycles (and per hour), and the largest joint speed relative to its limit. Claims: no
+//! NaN, no collision, torques within their effort and rate limits, energy below
+//! [`ENERGY_BOUND_J`], no fault, every joint speed within its limit.
 //!
 //! The time series is downsampled: one row every [`RECORD_EVERY`] cycles with the columns of
 //! [`crate::wbc::columns`] plus the window maxima `tau_ratio_max`, `rate_ratio_max` and
@@ -39,7 +40,7 @@ use crate::wbc;
 pub const NAME: &str = "soak";
 /// One-line description.
 pub const DESCRIPTION: &str =
-    "Justin-like robot, whole-body controller: seeded random TCP goals and pushes for SOAK_SECONDS (default 60 s); no NaN, no collision, torques within limits, energy bounded";
+    "Justin-like robot, whole-body controller: random TCP goals and pushes (SOAK_SEED) for SOAK_SECONDS (default 60 s); no NaN, no collision, no fault, torques within limits, energy bounded";
 /// Simulated time without `SOAK_SECONDS` (s).
 pub const DEFAULT_SECONDS: f64 = 60.0;
 /// Seed of the disturbance generator.
@@ -65,6 +66,21 @@ pub const PUSH_DURATION_S: (f64, f64) = (0.05, 0.4);
 pub const ENERGY_BOUND_J: f64 = 150.0;
 /// Record one time-series row every this many control cycles.
 pub const RECORD_EVERY: u64 = 50;
+
+/// The disturbance seed: `SOAK_SEED` (decimal or `0x` hexadecimal) or [`SEED`].
+pub fn seed() -> Result<u64, String> {
+    match std::env::var("SOAK_SEED") {
+        Ok(s) => {
+            let text = s.trim();
+            let parsed = match text.strip_prefix("0x") {
+                Some(hex) => u64::from_str_radix(hex, 16),
+                None => text.parse(),
+            };
+            parsed.map_err(|e| format!("SOAK_SEED={s}: {e}"))
+        }
+        Err(_) => Ok(SEED),
+    }
+}
 
 /// The simulated duration: `SOAK_SECONDS` or [`DEFAULT_SECONDS`].
 pub fn duration_s() -> Result<f64, String> {
@@ -127,12 +143,16 @@ pub struct SoakMetrics {
     pub pushes: u64,
     /// Cycles in which some output guard acted.
     pub saturated_cycles: u64,
+    /// Largest `|q̇_i| / q̇_max,i` over the upper-body joints (measured velocities).
+    pub max_velocity_ratio: f64,
+    /// The joint (upper-body coordinate) and time (s) of [`SoakMetrics::max_velocity_ratio`].
+    pub max_velocity_at: (usize, f64),
 }
 
 /// Runs the soak for [`duration_s`] (see the module docs).
 pub fn simulate(progress: Progress) -> Result<Outcome, String> {
     let duration = duration_s()?;
-    let (metrics, series) = run(duration, SEED, progress)?;
+    let (metrics, series) = run(duration, seed()?, progress)?;
     evaluate(&metrics, series)
 }
 
@@ -163,7 +183,10 @@ pub fn run(duration: f64, seed: u64, progress: Progress) -> Result<(SoakMetrics,
         goals: 0,
         pushes: 0,
         saturated_cycles: 0,
+        max_velocity_ratio: 0.0,
+        max_velocity_at: (0, 0.0),
     };
+    let speed_limit = rig.controller.model().limits.velocity;
     let mut next_goal = rng.uniform(GOAL_INTERVAL_S);
     let mut next_push = rng.uniform(PUSH_INTERVAL_S);
     let mut previous = [0.0; justin::UPPER_DOF];
@@ -193,6 +216,13 @@ pub fn run(duration: f64, seed: u64, progress: Progress) -> Result<(SoakMetrics,
             }
         }
         m.saturated_cycles += u64::from(telemetry.saturation.any());
+        for (i, v) in rig.sim.upper_v().iter().enumerate() {
+            let limit = speed_limit.get(i + kernel::controller::PLATFORM_DOF).copied().unwrap_or(f64::INFINITY);
+            if v.abs() / limit > m.max_velocity_ratio {
+                m.max_velocity_ratio = v.abs() / limit;
+                m.max_velocity_at = (i, t);
+            }
+        }
         let energy = telemetry.kinetic_energy + telemetry.potential_energy;
         m.max_energy_j = m.max_energy_j.max(energy);
         window[2] = window[2].max(energy);
@@ -267,6 +297,12 @@ pub fn evaluate(m: &SoakMetrics, series: TimeSeries) -> Result<Outcome, String> 
             .metric("min_collision_distance_m", m.min_distance_m)
             .metric("nan_count", m.nan_count as f64)
             .metric("fault_count", m.fault_count as f64)
+            .metric("fault_cycles_per_hour", m.fault_count as f64 * 3600.0 / m.duration_s)
+            .metric("max_joint_speed_ratio", m.max_velocity_ratio)
+            .value(
+                "max_joint_speed_at",
+                format!("upper-body joint {} at t = {:.3} s", m.max_velocity_at.0, m.max_velocity_at.1),
+            )
             .value(
                 "first_fault",
                 m.first_fault.as_ref().map_or_else(|| "none".to_string(), |(t, f)| format!("{f} at t = {t:.3} s")),
@@ -283,6 +319,8 @@ pub fn evaluate(m: &SoakMetrics, series: TimeSeries) -> Result<Outcome, String> 
         m.max_torque_ratio <= 1.0 + 1e-9 && m.max_torque_rate_ratio <= 1.0 + 1e-6,
     );
     summary.claim(&format!("controller energy bounded (≤ {ENERGY_BOUND_J} J)"), m.max_energy_j <= ENERGY_BOUND_J);
+    summary.claim("no fault (no cycle with the safe output)", m.fault_count == 0);
+    summary.claim("every joint speed within its limit", m.max_velocity_ratio <= 1.0);
     let column = |name: &str| -> Result<Vec<(f64, f64)>, String> {
         let t = series.column("t").ok_or("no column t")?;
         let y = series.column(name).ok_or_else(|| format!("no column {name}"))?;

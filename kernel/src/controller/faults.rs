@@ -20,6 +20,10 @@
 //! velocities), through the torque and torque-rate guards; platform velocity ramped to zero at
 //! the acceleration limit, legs stopped. After `brake_after_cycles` consecutive faulty cycles the
 //! output additionally requests the brakes ([`SafeOutput::Brake`]).
+//!
+//! The way back is [`super::recovery`]'s: `valid_cycles` valid frames against thresholds
+//! tightened by a margin (the hold and the fault's report last meanwhile), then a blend of the
+//! torque from the hold torque to the whole-body torque.
 
 use core::fmt;
 

@@ -45,6 +45,8 @@ pub mod force_limit;
 pub mod guard;
 pub mod messages;
 pub mod observer;
+pub mod recovery;
+pub mod speed_barrier;
 pub mod trajectory;
 
 use heapless::Vec;
@@ -83,6 +85,8 @@ use faults::{validate_frame, Fault, SafeOutput};
 use force_limit::{ForceLimiter, HandLimits};
 use guard::{limit_base_velocity, limit_leg_rates, rate_exceeded, saturate_with_priority, torque_box, Saturation};
 use observer::MomentumObserver;
+use recovery::Recovery;
+use speed_barrier::{speed_barrier, JointLimits};
 use trajectory::{JointTrajectory, PoseTrajectory};
 
 /// Number of platform coordinates `r = (x, y, θ)`; they come first in `q`.
@@ -124,6 +128,8 @@ pub struct Telemetry<T: RealField, const N: usize> {
     pub fault: Option<Fault>,
     /// Consecutive faulty cycles.
     pub fault_cycles: u32,
+    /// Changes of the output mode since the first cycle ([`recovery`]).
+    pub mode_changes: u32,
     /// TCP error `(p − p_des, 2ε)` in the desired frame's axes (m, rad-like), right then left;
     /// zero for a TCP without Cartesian task.
     pub tcp_error: [Vector6<T>; 2],
@@ -380,6 +386,7 @@ pub struct Controller<
     projection: HierarchyData<T, N, MAX_ROWS, MAX_LEVELS>,
     rows: TaskRows<T, N, MAX_TASK_ROWS>,
     started: bool,
+    recovery: Recovery<T>,
     last_cycle: Option<u64>,
     hold_gravity: SVector<T, N>,
     previous_torque: SVector<T, N>,
@@ -437,6 +444,7 @@ impl<
             projection: HierarchyData::default(),
             rows: TaskRows::new(),
             started: false,
+            recovery: Recovery::Normal,
             last_cycle: None,
             hold_gravity: SVector::zeros(),
             previous_torque: SVector::zeros(),
@@ -510,10 +518,14 @@ impl<
         self.telemetry.cycle = frame.joints.cycle;
         match self.control(frame) {
             Ok(()) => {
-                self.telemetry.fault = None;
+                self.telemetry.fault = self.recovery.output().1;
                 self.telemetry.fault_cycles = 0;
+                self.recovery.valid_cycle(&self.config.recovery, self.config.period_s);
             }
-            Err(fault) => self.safe_output(frame, fault),
+            Err(fault) => {
+                self.recovery.fault(fault);
+                self.safe_output(frame, fault);
+            }
         }
         if self.last_cycle.is_none_or(|last| frame.joints.cycle > last) {
             self.last_cycle = Some(frame.joints.cycle);
@@ -535,7 +547,8 @@ impl<
     }
 
     fn control(&mut self, frame: &SensorFrame<T, U>) -> Result<(), Fault> {
-        validate_frame(&self.model, &self.config.input_limits, frame, PLATFORM_DOF, self.last_cycle)?;
+        let input_limits = self.recovery.input_limits(&self.config.input_limits, &self.config.recovery);
+        validate_frame(&self.model, &input_limits, frame, PLATFORM_DOF, self.last_cycle)?;
         let dt = self.config.period_s;
         let (q, v) = Self::state(frame);
         let (model, data) = (&self.model, &mut self.data);
@@ -567,7 +580,8 @@ impl<
 
         let platform = self.platform_command(frame, dt)?;
         let terms = coupling_compensation(&self.data, &layout, &platform.acceleration).map_err(Fault::Platform)?;
-        let compensation = terms.torque(self.config.platform.compensation);
+        let compensation = terms.torque(self.config.platform.compensation) + self.speed_barrier(&v);
+        let compensation = self.blend_from_hold(&compensation, &v);
         let torque = self.guard_torque(&compensation, &factor, dt);
         self.commit(frame, &torque, &platform, &closed_loop, dt)
     }
@@ -746,6 +760,32 @@ impl<
     /// The upper-body torque `τ₀ + Σ N_i τ_i` with the command-side contact-force limit
     /// ([`force_limit`]) through the priority-preserving guard. The limit's torque joins `τ₀`:
     /// the guard scales the task levels, never the bound on the contact force.
+    /// The joint speed barrier ([`speed_barrier`]) on the upper body, from the measured `v`
+    /// and the diagonal of `M`.
+    fn speed_barrier(&self, v: &SVector<T, N>) -> SVector<T, N> {
+        let active = self.config.layout.coordinates(JointGroup::UpperBody);
+        let inertia = self.data.mass_matrix.diagonal();
+        let limits = JointLimits { speed: &self.model.limits.velocity, effort: &self.model.limits.effort };
+        speed_barrier(&self.config.speed_barrier, v, limits, &inertia, &active)
+    }
+
+    /// While returning from the safe output ([`recovery`]): the levels' torques scaled by the
+    /// weight `β` and the compensation moved towards the hold torque `g − D_safe q̇`, so that
+    /// the guard receives `(1 − β) τ_hold + β (τ₀ + Σ τ_i^p)`. `compensation` itself in normal
+    /// operation.
+    fn blend_from_hold(&mut self, compensation: &SVector<T, N>, v: &SVector<T, N>) -> SVector<T, N> {
+        let weight = self.recovery.weight();
+        if weight >= T::one() {
+            return *compensation;
+        }
+        let count = self.projection.level_count.min(MAX_LEVELS);
+        for level in self.projection.level_torques.iter_mut().take(count) {
+            *level *= weight;
+        }
+        let hold = self.data.gravity_torque - self.config.safe_damping.component_mul(v);
+        compensation + (hold - compensation) * (T::one() - weight)
+    }
+
     fn guard_torque(&mut self, compensation: &SVector<T, N>, factor: &Cholesky<T, Const<N>>, dt: T) -> SVector<T, N> {
         let count = self.projection.level_count.min(MAX_LEVELS);
         let levels = self.projection.level_torques.get(..count).unwrap_or(&[]);
@@ -797,6 +837,9 @@ impl<
     /// Writes the actuator frame and remembers the torque and platform command for the rate
     /// limits of the next cycle.
     fn write_output(&mut self, torque: &SVector<T, N>, platform: PlatformCommand<T>, mode: SafeOutput) {
+        if self.last_cycle.is_some() && mode != self.output.mode {
+            self.telemetry.mode_changes = self.telemetry.mode_changes.saturating_add(1);
+        }
         self.previous_torque = *torque;
         self.previous_base_velocity = Vector3::from(platform.velocity);
         let out = &mut self.output;
@@ -861,7 +904,7 @@ impl<
         self.write_output(
             torque,
             PlatformCommand { velocity: (*velocity).into(), leg_rates: *leg_rates },
-            SafeOutput::Normal,
+            self.recovery.output().0,
         );
         Ok(())
     }
@@ -1036,7 +1079,9 @@ fn validate_config<T: RealField + Copy, const N: usize>(config: &ControllerConfi
     let non_negative = |v: &SVector<T, N>| v.iter().all(|x| x.is_finite() && *x >= T::zero());
     let limits = &config.output_limits;
     let force_limit = &config.force_limit;
-    let checks: [(bool, &'static str); 13] = [
+    let checks: [(bool, &'static str); 15] = [
+        (config.speed_barrier.is_valid(), "speed_barrier"),
+        (config.recovery.is_valid(), "recovery"),
         (positive(config.period_s), "period_s"),
         (positive(config.transition_s), "transition_s"),
         (non_negative(&config.joint_stiffness), "joint_stiffness"),
@@ -1080,6 +1125,7 @@ fn empty_telemetry<T: RealField + Copy, const N: usize>() -> Telemetry<T, N> {
         time_s: T::zero(),
         fault: None,
         fault_cycles: 0,
+        mode_changes: 0,
         tcp_error: [Vector6::zeros(); 2],
         tcp_force_limited: [[false; 6]; 2],
         contact_wrench: [Vector6::zeros(); 2],
