@@ -97,7 +97,8 @@ impl<T: RealField + Copy, const N: usize, const R: usize, const L: usize> Defaul
 /// place on the projector's columns. The transmissions of a level's rows are computed against
 /// its input projector before its first update, so no copy of the projector is made, and while
 /// the input projector is still exactly `I` (the first level) the level torque and the
-/// transmissions need no mat-vec at all.
+/// transmissions need no mat-vec at all. A row with a single nonzero entry `b` (a joint row)
+/// transmits the column norm `‖N_in e_b‖`; the `N` column norms are formed once per level.
 ///
 /// A row's activation `a` is its task activation times the shaping of its norm ratio `ρ`
 /// ([`Shaping`]); with the continuous shaping, `a → 0` before `s → 0`, so `1/s` is only formed
@@ -107,7 +108,8 @@ impl<T: RealField + Copy, const N: usize, const R: usize, const L: usize> Defaul
 ///
 /// Writes `data` and returns the torque. Cost: at most `5 N²` multiply-adds per row that updates
 /// the projector (`4 N²` for one that does not lock), `N²` (less for sparse rows, none on the
-/// first level) per row of the last level without diagnostics.
+/// first level, a lookup for a joint row after `N²` once per level) per row of the last level
+/// without diagnostics.
 /// Errors (nothing written): a level `≥ L`, more rows than `R`, a non-finite row, an invalid
 /// shaping band.
 pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS: usize, const L: usize>(
