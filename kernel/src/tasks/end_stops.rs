@@ -68,6 +68,8 @@ impl<T: RealField + Copy, const N: usize> EndStopConfig<T, N> {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EndStop<T, const N: usize> {
     config: EndStopConfig<T, N>,
+    /// `(first, end)`: the entries of `c` outside `first..end` are zero.
+    support: (usize, usize),
 }
 
 impl<T: RealField + Copy, const N: usize> EndStop<T, N> {
@@ -99,7 +101,10 @@ impl<T: RealField + Copy, const N: usize> EndStop<T, N> {
         if !(c.damping.is_finite() && c.damping >= T::zero()) {
             return invalid("damping");
         }
-        Ok(Self { config })
+        let combination = config.combination.as_slice();
+        let first = combination.iter().position(|x| *x != T::zero()).unwrap_or(0);
+        let end = combination.iter().rposition(|x| *x != T::zero()).map_or(first, |last| last + 1);
+        Ok(Self { config, support: (first, end) })
     }
 
     /// The validated parameters.
@@ -118,11 +123,15 @@ impl<T: RealField + Copy, const N: usize> EndStop<T, N> {
     }
 
     /// Force, potential and activation of [`Self::row`] ((3.58), (3.59), (4.68)); `c q` and
-    /// `c q̇` run over the nonzero entries of `c` only (one for an ordinary joint).
+    /// `c q̇` run over the nonzero entries of `c` only (one for an ordinary joint), within its
+    /// support `first..end`.
     fn terms(&self, q: &SVector<T, N>, v: &SVector<T, N>) -> (T, T, T) {
         let c = &self.config;
         let (mut cq, mut rate) = (T::zero(), T::zero());
-        for ((&ck, &qk), &vk) in c.combination.as_slice().iter().zip(q.as_slice()).zip(v.as_slice()) {
+        let (first, end) = self.support;
+        let combination = c.combination.as_slice().get(first..end).unwrap_or(&[]);
+        let (q, v) = (q.as_slice().iter().skip(first), v.as_slice().iter().skip(first));
+        for ((&ck, &qk), &vk) in combination.iter().zip(q).zip(v) {
             if ck != T::zero() {
                 cq += ck * qk;
                 rate += ck * vk;
@@ -154,7 +163,9 @@ impl<T: RealField + Copy, const N: usize> EndStop<T, N> {
     /// `c` are written.
     fn fill(&self, q: &SVector<T, N>, v: &SVector<T, N>, row: &mut TaskRow<T, N>) {
         let (force, potential, activation) = self.terms(q, v);
-        for (j, &ck) in row.jacobian.as_mut_slice().iter_mut().zip(self.config.combination.as_slice()) {
+        let (first, end) = self.support;
+        let combination = self.config.combination.as_slice().get(first..end).unwrap_or(&[]);
+        for (j, &ck) in row.jacobian.as_mut_slice().iter_mut().skip(first).zip(combination) {
             if ck != T::zero() {
                 *j = ck;
             }

@@ -133,8 +133,9 @@ pub fn joint_impedance<T: RealField + Copy, const N: usize, const R: usize>(
     let c = &task.config;
     let half: T = nalgebra::convert(0.5);
     let start = rows.len();
-    let inputs = q.iter().zip(v.iter()).zip(target.position.iter().zip(target.velocity.iter()));
-    let gains = c.stiffness.iter().zip(c.damping.iter());
+    let inputs =
+        q.as_slice().iter().zip(v.as_slice()).zip(target.position.as_slice().iter().zip(target.velocity.as_slice()));
+    let gains = c.stiffness.as_slice().iter().zip(c.damping.as_slice());
     for (k, ((((&qk, &vk), (&qt, &vt)), (&stiffness, &damping)), _)) in
         inputs.zip(gains).zip(c.selected.iter()).enumerate().filter(|(_, (_, &selected))| selected)
     {
