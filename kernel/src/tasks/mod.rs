@@ -117,13 +117,7 @@ impl<T: RealField + Copy, const N: usize, const R: usize> TaskRows<T, N, R> {
 
     /// Torque of the rows used alone, without a hierarchy: `τ = Σ jᵀ f`.
     pub fn torque(&self) -> SVector<T, N> {
-        let mut tau = SVector::<T, N>::zeros();
-        for r in &self.rows {
-            for (t, &j) in tau.as_mut_slice().iter_mut().zip(r.jacobian.as_slice()) {
-                *t += j * r.force;
-            }
-        }
-        tau
+        self.rows.iter().fold(SVector::zeros(), |tau, r| tau + r.jacobian.transpose() * r.force)
     }
 
     /// Total potential energy of the rows (J).
