@@ -877,10 +877,16 @@ impl<
         t.external_torque = residual;
         t.contact = residual.norm() > self.config.observer.contact_threshold;
         t.level_count = self.projection.level_count;
+        // The stored energy of every level in one pass over the stack (each level's sum in stack
+        // order).
+        let mut storages = [T::zero(); MAX_LEVELS];
+        for r in self.stack.rows() {
+            if let Some(s) = storages.get_mut(r.level) {
+                *s += r.row.potential;
+            }
+        }
         let mut potential = T::zero();
-        for level in 0..MAX_LEVELS {
-            let storage =
-                self.stack.rows().iter().filter(|r| r.level == level).fold(T::zero(), |s, r| s + r.row.potential);
+        for (level, &storage) in storages.iter().enumerate() {
             potential += storage;
             let diagnostics = self.projection.levels.get(level).filter(|_| level < self.projection.level_count);
             if let (Some(s), Some(rate), Some(norm), Some(conflict)) = (

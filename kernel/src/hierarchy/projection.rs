@@ -97,7 +97,8 @@ impl<T: RealField + Copy, const N: usize, const R: usize, const L: usize> Defaul
 /// place on the projector's columns. The transmissions of a level's rows are computed against
 /// its input projector before its first update, so no copy of the projector is made, and while
 /// the input projector is still exactly `I` (the first level) the level torque and the
-/// transmissions need no mat-vec at all.
+/// transmissions need no mat-vec at all. A row with a single nonzero entry `b` (a joint row)
+/// transmits the column norm `‖N_in e_b‖`; the `N` column norms are formed once per level.
 ///
 /// A row's activation `a` is its task activation times the shaping of its norm ratio `ρ`
 /// ([`Shaping`]); with the continuous shaping, `a → 0` before `s → 0`, so `1/s` is only formed
@@ -107,7 +108,8 @@ impl<T: RealField + Copy, const N: usize, const R: usize, const L: usize> Defaul
 ///
 /// Writes `data` and returns the torque. Cost: at most `5 N²` multiply-adds per row that updates
 /// the projector (`4 N²` for one that does not lock), `N²` (less for sparse rows, none on the
-/// first level) per row of the last level without diagnostics.
+/// first level, a lookup for a joint row after `N²` once per level) per row of the last level
+/// without diagnostics.
 /// Errors (nothing written): a level `≥ L`, more rows than `R`, a non-finite row, an invalid
 /// shaping band.
 pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS: usize, const L: usize>(
@@ -159,18 +161,25 @@ pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS
         *level_diagnostics = level_result(&task_torque, level_torque);
 
         // Diagnostics against the level's input projector, before any row of the level updates it.
+        // A row with one nonzero entry `b` (joint rows `e_bᵀ`) transmits `‖N_in e_b‖`: the
+        // column norms of `N_in` are formed once per level, when the first such row appears.
         let mut level_rows = 0;
+        let mut column_norms: Option<[T; N]> = None;
+        let accelerated = matches!(config.weighting, Weighting::AccelerationBased(_));
         for (slot, r) in rows.iter_mut().skip(first_slot).zip(on_level()) {
-            *slot = RowDiagnostics {
-                level,
-                activation: r.row.activation,
-                projected_norm_ratio: T::zero(),
-                transmission: if identity_input {
-                    T::one()
-                } else {
-                    transmission(&config.weighting, projector, r.row.jacobian.as_slice(), &mut scratch.u)
-                },
+            let row = r.row.jacobian.as_slice();
+            let single = if identity_input || accelerated { None } else { single_entry(row) };
+            let transmission = match single {
+                _ if identity_input => T::one(),
+                Some(b) => column_norms
+                    .get_or_insert_with(|| column_norms_of::<T, N>(projector.as_slice()))
+                    .get(b)
+                    .copied()
+                    .unwrap_or_else(T::one),
+                None => transmission(&config.weighting, projector, row, &mut scratch.u),
             };
+            *slot =
+                RowDiagnostics { level, activation: r.row.activation, projected_norm_ratio: T::zero(), transmission };
             level_rows += 1;
         }
         // Nothing lies below the last level: without diagnostics its rows lock nothing (the
@@ -310,6 +319,26 @@ fn transmission<T: RealField + Copy, const N: usize>(
     } else {
         T::one()
     }
+}
+
+/// The index of the only nonzero entry of `row`; `None` for a zero row or several nonzero
+/// entries.
+fn single_entry<T: RealField + Copy>(row: &[T]) -> Option<usize> {
+    let mut nonzero = row.iter().enumerate().filter(|(_, &x)| x != T::zero());
+    match (nonzero.next(), nonzero.next()) {
+        (Some((b, _)), None) => Some(b),
+        _ => None,
+    }
+}
+
+/// `‖A e_b‖` for every column `b` of the column-major `N × N` matrix `a`: the transmission
+/// `‖A jᵀ‖ / ‖jᵀ‖` of every row `j = α e_bᵀ`.
+fn column_norms_of<T: RealField + Copy, const N: usize>(a: &[T]) -> [T; N] {
+    let mut norms = [T::zero(); N];
+    for (norm, column) in norms.iter_mut().zip(a.chunks_exact(N.max(1))) {
+        *norm = norm_squared(column).sqrt();
+    }
+    norms
 }
 
 /// `xᵀ A x` for the column-major `N × N` matrix `a`: `A x` over the nonzero entries of `x`,
@@ -820,6 +849,46 @@ mod tests {
             let x = SVector::<f64, N>::from_fn(|_, _| if rng.unit() < density { rng.symmetric() } else { 0.0 });
             check(&a, &x);
             check(&a.cast::<f32>(), &x.cast::<f32>());
+        }
+    }
+
+    /// Joint rows `α e_bᵀ` below a projecting level take their transmission from the input
+    /// projector's column norms: equal to the general `‖N_in jᵀ‖ / ‖jᵀ‖` for every weighting
+    /// (the acceleration-based one keeps the general form).
+    #[test]
+    fn joint_row_transmissions_are_the_input_projector_column_norms() {
+        let factor = mass_factor(4);
+        for seed in 0..10 {
+            let level0 = random_stack(seed, &[0, 0, 0]);
+            let mut stack = Stack::<f64, N, 16>::new();
+            for r in level0.rows() {
+                stack.push(r.level, r.row).unwrap();
+            }
+            for b in 0..N {
+                let alpha = [2.0, -0.5, 1.0][b % 3];
+                stack.push(1, row(RowSVector::from_fn(|_, c| if c == b { alpha } else { 0.0 }), 1.0)).unwrap();
+            }
+            for weighting in [Weighting::Identity, Weighting::Inertia(&factor), Weighting::AccelerationBased(&factor)] {
+                for diagnose_last_level in [false, true] {
+                    let cfg = HierarchyConfig { diagnose_last_level, ..config(Recursion::Augmented, weighting) };
+                    let mut data = HierarchyData::<f64, N, 16, 4>::default();
+                    project(&cfg, &stack, &mut data).unwrap();
+                    let mut input = HierarchyData::<f64, N, 8, 4>::default();
+                    project(&config(Recursion::Augmented, weighting), &level0, &mut input).unwrap();
+                    let mut smallest = 1.0_f64;
+                    for (b, diagnostics) in data.rows[3..3 + N].iter().enumerate() {
+                        let j = stack.rows()[3 + b].row.jacobian;
+                        let mut tmp = SVector::zeros();
+                        let general = transmission(&weighting, &input.projector, j.as_slice(), &mut tmp);
+                        assert!((diagnostics.transmission - general).abs() < 1e-12, "seed {seed} column {b}");
+                        smallest = smallest.min(general);
+                    }
+                    // Not vacuous: the static and dynamic projectors (norm ≤ 1 per column
+                    // direction) pass less than all of some joint direction.
+                    let accelerated = matches!(weighting, Weighting::AccelerationBased(_));
+                    assert!(accelerated || smallest < 0.99, "level 0 projects no joint direction: {smallest}");
+                }
+            }
         }
     }
 

@@ -209,7 +209,7 @@ pub fn random_spd<const N: usize>(rng: &mut TestRng) -> SMatrix<f64, N, N> {
 }
 
 /// A random stack on `levels` levels (2–4 rows each, at most `RS` rows in all): dense rows,
-/// sparse rows (most entries zero, as a kinematic chain's), zero rows, rows nearly dependent
+/// sparse rows (most entries zero, as a kinematic chain's), joint rows `α e_bᵀ`, zero rows, rows nearly dependent
 /// on earlier ones (a combination of two earlier rows plus a `1e-9` perturbation: an
 /// algorithmic singularity) and rows with task activations in `(0, 1)`; plus, when there is
 /// room, a two-row task in transition between two levels (forces and activations scaled by
@@ -235,6 +235,11 @@ pub fn random_stack<const N: usize, const RS: usize>(rng: &mut TestRng, levels: 
                 3 => {
                     activation = rng.unit();
                     RowSVector::from_fn(|_, _| rng.symmetric())
+                }
+                // A joint row `α e_bᵀ` (its transmission is a column norm of the input projector).
+                5 => {
+                    let (b, alpha) = (rng.below(N), 3.0 * rng.symmetric());
+                    RowSVector::from_fn(|_, c| if c == b { alpha } else { 0.0 })
                 }
                 _ => RowSVector::from_fn(|_, _| rng.symmetric()),
             };

@@ -68,6 +68,8 @@ impl<T: RealField + Copy, const N: usize> EndStopConfig<T, N> {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EndStop<T, const N: usize> {
     config: EndStopConfig<T, N>,
+    /// `(first, end)`: the entries of `c` outside `first..end` are zero.
+    support: (usize, usize),
 }
 
 impl<T: RealField + Copy, const N: usize> EndStop<T, N> {
@@ -99,7 +101,10 @@ impl<T: RealField + Copy, const N: usize> EndStop<T, N> {
         if !(c.damping.is_finite() && c.damping >= T::zero()) {
             return invalid("damping");
         }
-        Ok(Self { config })
+        let combination = config.combination.as_slice();
+        let first = combination.iter().position(|x| *x != T::zero()).unwrap_or(0);
+        let end = combination.iter().rposition(|x| *x != T::zero()).map_or(first, |last| last + 1);
+        Ok(Self { config, support: (first, end) })
     }
 
     /// The validated parameters.
@@ -113,9 +118,26 @@ impl<T: RealField + Copy, const N: usize> EndStop<T, N> {
     /// ([`transition_activation`] of the distance to the nearer stop, full at the stop, zero
     /// where the potential starts).
     pub fn row(&self, q: &SVector<T, N>, v: &SVector<T, N>) -> TaskRow<T, N> {
+        let (force, potential, activation) = self.terms(q, v);
+        TaskRow { jacobian: self.config.combination, force, potential, activation }
+    }
+
+    /// Force, potential and activation of [`Self::row`] ((3.58), (3.59), (4.68)); `c q` and
+    /// `c q̇` run over the nonzero entries of `c` only (one for an ordinary joint), within its
+    /// support `first..end`.
+    fn terms(&self, q: &SVector<T, N>, v: &SVector<T, N>) -> (T, T, T) {
         let c = &self.config;
-        let s = (c.combination * q).x + c.offset;
-        let rate = (c.combination * v).x;
+        let (mut cq, mut rate) = (T::zero(), T::zero());
+        let (first, end) = self.support;
+        let combination = c.combination.as_slice().get(first..end).unwrap_or(&[]);
+        let (q, v) = (q.as_slice().iter().skip(first), v.as_slice().iter().skip(first));
+        for ((&ck, &qk), &vk) in combination.iter().zip(q).zip(v) {
+            if ck != T::zero() {
+                cq += ck * qk;
+                rate += ck * vk;
+            }
+        }
+        let s = cq + c.offset;
         let (s_lower, s_upper) = (c.lower + c.margin, c.upper - c.margin);
         let penetration = if s < s_lower {
             s - s_lower
@@ -130,12 +152,27 @@ impl<T: RealField + Copy, const N: usize> EndStop<T, N> {
             c.margin,
         ));
         let two: T = nalgebra::convert(2.0);
-        TaskRow {
-            jacobian: c.combination,
-            force: -two * c.stiffness * penetration - activation * c.damping * rate,
-            potential: c.stiffness * penetration * penetration,
+        (
+            -two * c.stiffness * penetration - activation * c.damping * rate,
+            c.stiffness * penetration * penetration,
             activation,
+        )
+    }
+
+    /// Writes [`Self::row`] into `row`, which holds a zero Jacobian: only the nonzero entries of
+    /// `c` are written.
+    fn fill(&self, q: &SVector<T, N>, v: &SVector<T, N>, row: &mut TaskRow<T, N>) {
+        let (force, potential, activation) = self.terms(q, v);
+        let (first, end) = self.support;
+        let combination = self.config.combination.as_slice().get(first..end).unwrap_or(&[]);
+        for (j, &ck) in row.jacobian.as_mut_slice().iter_mut().skip(first).zip(combination) {
+            if ck != T::zero() {
+                *j = ck;
+            }
         }
+        row.force = force;
+        row.potential = potential;
+        row.activation = activation;
     }
 }
 
@@ -169,15 +206,14 @@ pub fn end_stops<T: RealField + Copy, const N: usize, const R: usize>(
     if rows.len().saturating_add(stops.len()) > R {
         return Err(TaskError::Capacity { capacity: R });
     }
-    // First pass validates every row, so that a failure leaves `rows` unchanged.
-    if !stops.iter().all(|s| {
-        let r = s.row(q, v);
-        r.force.is_finite() && r.potential.is_finite() && r.activation.is_finite()
-    }) {
-        return Err(TaskError::NonFinite);
-    }
+    // Each row is built in place in its slot; a failure removes the rows pushed so far, so
+    // that `rows` is left unchanged.
+    let start = rows.len();
     for stop in stops {
-        rows.push(stop.row(q, v))?;
+        if let Err(e) = rows.push_with(|row| stop.fill(q, v, row)) {
+            rows.truncate(start);
+            return Err(e);
+        }
     }
     Ok(())
 }
@@ -305,6 +341,55 @@ mod tests {
             |t: f64| (transition_activation(t + 1e-7, 0.0, 0.2) - transition_activation(t - 1e-7, 0.0, 0.2)) / 2e-7;
         assert!(slope(0.0).abs() < 1e-5 && slope(0.2).abs() < 1e-5);
         assert!((slope(0.1) + 1.5 / 0.2).abs() < 1e-6, "largest slope N'max = 1.5/(ϑ₂ − ϑ₁) (4.69)");
+    }
+
+    #[test]
+    fn rows_built_in_place_equal_the_plain_rows() {
+        fn check<T: RealField + Copy>(seed: u64, tolerance: f64) {
+            let stops = stops::<T>();
+            let q: SVector<T, N> = state(seed, 3.0).cast();
+            let v: SVector<T, N> = state(seed + 11, 2.0).cast();
+            let mut rows = TaskRows::<T, N, 4>::new();
+            end_stops(&stops, &q, &v, &mut rows).unwrap();
+            for (row, stop) in rows.rows().iter().zip(&stops) {
+                assert_eq!(*row, stop.row(&q, &v));
+                // Against the dense products `c q + s₀`, `c q̇` of (3.58)–(3.59).
+                let c = stop.config();
+                let s = (c.combination * q).x + c.offset;
+                let rate = (c.combination * v).x;
+                let (s_lower, s_upper) = (c.lower + c.margin, c.upper - c.margin);
+                let penetration = if s < s_lower {
+                    s - s_lower
+                } else if s > s_upper {
+                    s - s_upper
+                } else {
+                    T::zero()
+                };
+                let two: T = nalgebra::convert(2.0);
+                let force = -two * c.stiffness * penetration - row.activation * c.damping * rate;
+                let scale = T::one() + force.abs();
+                assert!((row.force - force).abs() <= nalgebra::convert::<f64, T>(tolerance) * scale, "seed {seed}");
+            }
+            assert_eq!(rows.len(), stops.len());
+        }
+        for seed in 0..50 {
+            check::<f64>(seed, 1e-12);
+            check::<f32>(seed, 1e-4);
+        }
+    }
+
+    #[test]
+    fn a_non_finite_row_removes_the_rows_pushed_before_it() {
+        let stops = stops::<f64>();
+        let overflow = EndStop::try_new(EndStopConfig::coordinate(0, -1.0, 1.0, 0.2, f64::MAX, 1.0)).unwrap();
+        let mut q = SVector::<f64, N>::zeros();
+        q[0] = 0.95;
+        let mut rows = TaskRows::<f64, N, 8>::new();
+        end_stops(&stops[..1], &q, &SVector::zeros(), &mut rows).unwrap();
+        let before = rows.clone();
+        let list = [stops[1], stops[2], overflow];
+        assert_eq!(end_stops(&list, &q, &SVector::zeros(), &mut rows), Err(TaskError::NonFinite));
+        assert_eq!(rows, before);
     }
 
     #[test]

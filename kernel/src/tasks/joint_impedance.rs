@@ -1,9 +1,11 @@
 //! Joint impedance (posture task): a spring and damper per selected coordinate, one row `e_kᵀ`
 //! each (the "full joint impedance" level of Table 4.1, the torso impedance of Sec. 6.2).
 
-use nalgebra::{RealField, RowSVector, SVector};
+use nalgebra::{RealField, SVector};
 
-use super::{TaskError, TaskRow, TaskRows};
+use super::{TaskError, TaskRows};
+#[cfg(test)]
+use {super::TaskRow, nalgebra::RowSVector};
 
 /// Parameters of a joint impedance over the coordinates selected by `selected`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -62,6 +64,9 @@ impl<T: RealField + Copy, const N: usize> JointImpedance<T, N> {
         self.config.selected.iter().filter(|s| **s).count()
     }
 
+    /// The rows `e_kᵀ` of the selected coordinates, each built whole (the plain form that
+    /// [`joint_impedance`]'s in-place rows are tested against).
+    #[cfg(test)]
     fn rows<'a>(
         &'a self,
         q: &'a SVector<T, N>,
@@ -123,12 +128,30 @@ pub fn joint_impedance<T: RealField + Copy, const N: usize, const R: usize>(
     if rows.len().saturating_add(task.row_count()) > R {
         return Err(TaskError::Capacity { capacity: R });
     }
-    // Validate first so that a failure leaves `rows` unchanged.
-    if !task.rows(q, v, target).all(|r| r.force.is_finite() && r.potential.is_finite()) {
-        return Err(TaskError::NonFinite);
-    }
-    for row in task.rows(q, v, target) {
-        rows.push(row)?;
+    // Each row `e_kᵀ` is built in place in its slot (one entry written into the zero row); a
+    // failure removes the rows pushed so far, so that `rows` is left unchanged.
+    let c = &task.config;
+    let half: T = nalgebra::convert(0.5);
+    let start = rows.len();
+    let inputs =
+        q.as_slice().iter().zip(v.as_slice()).zip(target.position.as_slice().iter().zip(target.velocity.as_slice()));
+    let gains = c.stiffness.as_slice().iter().zip(c.damping.as_slice());
+    for (k, ((((&qk, &vk), (&qt, &vt)), (&stiffness, &damping)), _)) in
+        inputs.zip(gains).zip(c.selected.iter()).enumerate().filter(|(_, (_, &selected))| selected)
+    {
+        let (error, velocity_error) = (qk - qt, vk - vt);
+        let pushed = rows.push_with(|row| {
+            if let Some(j) = row.jacobian.get_mut(k) {
+                *j = T::one();
+            }
+            row.force = -stiffness * error - damping * velocity_error;
+            row.potential = half * stiffness * error * error;
+            row.activation = T::one();
+        });
+        if let Err(e) = pushed {
+            rows.truncate(start);
+            return Err(e);
+        }
     }
     Ok(())
 }
@@ -147,6 +170,34 @@ mod tests {
             damping: SVector::from_fn(|k, _| c(1.0 + k as f64)),
         })
         .unwrap()
+    }
+
+    /// The rows built in place equal the plain rows (`e_kᵀ`, built whole and copied) bit for
+    /// bit, in f64 and f32, after rows already in the list.
+    #[test]
+    fn in_place_rows_equal_the_plain_rows() {
+        fn check<T: RealField + Copy>(seed: u64) {
+            let task = task::<T>();
+            let q: SVector<T, N> = state(seed, 2.0).cast();
+            let v: SVector<T, N> = state(seed + 7, 1.0).cast();
+            let target = JointTarget { position: state(seed + 3, 1.0).cast(), velocity: state(seed + 5, 1.0).cast() };
+            let mut rows = TaskRows::<T, N, 8>::new();
+            let first = TaskRow {
+                jacobian: RowSVector::repeat(T::one()),
+                force: T::one(),
+                potential: T::zero(),
+                activation: T::one(),
+            };
+            rows.push(first).unwrap();
+            joint_impedance(&task, &q, &v, &target, &mut rows).unwrap();
+            let expected: std::vec::Vec<_> = core::iter::once(first).chain(task.rows(&q, &v, &target)).collect();
+            assert_eq!(rows.rows(), expected.as_slice());
+            assert_eq!(rows.len(), 1 + task.row_count());
+        }
+        for seed in 0..20 {
+            check::<f64>(seed);
+            check::<f32>(seed);
+        }
     }
 
     fn gradient_check<T: RealField + Copy>(h: f64, tolerance: f64) {

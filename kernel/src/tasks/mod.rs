@@ -70,6 +70,36 @@ impl<T: RealField + Copy, const N: usize, const R: usize> TaskRows<T, N, R> {
         self.rows.push(row).map_err(|_| TaskError::Capacity { capacity: R })
     }
 
+    /// Appends a row built in place: `fill` receives the new slot as a zero row (zero Jacobian,
+    /// force, potential and activation) and writes what it needs, so the row is not built
+    /// elsewhere and copied in. Rejects a full list and a non-finite result (the list is
+    /// unchanged then).
+    #[inline]
+    pub fn push_with(&mut self, fill: impl FnOnce(&mut TaskRow<T, N>)) -> Result<(), TaskError> {
+        let zero =
+            TaskRow { jacobian: RowSVector::zeros(), force: T::zero(), potential: T::zero(), activation: T::zero() };
+        self.rows.push(zero).map_err(|_| TaskError::Capacity { capacity: R })?;
+        let Some(row) = self.rows.last_mut() else {
+            return Err(TaskError::Capacity { capacity: R });
+        };
+        fill(row);
+        let finite = row.force.is_finite()
+            && row.potential.is_finite()
+            && row.activation.is_finite()
+            && row.jacobian.as_slice().iter().all(|x| x.is_finite());
+        if finite {
+            Ok(())
+        } else {
+            self.rows.pop();
+            Err(TaskError::NonFinite)
+        }
+    }
+
+    /// Keeps the first `len` rows (all rows if there are fewer).
+    pub fn truncate(&mut self, len: usize) {
+        self.rows.truncate(len);
+    }
+
     /// The rows.
     pub fn rows(&self) -> &[TaskRow<T, N>] {
         &self.rows
@@ -140,7 +170,7 @@ impl core::error::Error for TaskError {}
 
 #[cfg(test)]
 mod tests {
-    #![allow(clippy::unwrap_used, reason = "tests")]
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
     use super::*;
     use nalgebra::RowVector2;
 
@@ -161,6 +191,31 @@ mod tests {
         rows.clear();
         assert_eq!(rows.push(row([f64::NAN, 0.0], 1.0)), Err(TaskError::NonFinite));
         assert!(rows.is_empty());
+    }
+
+    /// `push_with` fills a zero row in place: the same list as `push`; a non-finite row or a
+    /// full list leaves the list unchanged.
+    #[test]
+    fn push_with_builds_the_row_in_place() {
+        let mut rows = TaskRows::<f64, 2, 2>::new();
+        rows.push_with(|r| {
+            assert_eq!(*r, TaskRow { jacobian: RowVector2::zeros(), force: 0.0, potential: 0.0, activation: 0.0 });
+            r.jacobian[1] = 2.0;
+            r.force = -1.5;
+            r.potential = 0.25;
+            r.activation = 1.0;
+        })
+        .unwrap();
+        let expected = TaskRow { jacobian: RowVector2::new(0.0, 2.0), force: -1.5, potential: 0.25, activation: 1.0 };
+        assert_eq!(rows.rows(), &[expected]);
+        assert_eq!(rows.push_with(|r| r.jacobian[0] = f64::INFINITY), Err(TaskError::NonFinite));
+        assert_eq!(rows.push_with(|r| r.potential = f64::NAN), Err(TaskError::NonFinite));
+        assert_eq!(rows.rows(), &[expected]);
+        rows.push_with(|r| r.force = 1.0).unwrap();
+        assert_eq!(rows.push_with(|r| r.force = 1.0), Err(TaskError::Capacity { capacity: 2 }));
+        assert_eq!(rows.len(), 2);
+        rows.truncate(1);
+        assert_eq!(rows.rows(), &[expected]);
     }
 }
 pub mod collision;
