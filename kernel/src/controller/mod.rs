@@ -52,7 +52,9 @@ use nalgebra::{convert, Cholesky, Const, Matrix3, RealField, SVector, Vector3, V
 
 use hal::{JointSample, PlatformCommand, PlatformSample, LEGS};
 
-use crate::dynamics::{coriolis_matrix, crba, forward_kinematics, gravity, DynamicsError};
+use crate::dynamics::{
+    coriolis_matrix, crba, forward_kinematics, gravity, DynamicsError, TreeFactorization, TreeStructure,
+};
 use crate::hierarchy::{
     project, push_scaled, push_transitioning, transition_weight, HierarchyConfig, HierarchyData, Stack, Weighting,
 };
@@ -64,7 +66,8 @@ use crate::platform::coupling_compensation::coupling_compensation;
 use crate::platform::storage::closed_loop_inertia;
 use crate::platform::PlatformError;
 use crate::tasks::cartesian_impedance::{
-    cartesian_impedance, AxisMask, CartesianImpedance, CartesianImpedanceConfig, CartesianTarget, StiffnessFrame,
+    cartesian_impedance_factored, AxisMask, CartesianImpedance, CartesianImpedanceConfig, CartesianTarget,
+    StiffnessFrame,
 };
 use crate::tasks::collision::{
     collision_rows_shared, CollisionData, CollisionModel, CollisionParameters, PairRowCache,
@@ -375,6 +378,8 @@ pub struct Controller<
     /// The Cartesian damping force of each hand this cycle (task axes), outside the force limits.
     cartesian_damping: [Vector6<T>; 2],
     data: Data<T, N, B, F>,
+    /// The elimination tree of the model's inertia ([`TreeFactorization`]).
+    tree: TreeStructure<N>,
     collision_data: CollisionData<T, V, P>,
     stack: Stack<T, N, MAX_ROWS>,
     projection: HierarchyData<T, N, MAX_ROWS, MAX_LEVELS>,
@@ -415,6 +420,7 @@ impl<
         let avoidance = PlatformAvoidance::try_new(config.platform.avoidance).map_err(ConfigError::Platform)?;
         let active = messages::initial_hierarchy(hierarchy).map_err(ConfigError::Hierarchy)?;
         let data = Data::new(&model);
+        let tree = TreeStructure::new(&model);
         let mut collision_data = CollisionData::new(&collision_model);
         collision_data.exact_within = Some(tasks.broad_phase_distance());
         Ok(Self {
@@ -432,6 +438,7 @@ impl<
             avoidance,
             reference_pose: Vector3::zeros(),
             data,
+            tree,
             collision_data,
             stack: Stack::new(),
             projection: HierarchyData::default(),
@@ -546,12 +553,16 @@ impl<
         let layout = self.config.layout.platform;
         let closed_loop = closed_loop_inertia(&data.mass_matrix, &layout, &self.config.platform.admittance.mass);
         let factor = Cholesky::new(closed_loop).ok_or(Fault::Dynamics(DynamicsError::MassMatrixNotPositiveDefinite))?;
+        // The plain `M = Lᵀ L` for the Cartesian damping design, shared by both hands (`None`:
+        // not positive definite, the tasks fall back to their configured damping).
+        let mut mass = TreeFactorization::from_structure(self.tree);
+        let mass = mass.factorize(&self.data.mass_matrix).is_ok().then_some(&mass);
         if !self.started {
             self.start(&q, frame)?;
         }
         self.advance_targets(dt);
         self.limit_contact_forces(dt)?;
-        self.build_stack(&factor)?;
+        self.build_stack(&factor, mass)?;
 
         let weighting = match self.config.consistency {
             Consistency::Static => Weighting::Identity,
@@ -630,7 +641,11 @@ impl<
     }
 
     /// Evaluates every hierarchy entry onto the stack; fills the per-task telemetry.
-    fn build_stack(&mut self, factor: &Cholesky<T, Const<N>>) -> Result<(), Fault> {
+    fn build_stack(
+        &mut self,
+        factor: &Cholesky<T, Const<N>>,
+        mass: Option<&TreeFactorization<T, N>>,
+    ) -> Result<(), Fault> {
         self.stack.clear();
         let t = &mut self.telemetry;
         t.tcp_error = [Vector6::zeros(); 2];
@@ -658,6 +673,7 @@ impl<
                     hands: &self.hands,
                     joint_goal: &self.joint_goal,
                     factor,
+                    mass,
                 },
                 &mut self.data,
                 &mut scratch,
@@ -942,6 +958,9 @@ struct EvaluationContext<
     hands: &'a [PoseTrajectory<T>; 2],
     joint_goal: &'a JointTrajectory<T, N>,
     factor: &'a Cholesky<T, Const<N>>,
+    /// The tree-sparse factor of the plain `M` (Cartesian damping design), `None` if `M` is not
+    /// positive definite.
+    mass: Option<&'a TreeFactorization<T, N>>,
 }
 
 /// Appends the rows of one task to `rows` and records its telemetry.
@@ -966,7 +985,7 @@ fn evaluate<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
                     *x = T::zero();
                 }
             }
-            let report = cartesian_impedance(cx.model, data, task, &trajectory.sample(), rows);
+            let report = cartesian_impedance_factored(cx.model, data, cx.mass, task, &trajectory.sample(), rows);
             data.v = velocity;
             let report = report.map_err(Fault::Task)?;
             if let (Some(e), Some(s), Some(d)) = (

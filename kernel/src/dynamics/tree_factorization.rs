@@ -5,34 +5,31 @@
 //! Eliminating the coordinates from the last to the first, `M = Lᵀ L` with `L` lower triangular
 //! creates no fill-in outside that pattern when the coordinate parents `λ(k) < k` describe the
 //! tree; the factorization then costs O(Σ_k depth_k²) instead of O(N³/3), and each solve
-//! O(Σ_k depth_k) instead of O(N²). Not wired into the controller.
+//! O(Σ_k depth_k) instead of O(N²).
 
 use nalgebra::{RealField, SMatrix, SVector};
 
 use super::DynamicsError;
 use crate::model::Model;
 
-/// `M = Lᵀ L` over the elimination tree of the model's coordinates.
-///
-/// Build once per model with [`TreeFactorization::new`] (symbolic analysis), then
-/// [`TreeFactorization::factorize`] each `M(q)` and [`TreeFactorization::solve_mut`].
-#[derive(Clone, Debug)]
-pub struct TreeFactorization<T: RealField, const N: usize> {
-    /// `λ(k)`: parent of coordinate `k` in the elimination tree (always `< k`), `None` for a
-    /// root. Every nonzero `L_kj`, `j < k`, has `j` on the chain `λ(k), λ(λ(k)), …`.
-    parents: [Option<usize>; N],
-    /// The factor `L` (lower triangular; zero above the diagonal and off the ancestor chains).
-    factor: SMatrix<T, N, N>,
+/// The symbolic part of [`TreeFactorization`]: for every coordinate `k` its ancestor chain
+/// `k, λ(k), λ(λ(k)), …` in the elimination tree. Depends on the model only.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TreeStructure<const N: usize> {
+    /// `chains[k][d]`: the `d`-th ancestor of `k` (`chains[k][0] = k`) for `d ≤ depth[k]`.
+    chains: [[u16; N]; N],
+    /// Number of ancestors of `k`.
+    depth: [u16; N],
 }
 
-impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
+impl<const N: usize> TreeStructure<N> {
     /// Symbolic analysis of `model`: the pattern of `M` (coordinates `r`, `c` coupled when a
     /// joint driven by `r` and a joint driven by `c` lie on one path to the root, through the
     /// drive terms), then the elimination tree for eliminating `N − 1, …, 0`:
     /// `λ(k) = max {j < k : (k, j) in the pattern}`, and the rest of row `k` joins row `λ(k)`
     /// (the fill of eliminating `k`). For an unbranched chain of single-term drives this is
     /// `λ(k) = k − 1`; Justin's two arms get disjoint chains that meet at the torso.
-    pub fn new<const B: usize, const F: usize>(model: &Model<T, N, B, F>) -> Self {
+    pub fn new<T: RealField + Copy, const B: usize, const F: usize>(model: &Model<T, N, B, F>) -> Self {
         let mut pattern = [[false; N]; N];
         let bodies = model.bodies();
         for (i, body) in bodies.iter().enumerate() {
@@ -70,122 +67,198 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
                 *slot = parent;
             }
         }
-        Self { parents, factor: SMatrix::zeros() }
+        let mut chains = [[0_u16; N]; N];
+        let mut depth = [0_u16; N];
+        for (k, (chain, d)) in chains.iter_mut().zip(depth.iter_mut()).enumerate() {
+            let mut next = Some(k);
+            let mut count = 0_u16;
+            for slot in chain.iter_mut() {
+                let Some(j) = next else { break };
+                *slot = u16::try_from(j).unwrap_or(0);
+                count += 1;
+                next = parents.get(j).copied().flatten().filter(|p| *p < j);
+            }
+            *d = count.saturating_sub(1);
+        }
+        Self { chains, depth }
     }
 
     /// The elimination-tree parents `λ(k)`.
-    pub fn parents(&self) -> &[Option<usize>; N] {
-        &self.parents
+    pub fn parents(&self) -> [Option<usize>; N] {
+        let mut parents = [None; N];
+        for ((p, chain), d) in parents.iter_mut().zip(self.chains.iter()).zip(self.depth.iter()) {
+            if *d > 0 {
+                *p = chain.get(1).map(|x| usize::from(*x));
+            }
+        }
+        parents
     }
 
-    /// The factor `L` of the last successful [`Self::factorize`] (`M = Lᵀ L`).
-    pub fn factor(&self) -> &SMatrix<T, N, N> {
-        &self.factor
+    /// The ancestors `λ(k), λ(λ(k)), …` of `k` (nearest first).
+    #[inline]
+    fn ancestors(&self, k: usize) -> &[u16] {
+        let d = self.depth.get(k).map_or(0, |d| usize::from(*d));
+        self.chains.get(k).and_then(|c| c.get(1..=d)).unwrap_or(&[])
+    }
+}
+
+/// `M = Lᵀ L` over the elimination tree of the model's coordinates.
+///
+/// Build the [`TreeStructure`] once per model, then [`TreeFactorization::factorize`] each
+/// `M(q)`. Row `k` of `L` is stored packed in column `k` of `rows`: `L_kk` first, then
+/// `L_{k,a}` for the ancestors `a` of `k` nearest first. As the chain of an ancestor is a
+/// suffix of the chain of `k`, every update pairs two packed rows element by element.
+#[derive(Clone, Debug)]
+pub struct TreeFactorization<T: RealField, const N: usize> {
+    structure: TreeStructure<N>,
+    rows: SMatrix<T, N, N>,
+}
+
+impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
+    /// The symbolic analysis of `model` ([`TreeStructure::new`]) with a zero factor.
+    pub fn new<const B: usize, const F: usize>(model: &Model<T, N, B, F>) -> Self {
+        Self::from_structure(TreeStructure::new(model))
     }
 
-    /// Factorizes `m` (symmetric; only the lower triangle on the ancestor chains is read) as
-    /// `M = Lᵀ L` (Featherstone's LTL algorithm, Table 6.3): for `k = N − 1, …, 0`,
-    /// `L_kk = √H_kk`, `L_ki = H_ki / L_kk` for `i` on the chain of `k`, then
-    /// `H_ij −= L_ki L_kj` for `i`, `j` on that chain (`j` an ancestor of `i` or `i`).
+    /// A zero factor over `structure`.
+    pub fn from_structure(structure: TreeStructure<N>) -> Self {
+        Self { structure, rows: SMatrix::zeros() }
+    }
+
+    /// The symbolic part.
+    pub fn structure(&self) -> &TreeStructure<N> {
+        &self.structure
+    }
+
+    /// The elimination-tree parents `λ(k)`.
+    pub fn parents(&self) -> [Option<usize>; N] {
+        self.structure.parents()
+    }
+
+    /// The factor `L` of the last successful [`Self::factorize`] (`M = Lᵀ L`) as a dense lower
+    /// triangular matrix.
+    pub fn lower(&self) -> SMatrix<T, N, N> {
+        let mut l = SMatrix::<T, N, N>::zeros();
+        for (k, packed) in self.rows.as_slice().chunks_exact(N).enumerate() {
+            if let (Some(d), Some(x)) = (packed.first(), l.get_mut((k, k))) {
+                *x = *d;
+            }
+            for (a, value) in self.structure.ancestors(k).iter().zip(packed.iter().skip(1)) {
+                if let Some(x) = l.get_mut((k, usize::from(*a))) {
+                    *x = *value;
+                }
+            }
+        }
+        l
+    }
+
+    /// Factorizes `m` (symmetric; only the entries `(k, j)`, `j` on the ancestor chain of `k`,
+    /// are read) as `M = Lᵀ L` (Featherstone's LTL algorithm, Table 6.3): for
+    /// `k = N − 1, …, 0`, `L_kk = √H_kk`, `L_ki = H_ki / L_kk` for `i` on the chain of `k`,
+    /// then `H_ij −= L_ki L_kj` for `i`, `j` on that chain (`j` an ancestor of `i` or `i`).
+    /// Cost Σ_k depth_k²/2 multiply-adds.
     ///
     /// Errors: [`DynamicsError::MassMatrixNotPositiveDefinite`] if a pivot is not positive
-    /// (or NaN); the previous factor is kept then.
+    /// (or NaN); the factor is unspecified then.
     pub fn factorize(&mut self, m: &SMatrix<T, N, N>) -> Result<(), DynamicsError> {
-        let mut h = SMatrix::<T, N, N>::zeros();
-        let parents = &self.parents;
-        let chain = |k: usize| chain(parents, k);
-        // Copy the pattern part of the lower triangle: (k, j) for j = k and j on the chain of k.
+        let structure = &self.structure;
+        let src = m.as_slice();
+        for ((packed, chain), depth) in
+            self.rows.as_mut_slice().chunks_exact_mut(N).zip(structure.chains.iter()).zip(structure.depth.iter())
         {
-            let (src, dst) = (m.as_slice(), h.as_mut_slice());
-            for k in 0..N {
-                let mut next = Some(k);
-                while let Some(j) = next {
-                    let idx = j * N + k;
-                    if let (Some(d), Some(s)) = (dst.get_mut(idx), src.get(idx)) {
-                        *d = *s;
-                    }
-                    next = chain(j);
-                }
+            let length = usize::from(*depth) + 1;
+            let k = chain.first().map_or(0, |k| usize::from(*k));
+            let column = src.get(k * N..k * N + N).unwrap_or(&[]);
+            for (x, a) in packed.iter_mut().zip(chain.iter()).take(length) {
+                *x = column.get(usize::from(*a)).copied().unwrap_or_else(T::zero);
             }
         }
-        let hs = h.as_mut_slice();
         for k in (0..N).rev() {
-            let diag = hs.get(k * N + k).copied().unwrap_or_else(T::zero);
-            if diag <= T::zero() || !diag.is_finite() {
+            let Some((before, rest)) = self.rows.as_mut_slice().split_at_mut_checked(k * N) else { break };
+            let length = structure.depth.get(k).map_or(0, |d| usize::from(*d)) + 1;
+            let Some((diagonal, below)) = rest.get_mut(..length).and_then(|r| r.split_first_mut()) else { break };
+            if *diagonal <= T::zero() || !diagonal.is_finite() {
                 return Err(DynamicsError::MassMatrixNotPositiveDefinite);
             }
-            let l_kk = diag.sqrt();
-            if let Some(d) = hs.get_mut(k * N + k) {
-                *d = l_kk;
+            let l_kk = diagonal.sqrt();
+            *diagonal = l_kk;
+            for x in below.iter_mut() {
+                *x /= l_kk;
             }
-            let mut next = chain(k);
-            while let Some(i) = next {
-                if let Some(x) = hs.get_mut(i * N + k) {
-                    *x /= l_kk;
+            let below = &*below;
+            for (d, (a, l_ki)) in structure.ancestors(k).iter().zip(below.iter()).enumerate() {
+                let i = usize::from(*a);
+                let tail = below.get(d..).unwrap_or(&[]);
+                let Some(target) = before.get_mut(i * N..i * N + tail.len()) else { continue };
+                for (h, l_kj) in target.iter_mut().zip(tail.iter()) {
+                    *h -= *l_ki * *l_kj;
                 }
-                next = chain(i);
-            }
-            let mut next_i = chain(k);
-            while let Some(i) = next_i {
-                let l_ki = hs.get(i * N + k).copied().unwrap_or_else(T::zero);
-                let mut next_j = Some(i);
-                while let Some(j) = next_j {
-                    let l_kj = hs.get(j * N + k).copied().unwrap_or_else(T::zero);
-                    if let Some(x) = hs.get_mut(j * N + i) {
-                        *x -= l_ki * l_kj;
-                    }
-                    next_j = chain(j);
-                }
-                next_i = chain(i);
             }
         }
-        self.factor = h;
         Ok(())
+    }
+
+    /// `X ← X L⁻¹` in place for the `R × N` matrix `X` (`X L = B` by columns from the last
+    /// coordinate down). With `M = Lᵀ L`, `(J L⁻¹)(J L⁻¹)ᵀ = J M⁻¹ Jᵀ`, and `J L⁻¹` keeps the
+    /// column support of `J` closed under ancestors (a Jacobian's support path): columns that
+    /// are zero cost nothing.
+    pub fn right_solve_mut<const R: usize>(&self, x: &mut SMatrix<T, R, N>) {
+        let rows = self.rows.as_slice();
+        for k in (0..N).rev() {
+            let Some((before, rest)) = x.as_mut_slice().split_at_mut_checked(k * R) else { break };
+            let Some(column) = rest.get_mut(..R) else { break };
+            if column.iter().all(|c| *c == T::zero()) {
+                continue;
+            }
+            let packed = rows.get(k * N..k * N + N).unwrap_or(&[]);
+            let Some((l_kk, below)) = packed.split_first() else { break };
+            let inverse = T::one() / *l_kk;
+            for c in column.iter_mut() {
+                *c *= inverse;
+            }
+            let column = &*column;
+            for (a, l_ka) in self.structure.ancestors(k).iter().zip(below.iter()) {
+                let j = usize::from(*a);
+                let Some(target) = before.get_mut(j * R..j * R + R) else { continue };
+                for (t, c) in target.iter_mut().zip(column.iter()) {
+                    *t -= *l_ka * *c;
+                }
+            }
+        }
     }
 
     /// Solves `M x = b` in place (`x` holds `b` on entry) with the last factor:
     /// `Lᵀ y = b` (from the last coordinate up), then `L x = y` (from the first down), each
     /// along the ancestor chains only.
     pub fn solve_mut(&self, x: &mut SVector<T, N>) {
-        let l = self.factor.as_slice();
-        let parents = &self.parents;
+        let rows = self.rows.as_slice();
         let xs = x.as_mut_slice();
         // Lᵀ y = b: y_k = b_k / L_kk, then b_j −= L_kj y_k for j on the chain of k.
-        for k in (0..N).rev() {
-            let (Some(&l_kk), Some(&b_k)) = (l.get(k * N + k), xs.get(k)) else { continue };
-            let y_k = b_k / l_kk;
-            if let Some(x) = xs.get_mut(k) {
-                *x = y_k;
+        for (k, packed) in rows.chunks_exact(N).enumerate().rev() {
+            let (Some((l_kk, below)), Some(b_k)) = (packed.split_first(), xs.get_mut(k)) else { continue };
+            let y_k = *b_k / *l_kk;
+            *b_k = y_k;
+            if y_k == T::zero() {
+                continue;
             }
-            let mut next = chain(parents, k);
-            while let Some(j) = next {
-                if let (Some(&l_kj), Some(x)) = (l.get(j * N + k), xs.get_mut(j)) {
-                    *x -= l_kj * y_k;
+            for (a, l_kj) in self.structure.ancestors(k).iter().zip(below.iter()) {
+                if let Some(x) = xs.get_mut(usize::from(*a)) {
+                    *x -= *l_kj * y_k;
                 }
-                next = chain(parents, j);
             }
         }
         // L x = y: x_k = (y_k − Σ_j L_kj x_j) / L_kk over the chain of k.
-        for k in 0..N {
+        for (k, packed) in rows.chunks_exact(N).enumerate() {
+            let Some((l_kk, below)) = packed.split_first() else { continue };
             let mut sum = xs.get(k).copied().unwrap_or_else(T::zero);
-            let mut next = chain(parents, k);
-            while let Some(j) = next {
-                if let (Some(&l_kj), Some(&x_j)) = (l.get(j * N + k), xs.get(j)) {
-                    sum -= l_kj * x_j;
-                }
-                next = chain(parents, j);
+            for (a, l_kj) in self.structure.ancestors(k).iter().zip(below.iter()) {
+                sum -= *l_kj * xs.get(usize::from(*a)).copied().unwrap_or_else(T::zero);
             }
-            if let (Some(&l_kk), Some(x)) = (l.get(k * N + k), xs.get_mut(k)) {
-                *x = sum / l_kk;
+            if let Some(x) = xs.get_mut(k) {
+                *x = sum / *l_kk;
             }
         }
     }
-}
-
-/// `λ(k)`, guarded to be `< k` (so every chain walk terminates).
-#[inline]
-fn chain<const N: usize>(parents: &[Option<usize>; N], k: usize) -> Option<usize> {
-    parents.get(k).copied().flatten().filter(|p| *p < k)
 }
 
 #[cfg(test)]
@@ -206,7 +279,7 @@ mod tests {
         let m = *crba(&model, &mut data);
         let mut tree = TreeFactorization::new(&model);
         tree.factorize(&m).unwrap();
-        let l = tree.factor().map(|e| nalgebra::try_convert::<T, f64>(e).unwrap());
+        let l = tree.lower().map(|e| nalgebra::try_convert::<T, f64>(e).unwrap());
         let m64 = m.map(|e| nalgebra::try_convert::<T, f64>(e).unwrap());
         let scale = m64.amax();
         // L is lower triangular and LᵀL reproduces M.
@@ -219,11 +292,21 @@ mod tests {
         let x = x.map(|e| nalgebra::try_convert::<T, f64>(e).unwrap());
         let dense = Cholesky::new(m64).unwrap().solve(&b);
         prop_assert!((x - dense).amax() < tol * 1e3 * (1.0 + dense.amax()), "{}", (x - dense).amax());
+        // (J L⁻¹)(J L⁻¹)ᵀ = J M⁻¹ Jᵀ for a 3 × N matrix with a zero column (outside a support path).
+        let mut j = SMatrix::<f64, 3, N>::from_fn(|r, c| state(seed ^ (r as u64 + 3), 1.0)[c]);
+        j.column_mut(N - 1).fill(0.0);
+        let mut x = j.map(|e| nalgebra::convert::<f64, T>(e));
+        tree.right_solve_mut(&mut x);
+        let x = x.map(|e| nalgebra::try_convert::<T, f64>(e).unwrap());
+        let reference = j * m64.try_inverse().unwrap() * j.transpose();
+        let fast = x * x.transpose();
+        prop_assert!((fast - reference).amax() < tol * 1e3 * (1.0 + reference.amax()), "{}", (fast - reference).amax());
         Ok(())
     }
 
     proptest! {
-        /// f64 and f32: `LᵀL = M` and the tree solve equals the dense Cholesky solve.
+        /// f64 and f32: `LᵀL = M`, the tree solve equals the dense Cholesky solve and the right solve
+        /// gives `J M⁻¹ Jᵀ`.
         #[test]
         fn tree_factorization_matches_dense_cholesky(seed in any::<u64>()) {
             check::<f64>(seed, 1e-13)?;
@@ -237,7 +320,7 @@ mod tests {
         let tree = TreeFactorization::<f64, N>::new(&model);
         // Trunk 0 (base) – 1 (yaw); branch 2 – 3 (pitch, elbow and the joint coupled to both);
         // branch 4 – 5 (prismatic, wrist) hangs from the yaw, not from the other branch.
-        assert_eq!(tree.parents(), &[None, Some(0), Some(1), Some(2), Some(1), Some(4)]);
+        assert_eq!(tree.parents(), [None, Some(0), Some(1), Some(2), Some(1), Some(4)]);
         let mut t = tree.clone();
         let mut m = SMatrix::<f64, N, N>::identity();
         m[(2, 2)] = -1.0;
