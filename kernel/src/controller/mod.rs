@@ -556,13 +556,25 @@ impl<
         // The plain `M = Lᵀ L` for the Cartesian damping design, shared by both hands (`None`:
         // not positive definite, the tasks fall back to their configured damping).
         let mut mass = TreeFactorization::from_structure(self.tree);
-        let mass = mass.factorize(&self.data.mass_matrix).is_ok().then_some(&mass);
+        let mass_factored = mass.factorize(&self.data.mass_matrix).is_ok();
+        // The closed-loop inertia's tree factor: the platform rows and columns decoupled from
+        // the factor of `M` (or factored anew when `M` is not positive definite).
+        let mut inertia = mass.clone();
+        let mut decoupled = [false; N];
+        for c in layout.axes().iter().filter_map(|a| a.coordinate()) {
+            if let Some(flag) = decoupled.get_mut(c) {
+                *flag = true;
+            }
+        }
+        if mass_factored { inertia.decouple(&decoupled, &closed_loop) } else { inertia.factorize(&closed_loop) }
+            .map_err(Fault::Dynamics)?;
+        let mass = mass_factored.then_some(&mass);
         if !self.started {
             self.start(&q, frame)?;
         }
         self.advance_targets(dt);
         self.limit_contact_forces(dt)?;
-        self.build_stack(&factor, mass)?;
+        self.build_stack(&factor, mass, &inertia)?;
 
         let weighting = match self.config.consistency {
             Consistency::Static => Weighting::Identity,
@@ -645,6 +657,7 @@ impl<
         &mut self,
         factor: &Cholesky<T, Const<N>>,
         mass: Option<&TreeFactorization<T, N>>,
+        inertia: &TreeFactorization<T, N>,
     ) -> Result<(), Fault> {
         self.stack.clear();
         let t = &mut self.telemetry;
@@ -674,6 +687,7 @@ impl<
                     joint_goal: &self.joint_goal,
                     factor,
                     mass,
+                    inertia,
                 },
                 &mut self.data,
                 &mut scratch,
@@ -961,6 +975,8 @@ struct EvaluationContext<
     /// The tree-sparse factor of the plain `M` (Cartesian damping design), `None` if `M` is not
     /// positive definite.
     mass: Option<&'a TreeFactorization<T, N>>,
+    /// The tree-sparse factor of the closed-loop inertia (5.17) (collision rows).
+    inertia: &'a TreeFactorization<T, N>,
 }
 
 /// Appends the rows of one task to `rows` and records its telemetry.
@@ -1004,7 +1020,7 @@ fn evaluate<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
             // and reflected masses depend only on this cycle's kinematics and inertia: the first
             // collision entry of the cycle updates the geometry, the later ones (the other field)
             // reuse it and the rows already evaluated. Same rows as evaluating each field alone.
-            let (model, data_ref, factor, collision_model) = (cx.model, &*data, cx.factor, cx.collision_model);
+            let (model, data_ref, factor, collision_model) = (cx.model, &*data, cx.inertia, cx.collision_model);
             if !scratch.geometry_current {
                 collision_model.update(data_ref, scratch.collision);
                 scratch.pair_rows.clear();

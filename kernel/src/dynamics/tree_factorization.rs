@@ -7,7 +7,7 @@
 //! tree; the factorization then costs O(Σ_k depth_k²) instead of O(N³/3), and each solve
 //! O(Σ_k depth_k) instead of O(N²).
 
-use nalgebra::{RealField, SMatrix, SVector};
+use nalgebra::{Cholesky, Const, RealField, SMatrix, SVector};
 
 use super::DynamicsError;
 use crate::model::Model;
@@ -173,10 +173,15 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
                 *x = column.get(usize::from(*a)).copied().unwrap_or_else(T::zero);
             }
         }
+        let rows: &mut [[T; N]; N] = &mut self.rows.data.0;
         for k in (0..N).rev() {
-            let Some((before, rest)) = self.rows.as_mut_slice().split_at_mut_checked(k * N) else { break };
+            let Some((before, rest)) = rows.split_at_mut_checked(k) else { break };
             let length = structure.depth.get(k).map_or(0, |d| usize::from(*d)) + 1;
-            let Some((diagonal, below)) = rest.get_mut(..length).and_then(|r| r.split_first_mut()) else { break };
+            let Some((diagonal, below)) =
+                rest.first_mut().and_then(|r| r.get_mut(..length)).and_then(|r| r.split_first_mut())
+            else {
+                break;
+            };
             if *diagonal <= T::zero() || !diagonal.is_finite() {
                 return Err(DynamicsError::MassMatrixNotPositiveDefinite);
             }
@@ -185,17 +190,74 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
             for x in below.iter_mut() {
                 *x /= l_kk;
             }
-            let below = &*below;
-            for (d, (a, l_ki)) in structure.ancestors(k).iter().zip(below.iter()).enumerate() {
-                let i = usize::from(*a);
-                let tail = below.get(d..).unwrap_or(&[]);
-                let Some(target) = before.get_mut(i * N..i * N + tail.len()) else { continue };
-                for (h, l_kj) in target.iter_mut().zip(tail.iter()) {
-                    *h -= *l_ki * *l_kj;
+            let mut tail = &*below;
+            for a in structure.ancestors(k) {
+                let Some((l_ki, _)) = tail.split_first() else { break };
+                if let Some(target) = before.get_mut(usize::from(*a)).and_then(|t| t.get_mut(..tail.len())) {
+                    for (h, l_kj) in target.iter_mut().zip(tail.iter()) {
+                        *h -= *l_ki * *l_kj;
+                    }
+                }
+                tail = tail.get(1..).unwrap_or(&[]);
+            }
+        }
+        Ok(())
+    }
+
+    /// Turns the factor of `M` into the factor of `M̃`, the matrix that equals `m` (also `M`
+    /// outside the decoupled coordinates) with the rows and columns of the coordinates `c`
+    /// with `decoupled[c]` cleared to their diagonal `m_cc` (the closed-loop inertia (5.17) of
+    /// the platform coordinates). When every ancestor of a decoupled coordinate is decoupled
+    /// (the platform coordinates are the roots of the tree), the elimination of the other
+    /// coordinates never reads a decoupled one: their rows of `L` restricted to the other
+    /// columns are those of `M`, the decoupled columns are zero and a decoupled row is
+    /// `√m_cc`, so no refactorization is needed (same bits as [`Self::factorize`] of `m`).
+    /// Otherwise `m` is factorized.
+    ///
+    /// Errors: [`DynamicsError::MassMatrixNotPositiveDefinite`] as [`Self::factorize`] of `m`.
+    pub fn decouple(&mut self, decoupled: &[bool; N], m: &SMatrix<T, N, N>) -> Result<(), DynamicsError> {
+        let roots = (0..N).filter(|c| decoupled.get(*c).copied().unwrap_or(false)).all(|c| {
+            self.structure.ancestors(c).iter().all(|a| decoupled.get(usize::from(*a)).copied().unwrap_or(false))
+        });
+        if !roots {
+            return self.factorize(m);
+        }
+        let structure = &self.structure;
+        for (k, packed) in self.rows.as_mut_slice().chunks_exact_mut(N).enumerate() {
+            let Some((diagonal, below)) = packed.split_first_mut() else { continue };
+            if decoupled.get(k).copied().unwrap_or(false) {
+                let d = m.get((k, k)).copied().unwrap_or_else(T::zero);
+                if d <= T::zero() || !d.is_finite() {
+                    return Err(DynamicsError::MassMatrixNotPositiveDefinite);
+                }
+                *diagonal = d.sqrt();
+            }
+            for (x, a) in below.iter_mut().zip(structure.ancestors(k)) {
+                if decoupled.get(usize::from(*a)).copied().unwrap_or(false) {
+                    *x = T::zero();
                 }
             }
         }
         Ok(())
+    }
+
+    /// `(‖J₁ L⁻¹‖², …, ‖J_K L⁻¹‖²) = (J_k M⁻¹ J_kᵀ)_k` for the rows `J_k = rhs[k]`: the inverse
+    /// reflected masses (3.20) by one [`Self::right_solve_mut`] of the `K × N` stack.
+    pub fn inverse_reflected_masses<const K: usize>(&self, rhs: [&[T; N]; K]) -> [T; K] {
+        let mut x = SMatrix::<T, K, N>::zeros();
+        for (c, column) in x.data.0.iter_mut().enumerate() {
+            for (e, b) in column.iter_mut().zip(rhs.iter()) {
+                *e = b.get(c).copied().unwrap_or_else(T::zero);
+            }
+        }
+        self.right_solve_mut(&mut x);
+        let mut norms = [T::zero(); K];
+        for column in x.as_slice().chunks_exact(K) {
+            for (n, e) in norms.iter_mut().zip(column.iter()) {
+                *n += *e * *e;
+            }
+        }
+        norms
     }
 
     /// `X ← X L⁻¹` in place for the `R × N` matrix `X` (`X L = B` by columns from the last
@@ -203,25 +265,24 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
     /// column support of `J` closed under ancestors (a Jacobian's support path): columns that
     /// are zero cost nothing.
     pub fn right_solve_mut<const R: usize>(&self, x: &mut SMatrix<T, R, N>) {
-        let rows = self.rows.as_slice();
-        for k in (0..N).rev() {
-            let Some((before, rest)) = x.as_mut_slice().split_at_mut_checked(k * R) else { break };
-            let Some(column) = rest.get_mut(..R) else { break };
+        let columns: &mut [[T; R]; N] = &mut x.data.0;
+        for (k, packed) in self.rows.data.0.iter().enumerate().rev() {
+            let Some((before, rest)) = columns.split_at_mut_checked(k) else { break };
+            let Some(column) = rest.first_mut() else { break };
             if column.iter().all(|c| *c == T::zero()) {
                 continue;
             }
-            let packed = rows.get(k * N..k * N + N).unwrap_or(&[]);
             let Some((l_kk, below)) = packed.split_first() else { break };
             let inverse = T::one() / *l_kk;
             for c in column.iter_mut() {
                 *c *= inverse;
             }
-            let column = &*column;
+            let column = *column;
             for (a, l_ka) in self.structure.ancestors(k).iter().zip(below.iter()) {
-                let j = usize::from(*a);
-                let Some(target) = before.get_mut(j * R..j * R + R) else { continue };
-                for (t, c) in target.iter_mut().zip(column.iter()) {
-                    *t -= *l_ka * *c;
+                if let Some(target) = before.get_mut(usize::from(*a)) {
+                    for (t, c) in target.iter_mut().zip(column.iter()) {
+                        *t -= *l_ka * *c;
+                    }
                 }
             }
         }
@@ -258,6 +319,28 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
                 *x = sum / *l_kk;
             }
         }
+    }
+}
+
+/// A factor of the (closed-loop) inertia that consumers read `M⁻¹` from: the dense
+/// `M = L Lᵀ` (nalgebra's Cholesky) or the tree-sparse `M = Lᵀ L`.
+#[derive(Clone, Copy, Debug)]
+pub enum InertiaFactor<'a, T: RealField, const N: usize> {
+    /// Dense `M = L Lᵀ`.
+    Dense(&'a Cholesky<T, Const<N>>),
+    /// Tree-sparse `M = Lᵀ L` ([`TreeFactorization`]).
+    Tree(&'a TreeFactorization<T, N>),
+}
+
+impl<'a, T: RealField, const N: usize> From<&'a Cholesky<T, Const<N>>> for InertiaFactor<'a, T, N> {
+    fn from(factor: &'a Cholesky<T, Const<N>>) -> Self {
+        Self::Dense(factor)
+    }
+}
+
+impl<'a, T: RealField, const N: usize> From<&'a TreeFactorization<T, N>> for InertiaFactor<'a, T, N> {
+    fn from(factor: &'a TreeFactorization<T, N>) -> Self {
+        Self::Tree(factor)
     }
 }
 
@@ -311,6 +394,47 @@ mod tests {
         fn tree_factorization_matches_dense_cholesky(seed in any::<u64>()) {
             check::<f64>(seed, 1e-13)?;
             check::<f32>(seed, 1e-5)?;
+        }
+    }
+
+    /// `decouple` of the factor of `M` equals (to the bit) the factorization of `M` with the
+    /// decoupled rows and columns cleared to a new diagonal, for root sets (no refactorization)
+    /// and for a set that is not closed under ancestors (refactorized); a non-positive
+    /// decoupled diagonal is rejected.
+    fn check_decouple<T: RealField + Copy>(seed: u64) {
+        let model = branched::<T>();
+        let mut data = Data::new(&model);
+        let q = state(seed, 2.0).map(|e| nalgebra::convert::<f64, T>(e));
+        forward_kinematics(&model, &mut data, &q, &SVector::zeros()).unwrap();
+        let m = *crba(&model, &mut data);
+        let mut plain = TreeFactorization::new(&model);
+        plain.factorize(&m).unwrap();
+        for set in [&[0_usize][..], &[0, 1], &[2], &[1, 4]] {
+            let mut decoupled = [false; N];
+            let mut cleared = m;
+            for &c in set {
+                decoupled[c] = true;
+                let diagonal = nalgebra::convert::<f64, T>(0.5 + c as f64);
+                cleared.row_mut(c).fill(T::zero());
+                cleared.column_mut(c).fill(T::zero());
+                cleared[(c, c)] = diagonal;
+            }
+            let mut fast = plain.clone();
+            fast.decouple(&decoupled, &cleared).unwrap();
+            let mut reference = TreeFactorization::new(&model);
+            reference.factorize(&cleared).unwrap();
+            assert_eq!(fast.lower(), reference.lower(), "set {set:?}");
+            cleared[(set[0], set[0])] = T::zero();
+            let mut fast = plain.clone();
+            assert_eq!(fast.decouple(&decoupled, &cleared), Err(DynamicsError::MassMatrixNotPositiveDefinite));
+        }
+    }
+
+    #[test]
+    fn decoupling_equals_factorizing_the_cleared_matrix() {
+        for seed in 0..20 {
+            check_decouple::<f64>(seed);
+            check_decouple::<f32>(seed);
         }
     }
 
