@@ -975,7 +975,7 @@ struct EvaluationContext<
     /// The tree-sparse factor of the plain `M` (Cartesian damping design), `None` if `M` is not
     /// positive definite.
     mass: Option<&'a TreeFactorization<T, N>>,
-    /// The tree-sparse factor of the closed-loop inertia (5.17) (collision rows).
+    /// The tree-sparse factor of the closed-loop inertia (5.17) (collision and torso rows).
     inertia: &'a TreeFactorization<T, N>,
 }
 
@@ -1050,7 +1050,7 @@ fn evaluate<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
         TaskKind::EndStops => end_stops(&cx.tasks.end_stops, &data.q, &data.v, rows).map_err(Fault::Task)?,
         TaskKind::TorsoWorkspace => {
             if let Some(task) = &cx.tasks.torso {
-                torso_workspace(task, &data.q, &data.v, cx.factor, rows).map_err(Fault::Task)?;
+                torso_workspace(task, &data.q, &data.v, cx.inertia, rows).map_err(Fault::Task)?;
             }
         }
         TaskKind::JointImpedance(group) | TaskKind::JointDamping(group) => {

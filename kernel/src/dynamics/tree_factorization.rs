@@ -222,8 +222,12 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
         if !roots {
             return self.factorize(m);
         }
-        let structure = &self.structure;
-        for (k, packed) in self.rows.as_mut_slice().chunks_exact_mut(N).enumerate() {
+        // The decoupled coordinates leave every chain (they are its last entries): their
+        // columns of `L` are zero and they become roots.
+        let structure = &mut self.structure;
+        for (k, (packed, depth)) in
+            self.rows.as_mut_slice().chunks_exact_mut(N).zip(structure.depth.iter_mut()).enumerate()
+        {
             let Some((diagonal, below)) = packed.split_first_mut() else { continue };
             if decoupled.get(k).copied().unwrap_or(false) {
                 let d = m.get((k, k)).copied().unwrap_or_else(T::zero);
@@ -232,11 +236,12 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
                 }
                 *diagonal = d.sqrt();
             }
-            for (x, a) in below.iter_mut().zip(structure.ancestors(k)) {
-                if decoupled.get(usize::from(*a)).copied().unwrap_or(false) {
-                    *x = T::zero();
-                }
+            let chain = structure.chains.get(k).map_or(&[][..], |c| c.get(1..=usize::from(*depth)).unwrap_or(&[]));
+            let kept = chain.iter().take_while(|a| !decoupled.get(usize::from(**a)).copied().unwrap_or(false)).count();
+            for x in below.iter_mut().skip(kept) {
+                *x = T::zero();
             }
+            *depth = u16::try_from(kept).unwrap_or(0);
         }
         Ok(())
     }
@@ -267,8 +272,7 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
     pub fn right_solve_mut<const R: usize>(&self, x: &mut SMatrix<T, R, N>) {
         let columns: &mut [[T; R]; N] = &mut x.data.0;
         for (k, packed) in self.rows.data.0.iter().enumerate().rev() {
-            let Some((before, rest)) = columns.split_at_mut_checked(k) else { break };
-            let Some(column) = rest.first_mut() else { break };
+            let Some(column) = columns.get_mut(k) else { break };
             if column.iter().all(|c| *c == T::zero()) {
                 continue;
             }
@@ -278,8 +282,9 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
                 *c *= inverse;
             }
             let column = *column;
+            // The ancestors are all `< k`: solved columns are never touched again.
             for (a, l_ka) in self.structure.ancestors(k).iter().zip(below.iter()) {
-                if let Some(target) = before.get_mut(usize::from(*a)) {
+                if let Some(target) = columns.get_mut(usize::from(*a)) {
                     for (t, c) in target.iter_mut().zip(column.iter()) {
                         *t -= *l_ka * *c;
                     }
