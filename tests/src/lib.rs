@@ -28,3 +28,5 @@ mod simulation;
 mod support;
 #[cfg(test)]
 mod torso_workspace;
+#[cfg(test)]
+mod tree_factor;

@@ -5,9 +5,11 @@
 //!
 //! ## The cycle
 //! 1. **Validate** the frame ([`faults::validate_frame`]); on a fault go to the safe output.
-//! 2. **Dynamics** at `y = (r, q)` (5.7): kinematics, `M`, `C`, `g`, and the Cholesky factor of
-//!    the closed-loop inertia (the platform block replaced by the admittance mass,
-//!    [`crate::platform::storage::closed_loop_inertia`]): the inertia the controller shapes.
+//! 2. **Dynamics** at `y = (r, q)` (5.7): kinematics, `M`, `C`, `g`, the tree-sparse factor
+//!    `M = Lᵀ L` ([`crate::dynamics::TreeFactorization`], the Cartesian damping design) and,
+//!    decoupled from it, the factor of the closed-loop inertia (the platform block replaced by
+//!    the admittance mass, [`crate::platform::storage::closed_loop_inertia`]): the inertia the
+//!    controller shapes, read by the collision, torso, projection and force-limit stages.
 //! 3. **Contact-force limiter** ([`force_limit`]), then the **stack**: the limiter estimates the
 //!    contact wrench of each TCP from the momentum residual, tightens the Table 7.1 force bounds
 //!    per axis where the estimate exceeds them and adds the reaction along the limited axes to
@@ -48,7 +50,7 @@ pub mod observer;
 pub mod trajectory;
 
 use heapless::Vec;
-use nalgebra::{convert, Cholesky, Const, Matrix3, RealField, SVector, Vector3, Vector6};
+use nalgebra::{convert, Matrix3, RealField, SVector, Vector3, Vector6};
 
 use hal::{JointSample, PlatformCommand, PlatformSample, LEGS};
 
@@ -552,13 +554,14 @@ impl<
         gravity(model, data);
         let layout = self.config.layout.platform;
         let closed_loop = closed_loop_inertia(&data.mass_matrix, &layout, &self.config.platform.admittance.mass);
-        let factor = Cholesky::new(closed_loop).ok_or(Fault::Dynamics(DynamicsError::MassMatrixNotPositiveDefinite))?;
         // The plain `M = Lᵀ L` for the Cartesian damping design, shared by both hands (`None`:
         // not positive definite, the tasks fall back to their configured damping).
         let mut mass = TreeFactorization::from_structure(self.tree);
         let mass_factored = mass.factorize(&self.data.mass_matrix).is_ok();
-        // The closed-loop inertia's tree factor: the platform rows and columns decoupled from
-        // the factor of `M` (or factored anew when `M` is not positive definite).
+        // The closed-loop inertia's tree factor, the one factor of every consumer of `M̃⁻¹`
+        // (collision, torso, projection, force limit): the platform rows and columns decoupled
+        // from the factor of `M` (or factored anew when `M` is not positive definite). Fails
+        // with `MassMatrixNotPositiveDefinite` when `M̃` is not positive definite.
         let mut inertia = mass.clone();
         let mut decoupled = [false; N];
         for c in layout.axes().iter().filter_map(|a| a.coordinate()) {
@@ -574,11 +577,15 @@ impl<
         }
         self.advance_targets(dt);
         self.limit_contact_forces(dt)?;
-        self.build_stack(&factor, mass, &inertia)?;
+        self.build_stack(mass, &inertia)?;
 
+        let inverse;
         let weighting = match self.config.consistency {
             Consistency::Static => Weighting::Identity,
-            Consistency::Dynamic => Weighting::Inertia(&factor),
+            Consistency::Dynamic => {
+                inverse = inertia.inverse();
+                Weighting::InverseInertia(&inverse)
+            }
         };
         let config = HierarchyConfig {
             recursion: self.config.recursion,
@@ -591,7 +598,7 @@ impl<
         let platform = self.platform_command(frame, dt)?;
         let terms = coupling_compensation(&self.data, &layout, &platform.acceleration).map_err(Fault::Platform)?;
         let compensation = terms.torque(self.config.platform.compensation);
-        let torque = self.guard_torque(&compensation, &factor, dt);
+        let torque = self.guard_torque(&compensation, &inertia, dt);
         self.commit(frame, &torque, &platform, &closed_loop, dt)
     }
 
@@ -655,7 +662,6 @@ impl<
     /// Evaluates every hierarchy entry onto the stack; fills the per-task telemetry.
     fn build_stack(
         &mut self,
-        factor: &Cholesky<T, Const<N>>,
         mass: Option<&TreeFactorization<T, N>>,
         inertia: &TreeFactorization<T, N>,
     ) -> Result<(), Fault> {
@@ -685,7 +691,6 @@ impl<
                     tasks: &self.tasks,
                     hands: &self.hands,
                     joint_goal: &self.joint_goal,
-                    factor,
                     mass,
                     inertia,
                 },
@@ -776,7 +781,7 @@ impl<
     /// The upper-body torque `τ₀ + Σ N_i τ_i` with the command-side contact-force limit
     /// ([`force_limit`]) through the priority-preserving guard. The limit's torque joins `τ₀`:
     /// the guard scales the task levels, never the bound on the contact force.
-    fn guard_torque(&mut self, compensation: &SVector<T, N>, factor: &Cholesky<T, Const<N>>, dt: T) -> SVector<T, N> {
+    fn guard_torque(&mut self, compensation: &SVector<T, N>, factor: &TreeFactorization<T, N>, dt: T) -> SVector<T, N> {
         let count = self.projection.level_count.min(MAX_LEVELS);
         let levels = self.projection.level_torques.get(..count).unwrap_or(&[]);
         let tasks = levels.iter().fold(SVector::<T, N>::zeros(), |t, l| t + l);
@@ -971,7 +976,6 @@ struct EvaluationContext<
     tasks: &'a TaskSet<T, N>,
     hands: &'a [PoseTrajectory<T>; 2],
     joint_goal: &'a JointTrajectory<T, N>,
-    factor: &'a Cholesky<T, Const<N>>,
     /// The tree-sparse factor of the plain `M` (Cartesian damping design), `None` if `M` is not
     /// positive definite.
     mass: Option<&'a TreeFactorization<T, N>>,
