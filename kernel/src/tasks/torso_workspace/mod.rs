@@ -650,16 +650,14 @@ fn inverse_block_tree<T: RealField + Copy, const N: usize>(
         *e = T::one();
     }
     inertia.right_solve_mut(&mut x);
-    let mut block = [T::zero(); 3];
+    let (mut w22, mut w23, mut w33) = (T::zero(), T::zero(), T::zero());
     for column in x.data.0.iter() {
         let [a, b] = *column;
-        if let [w22, w23, w33] = &mut block {
-            *w22 += a * a;
-            *w23 += a * b;
-            *w33 += b * b;
-        }
+        w22 += a * a;
+        w23 += a * b;
+        w33 += b * b;
     }
-    block
+    [w22, w23, w33]
 }
 
 #[cfg(test)]
