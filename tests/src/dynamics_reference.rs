@@ -163,7 +163,7 @@ proptest! {
         let m = *crba(&model, &mut data);
         let mut tree = TreeFactorization::new(&model);
         tree.factorize(&m).unwrap();
-        let l = tree.factor();
+        let l = tree.lower();
         prop_assert!((l.transpose() * l - m).amax() < 1e-12 * m.amax());
         let dense = nalgebra::Cholesky::new(m).unwrap().solve(&b);
         let mut x = b;

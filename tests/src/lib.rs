@@ -31,3 +31,5 @@ mod simulation;
 mod support;
 #[cfg(test)]
 mod torso_workspace;
+#[cfg(test)]
+mod tree_factor;

@@ -5,9 +5,11 @@
 //!
 //! ## The cycle
 //! 1. **Validate** the frame ([`faults::validate_frame`]); on a fault go to the safe output.
-//! 2. **Dynamics** at `y = (r, q)` (5.7): kinematics, `M`, `C`, `g`, and the Cholesky factor of
-//!    the closed-loop inertia (the platform block replaced by the admittance mass,
-//!    [`crate::platform::storage::closed_loop_inertia`]): the inertia the controller shapes.
+//! 2. **Dynamics** at `y = (r, q)` (5.7): kinematics, `M`, `C`, `g`, the tree-sparse factor
+//!    `M = Lᵀ L` ([`crate::dynamics::TreeFactorization`], the Cartesian damping design) and,
+//!    decoupled from it, the factor of the closed-loop inertia (the platform block replaced by
+//!    the admittance mass, [`crate::platform::storage::closed_loop_inertia`]): the inertia the
+//!    controller shapes, read by the collision, torso, projection and force-limit stages.
 //! 3. **Contact-force limiter** ([`force_limit`]), then the **stack**: the limiter estimates the
 //!    contact wrench of each TCP from the momentum residual, tightens the Table 7.1 force bounds
 //!    per axis where the estimate exceeds them and adds the reaction along the limited axes to
@@ -50,11 +52,13 @@ pub mod speed_barrier;
 pub mod trajectory;
 
 use heapless::Vec;
-use nalgebra::{convert, Cholesky, Const, Matrix3, RealField, SVector, Vector3, Vector6};
+use nalgebra::{convert, Matrix3, RealField, SVector, Vector3, Vector6};
 
 use hal::{JointSample, PlatformCommand, PlatformSample, LEGS};
 
-use crate::dynamics::{coriolis_matrix, crba, forward_kinematics, gravity, DynamicsError};
+use crate::dynamics::{
+    coriolis_matrix, crba, forward_kinematics, gravity, DynamicsError, TreeFactorization, TreeStructure,
+};
 use crate::hierarchy::{
     project, push_scaled, push_transitioning, transition_weight, HierarchyConfig, HierarchyData, Stack, Weighting,
 };
@@ -66,7 +70,8 @@ use crate::platform::coupling_compensation::coupling_compensation;
 use crate::platform::storage::closed_loop_inertia;
 use crate::platform::PlatformError;
 use crate::tasks::cartesian_impedance::{
-    cartesian_impedance, AxisMask, CartesianImpedance, CartesianImpedanceConfig, CartesianTarget, StiffnessFrame,
+    cartesian_impedance_factored, AxisMask, CartesianImpedance, CartesianImpedanceConfig, CartesianTarget,
+    StiffnessFrame,
 };
 use crate::tasks::collision::{
     collision_rows_shared, CollisionData, CollisionModel, CollisionParameters, PairRowCache,
@@ -381,6 +386,8 @@ pub struct Controller<
     /// The Cartesian damping force of each hand this cycle (task axes), outside the force limits.
     cartesian_damping: [Vector6<T>; 2],
     data: Data<T, N, B, F>,
+    /// The elimination tree of the model's inertia ([`TreeFactorization`]).
+    tree: TreeStructure<N>,
     collision_data: CollisionData<T, V, P>,
     stack: Stack<T, N, MAX_ROWS>,
     projection: HierarchyData<T, N, MAX_ROWS, MAX_LEVELS>,
@@ -422,6 +429,7 @@ impl<
         let avoidance = PlatformAvoidance::try_new(config.platform.avoidance).map_err(ConfigError::Platform)?;
         let active = messages::initial_hierarchy(hierarchy).map_err(ConfigError::Hierarchy)?;
         let data = Data::new(&model);
+        let tree = TreeStructure::new(&model);
         let mut collision_data = CollisionData::new(&collision_model);
         collision_data.exact_within = Some(tasks.broad_phase_distance());
         Ok(Self {
@@ -439,6 +447,7 @@ impl<
             avoidance,
             reference_pose: Vector3::zeros(),
             data,
+            tree,
             collision_data,
             stack: Stack::new(),
             projection: HierarchyData::default(),
@@ -558,17 +567,38 @@ impl<
         gravity(model, data);
         let layout = self.config.layout.platform;
         let closed_loop = closed_loop_inertia(&data.mass_matrix, &layout, &self.config.platform.admittance.mass);
-        let factor = Cholesky::new(closed_loop).ok_or(Fault::Dynamics(DynamicsError::MassMatrixNotPositiveDefinite))?;
+        // The plain `M = Lᵀ L` for the Cartesian damping design, shared by both hands (`None`:
+        // not positive definite, the tasks fall back to their configured damping).
+        let mut mass = TreeFactorization::from_structure(self.tree);
+        let mass_factored = mass.factorize(&self.data.mass_matrix).is_ok();
+        // The closed-loop inertia's tree factor, the one factor of every consumer of `M̃⁻¹`
+        // (collision, torso, projection, force limit): the platform rows and columns decoupled
+        // from the factor of `M` (or factored anew when `M` is not positive definite). Fails
+        // with `MassMatrixNotPositiveDefinite` when `M̃` is not positive definite.
+        let mut inertia = mass.clone();
+        let mut decoupled = [false; N];
+        for c in layout.axes().iter().filter_map(|a| a.coordinate()) {
+            if let Some(flag) = decoupled.get_mut(c) {
+                *flag = true;
+            }
+        }
+        if mass_factored { inertia.decouple(&decoupled, &closed_loop) } else { inertia.factorize(&closed_loop) }
+            .map_err(Fault::Dynamics)?;
+        let mass = mass_factored.then_some(&mass);
         if !self.started {
             self.start(&q, frame)?;
         }
         self.advance_targets(dt);
         self.limit_contact_forces(dt)?;
-        self.build_stack(&factor)?;
+        self.build_stack(mass, &inertia)?;
 
+        let inverse;
         let weighting = match self.config.consistency {
             Consistency::Static => Weighting::Identity,
-            Consistency::Dynamic => Weighting::Inertia(&factor),
+            Consistency::Dynamic => {
+                inverse = inertia.inverse();
+                Weighting::InverseInertia(&inverse)
+            }
         };
         let config = HierarchyConfig {
             recursion: self.config.recursion,
@@ -582,7 +612,7 @@ impl<
         let terms = coupling_compensation(&self.data, &layout, &platform.acceleration).map_err(Fault::Platform)?;
         let compensation = terms.torque(self.config.platform.compensation) + self.speed_barrier(&v);
         let compensation = self.blend_from_hold(&compensation, &v);
-        let torque = self.guard_torque(&compensation, &factor, dt);
+        let torque = self.guard_torque(&compensation, &inertia, dt);
         self.commit(frame, &torque, &platform, &closed_loop, dt)
     }
 
@@ -644,7 +674,11 @@ impl<
     }
 
     /// Evaluates every hierarchy entry onto the stack; fills the per-task telemetry.
-    fn build_stack(&mut self, factor: &Cholesky<T, Const<N>>) -> Result<(), Fault> {
+    fn build_stack(
+        &mut self,
+        mass: Option<&TreeFactorization<T, N>>,
+        inertia: &TreeFactorization<T, N>,
+    ) -> Result<(), Fault> {
         self.stack.clear();
         let t = &mut self.telemetry;
         t.tcp_error = [Vector6::zeros(); 2];
@@ -671,7 +705,8 @@ impl<
                     tasks: &self.tasks,
                     hands: &self.hands,
                     joint_goal: &self.joint_goal,
-                    factor,
+                    mass,
+                    inertia,
                 },
                 &mut self.data,
                 &mut scratch,
@@ -757,9 +792,6 @@ impl<
         Ok(PlatformStep { velocity, acceleration, leg_rates: legs })
     }
 
-    /// The upper-body torque `τ₀ + Σ N_i τ_i` with the command-side contact-force limit
-    /// ([`force_limit`]) through the priority-preserving guard. The limit's torque joins `τ₀`:
-    /// the guard scales the task levels, never the bound on the contact force.
     /// The joint speed barrier ([`speed_barrier`]) on the upper body, from the measured `v`
     /// and the diagonal of `M`.
     fn speed_barrier(&self, v: &SVector<T, N>) -> SVector<T, N> {
@@ -786,7 +818,10 @@ impl<
         compensation + (hold - compensation) * (T::one() - weight)
     }
 
-    fn guard_torque(&mut self, compensation: &SVector<T, N>, factor: &Cholesky<T, Const<N>>, dt: T) -> SVector<T, N> {
+    /// The upper-body torque `τ₀ + Σ N_i τ_i` with the command-side contact-force limit
+    /// ([`force_limit`]) through the priority-preserving guard. The limit's torque joins `τ₀`:
+    /// the guard scales the task levels, never the bound on the contact force.
+    fn guard_torque(&mut self, compensation: &SVector<T, N>, factor: &TreeFactorization<T, N>, dt: T) -> SVector<T, N> {
         let count = self.projection.level_count.min(MAX_LEVELS);
         let levels = self.projection.level_torques.get(..count).unwrap_or(&[]);
         let tasks = levels.iter().fold(SVector::<T, N>::zeros(), |t, l| t + l);
@@ -990,7 +1025,11 @@ struct EvaluationContext<
     tasks: &'a TaskSet<T, N>,
     hands: &'a [PoseTrajectory<T>; 2],
     joint_goal: &'a JointTrajectory<T, N>,
-    factor: &'a Cholesky<T, Const<N>>,
+    /// The tree-sparse factor of the plain `M` (Cartesian damping design), `None` if `M` is not
+    /// positive definite.
+    mass: Option<&'a TreeFactorization<T, N>>,
+    /// The tree-sparse factor of the closed-loop inertia (5.17) (collision and torso rows).
+    inertia: &'a TreeFactorization<T, N>,
 }
 
 /// Appends the rows of one task to `rows` and records its telemetry.
@@ -1015,7 +1054,7 @@ fn evaluate<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
                     *x = T::zero();
                 }
             }
-            let report = cartesian_impedance(cx.model, data, task, &trajectory.sample(), rows);
+            let report = cartesian_impedance_factored(cx.model, data, cx.mass, task, &trajectory.sample(), rows);
             data.v = velocity;
             let report = report.map_err(Fault::Task)?;
             if let (Some(e), Some(s), Some(d)) = (
@@ -1034,7 +1073,7 @@ fn evaluate<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
             // and reflected masses depend only on this cycle's kinematics and inertia: the first
             // collision entry of the cycle updates the geometry, the later ones (the other field)
             // reuse it and the rows already evaluated. Same rows as evaluating each field alone.
-            let (model, data_ref, factor, collision_model) = (cx.model, &*data, cx.factor, cx.collision_model);
+            let (model, data_ref, factor, collision_model) = (cx.model, &*data, cx.inertia, cx.collision_model);
             if !scratch.geometry_current {
                 collision_model.update(data_ref, scratch.collision);
                 scratch.pair_rows.clear();
@@ -1064,7 +1103,7 @@ fn evaluate<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
         TaskKind::EndStops => end_stops(&cx.tasks.end_stops, &data.q, &data.v, rows).map_err(Fault::Task)?,
         TaskKind::TorsoWorkspace => {
             if let Some(task) = &cx.tasks.torso {
-                torso_workspace(task, &data.q, &data.v, cx.factor, rows).map_err(Fault::Task)?;
+                torso_workspace(task, &data.q, &data.v, cx.inertia, rows).map_err(Fault::Task)?;
             }
         }
         TaskKind::JointImpedance(group) | TaskKind::JointDamping(group) => {

@@ -43,7 +43,7 @@ pub use frame_drift::{frame_drift, point_drift};
 pub use frame_jacobian::{frame_jacobian, point_jacobian};
 pub use gravity::gravity;
 pub use rnea::rnea;
-pub use tree_factorization::TreeFactorization;
+pub use tree_factorization::{InertiaFactor, TreeFactorization, TreeStructure};
 
 use nalgebra::{RealField, SVector, Vector6};
 

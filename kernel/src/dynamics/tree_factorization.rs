@@ -5,34 +5,31 @@
 //! Eliminating the coordinates from the last to the first, `M = Lᵀ L` with `L` lower triangular
 //! creates no fill-in outside that pattern when the coordinate parents `λ(k) < k` describe the
 //! tree; the factorization then costs O(Σ_k depth_k²) instead of O(N³/3), and each solve
-//! O(Σ_k depth_k) instead of O(N²). Not wired into the controller.
+//! O(Σ_k depth_k) instead of O(N²).
 
-use nalgebra::{RealField, SMatrix, SVector};
+use nalgebra::{Cholesky, Const, RealField, SMatrix, SVector};
 
 use super::DynamicsError;
 use crate::model::Model;
 
-/// `M = Lᵀ L` over the elimination tree of the model's coordinates.
-///
-/// Build once per model with [`TreeFactorization::new`] (symbolic analysis), then
-/// [`TreeFactorization::factorize`] each `M(q)` and [`TreeFactorization::solve_mut`].
-#[derive(Clone, Debug)]
-pub struct TreeFactorization<T: RealField, const N: usize> {
-    /// `λ(k)`: parent of coordinate `k` in the elimination tree (always `< k`), `None` for a
-    /// root. Every nonzero `L_kj`, `j < k`, has `j` on the chain `λ(k), λ(λ(k)), …`.
-    parents: [Option<usize>; N],
-    /// The factor `L` (lower triangular; zero above the diagonal and off the ancestor chains).
-    factor: SMatrix<T, N, N>,
+/// The symbolic part of [`TreeFactorization`]: for every coordinate `k` its ancestor chain
+/// `k, λ(k), λ(λ(k)), …` in the elimination tree. Depends on the model only.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TreeStructure<const N: usize> {
+    /// `chains[k][d]`: the `d`-th ancestor of `k` (`chains[k][0] = k`) for `d ≤ depth[k]`.
+    chains: [[u16; N]; N],
+    /// Number of ancestors of `k`.
+    depth: [u16; N],
 }
 
-impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
+impl<const N: usize> TreeStructure<N> {
     /// Symbolic analysis of `model`: the pattern of `M` (coordinates `r`, `c` coupled when a
     /// joint driven by `r` and a joint driven by `c` lie on one path to the root, through the
     /// drive terms), then the elimination tree for eliminating `N − 1, …, 0`:
     /// `λ(k) = max {j < k : (k, j) in the pattern}`, and the rest of row `k` joins row `λ(k)`
     /// (the fill of eliminating `k`). For an unbranched chain of single-term drives this is
     /// `λ(k) = k − 1`; Justin's two arms get disjoint chains that meet at the torso.
-    pub fn new<const B: usize, const F: usize>(model: &Model<T, N, B, F>) -> Self {
+    pub fn new<T: RealField + Copy, const B: usize, const F: usize>(model: &Model<T, N, B, F>) -> Self {
         let mut pattern = [[false; N]; N];
         let bodies = model.bodies();
         for (i, body) in bodies.iter().enumerate() {
@@ -70,122 +67,330 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
                 *slot = parent;
             }
         }
-        Self { parents, factor: SMatrix::zeros() }
+        let mut chains = [[0_u16; N]; N];
+        let mut depth = [0_u16; N];
+        for (k, (chain, d)) in chains.iter_mut().zip(depth.iter_mut()).enumerate() {
+            let mut next = Some(k);
+            let mut count = 0_u16;
+            for slot in chain.iter_mut() {
+                let Some(j) = next else { break };
+                *slot = u16::try_from(j).unwrap_or(0);
+                count += 1;
+                next = parents.get(j).copied().flatten().filter(|p| *p < j);
+            }
+            *d = count.saturating_sub(1);
+        }
+        Self { chains, depth }
     }
 
     /// The elimination-tree parents `λ(k)`.
-    pub fn parents(&self) -> &[Option<usize>; N] {
-        &self.parents
+    pub fn parents(&self) -> [Option<usize>; N] {
+        let mut parents = [None; N];
+        for ((p, chain), d) in parents.iter_mut().zip(self.chains.iter()).zip(self.depth.iter()) {
+            if *d > 0 {
+                *p = chain.get(1).map(|x| usize::from(*x));
+            }
+        }
+        parents
     }
 
-    /// The factor `L` of the last successful [`Self::factorize`] (`M = Lᵀ L`).
-    pub fn factor(&self) -> &SMatrix<T, N, N> {
-        &self.factor
+    /// The ancestors `λ(k), λ(λ(k)), …` of `k` (nearest first).
+    #[inline]
+    fn ancestors(&self, k: usize) -> &[u16] {
+        let d = self.depth.get(k).map_or(0, |d| usize::from(*d));
+        self.chains.get(k).and_then(|c| c.get(1..=d)).unwrap_or(&[])
+    }
+}
+
+/// `M = Lᵀ L` over the elimination tree of the model's coordinates.
+///
+/// Build the [`TreeStructure`] once per model, then [`TreeFactorization::factorize`] each
+/// `M(q)`. Row `k` of `L` is stored packed in column `k` of `rows`: `L_kk` first, then
+/// `L_{k,a}` for the ancestors `a` of `k` nearest first. As the chain of an ancestor is a
+/// suffix of the chain of `k`, every update pairs two packed rows element by element.
+#[derive(Clone, Debug)]
+pub struct TreeFactorization<T: RealField, const N: usize> {
+    structure: TreeStructure<N>,
+    rows: SMatrix<T, N, N>,
+}
+
+impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
+    /// The symbolic analysis of `model` ([`TreeStructure::new`]) with a zero factor.
+    pub fn new<const B: usize, const F: usize>(model: &Model<T, N, B, F>) -> Self {
+        Self::from_structure(TreeStructure::new(model))
     }
 
-    /// Factorizes `m` (symmetric; only the lower triangle on the ancestor chains is read) as
-    /// `M = Lᵀ L` (Featherstone's LTL algorithm, Table 6.3): for `k = N − 1, …, 0`,
-    /// `L_kk = √H_kk`, `L_ki = H_ki / L_kk` for `i` on the chain of `k`, then
-    /// `H_ij −= L_ki L_kj` for `i`, `j` on that chain (`j` an ancestor of `i` or `i`).
+    /// A zero factor over `structure`.
+    pub fn from_structure(structure: TreeStructure<N>) -> Self {
+        Self { structure, rows: SMatrix::zeros() }
+    }
+
+    /// The symbolic part.
+    pub fn structure(&self) -> &TreeStructure<N> {
+        &self.structure
+    }
+
+    /// The elimination-tree parents `λ(k)`.
+    pub fn parents(&self) -> [Option<usize>; N] {
+        self.structure.parents()
+    }
+
+    /// The factor `L` of the last successful [`Self::factorize`] (`M = Lᵀ L`) as a dense lower
+    /// triangular matrix.
+    pub fn lower(&self) -> SMatrix<T, N, N> {
+        let mut l = SMatrix::<T, N, N>::zeros();
+        for (k, packed) in self.rows.as_slice().chunks_exact(N).enumerate() {
+            if let (Some(d), Some(x)) = (packed.first(), l.get_mut((k, k))) {
+                *x = *d;
+            }
+            for (a, value) in self.structure.ancestors(k).iter().zip(packed.iter().skip(1)) {
+                if let Some(x) = l.get_mut((k, usize::from(*a))) {
+                    *x = *value;
+                }
+            }
+        }
+        l
+    }
+
+    /// Factorizes `m` (symmetric; only the entries `(k, j)`, `j` on the ancestor chain of `k`,
+    /// are read) as `M = Lᵀ L` (Featherstone's LTL algorithm, Table 6.3): for
+    /// `k = N − 1, …, 0`, `L_kk = √H_kk`, `L_ki = H_ki / L_kk` for `i` on the chain of `k`,
+    /// then `H_ij −= L_ki L_kj` for `i`, `j` on that chain (`j` an ancestor of `i` or `i`).
+    /// Cost Σ_k depth_k²/2 multiply-adds.
     ///
     /// Errors: [`DynamicsError::MassMatrixNotPositiveDefinite`] if a pivot is not positive
-    /// (or NaN); the previous factor is kept then.
+    /// (or NaN); the factor is unspecified then.
     pub fn factorize(&mut self, m: &SMatrix<T, N, N>) -> Result<(), DynamicsError> {
-        let mut h = SMatrix::<T, N, N>::zeros();
-        let parents = &self.parents;
-        let chain = |k: usize| chain(parents, k);
-        // Copy the pattern part of the lower triangle: (k, j) for j = k and j on the chain of k.
+        let structure = &self.structure;
+        let src = m.as_slice();
+        for ((packed, chain), depth) in
+            self.rows.as_mut_slice().chunks_exact_mut(N).zip(structure.chains.iter()).zip(structure.depth.iter())
         {
-            let (src, dst) = (m.as_slice(), h.as_mut_slice());
-            for k in 0..N {
-                let mut next = Some(k);
-                while let Some(j) = next {
-                    let idx = j * N + k;
-                    if let (Some(d), Some(s)) = (dst.get_mut(idx), src.get(idx)) {
-                        *d = *s;
-                    }
-                    next = chain(j);
-                }
+            let length = usize::from(*depth) + 1;
+            let k = chain.first().map_or(0, |k| usize::from(*k));
+            let column = src.get(k * N..k * N + N).unwrap_or(&[]);
+            for (x, a) in packed.iter_mut().zip(chain.iter()).take(length) {
+                *x = column.get(usize::from(*a)).copied().unwrap_or_else(T::zero);
             }
         }
-        let hs = h.as_mut_slice();
+        let rows: &mut [[T; N]; N] = &mut self.rows.data.0;
         for k in (0..N).rev() {
-            let diag = hs.get(k * N + k).copied().unwrap_or_else(T::zero);
-            if diag <= T::zero() || !diag.is_finite() {
+            let Some((before, rest)) = rows.split_at_mut_checked(k) else { break };
+            let length = structure.depth.get(k).map_or(0, |d| usize::from(*d)) + 1;
+            let Some((diagonal, below)) =
+                rest.first_mut().and_then(|r| r.get_mut(..length)).and_then(|r| r.split_first_mut())
+            else {
+                break;
+            };
+            if *diagonal <= T::zero() || !diagonal.is_finite() {
                 return Err(DynamicsError::MassMatrixNotPositiveDefinite);
             }
-            let l_kk = diag.sqrt();
-            if let Some(d) = hs.get_mut(k * N + k) {
-                *d = l_kk;
+            let l_kk = diagonal.sqrt();
+            *diagonal = l_kk;
+            for x in below.iter_mut() {
+                *x /= l_kk;
             }
-            let mut next = chain(k);
-            while let Some(i) = next {
-                if let Some(x) = hs.get_mut(i * N + k) {
-                    *x /= l_kk;
-                }
-                next = chain(i);
-            }
-            let mut next_i = chain(k);
-            while let Some(i) = next_i {
-                let l_ki = hs.get(i * N + k).copied().unwrap_or_else(T::zero);
-                let mut next_j = Some(i);
-                while let Some(j) = next_j {
-                    let l_kj = hs.get(j * N + k).copied().unwrap_or_else(T::zero);
-                    if let Some(x) = hs.get_mut(j * N + i) {
-                        *x -= l_ki * l_kj;
+            let mut tail = &*below;
+            for a in structure.ancestors(k) {
+                let Some((l_ki, _)) = tail.split_first() else { break };
+                if let Some(target) = before.get_mut(usize::from(*a)).and_then(|t| t.get_mut(..tail.len())) {
+                    for (h, l_kj) in target.iter_mut().zip(tail.iter()) {
+                        *h -= *l_ki * *l_kj;
                     }
-                    next_j = chain(j);
                 }
-                next_i = chain(i);
+                tail = tail.get(1..).unwrap_or(&[]);
             }
         }
-        self.factor = h;
         Ok(())
+    }
+
+    /// Turns the factor of `M` into the factor of `M̃`, the matrix that equals `m` (also `M`
+    /// outside the decoupled coordinates) with the rows and columns of the coordinates `c`
+    /// with `decoupled[c]` cleared to their diagonal `m_cc` (the closed-loop inertia (5.17) of
+    /// the platform coordinates). When every ancestor of a decoupled coordinate is decoupled
+    /// (the platform coordinates are the roots of the tree), the elimination of the other
+    /// coordinates never reads a decoupled one: their rows of `L` restricted to the other
+    /// columns are those of `M`, the decoupled columns are zero and a decoupled row is
+    /// `√m_cc`, so no refactorization is needed (same bits as [`Self::factorize`] of `m`).
+    /// Otherwise `m` is factorized.
+    ///
+    /// Errors: [`DynamicsError::MassMatrixNotPositiveDefinite`] as [`Self::factorize`] of `m`.
+    pub fn decouple(&mut self, decoupled: &[bool; N], m: &SMatrix<T, N, N>) -> Result<(), DynamicsError> {
+        let roots = (0..N).filter(|c| decoupled.get(*c).copied().unwrap_or(false)).all(|c| {
+            self.structure.ancestors(c).iter().all(|a| decoupled.get(usize::from(*a)).copied().unwrap_or(false))
+        });
+        if !roots {
+            return self.factorize(m);
+        }
+        // The decoupled coordinates leave every chain (they are its last entries): their
+        // columns of `L` are zero and they become roots.
+        let structure = &mut self.structure;
+        for (k, (packed, depth)) in
+            self.rows.as_mut_slice().chunks_exact_mut(N).zip(structure.depth.iter_mut()).enumerate()
+        {
+            let Some((diagonal, below)) = packed.split_first_mut() else { continue };
+            if decoupled.get(k).copied().unwrap_or(false) {
+                let d = m.get((k, k)).copied().unwrap_or_else(T::zero);
+                if d <= T::zero() || !d.is_finite() {
+                    return Err(DynamicsError::MassMatrixNotPositiveDefinite);
+                }
+                *diagonal = d.sqrt();
+            }
+            let chain = structure.chains.get(k).map_or(&[][..], |c| c.get(1..=usize::from(*depth)).unwrap_or(&[]));
+            let kept = chain.iter().take_while(|a| !decoupled.get(usize::from(**a)).copied().unwrap_or(false)).count();
+            for x in below.iter_mut().skip(kept) {
+                *x = T::zero();
+            }
+            *depth = u16::try_from(kept).unwrap_or(0);
+        }
+        Ok(())
+    }
+
+    /// `(‖J₁ L⁻¹‖², …, ‖J_K L⁻¹‖²) = (J_k M⁻¹ J_kᵀ)_k` for the rows `J_k = rhs[k]`: the inverse
+    /// reflected masses (3.20) by one [`Self::right_solve_mut`] of the `K × N` stack.
+    pub fn inverse_reflected_masses<const K: usize>(&self, rhs: [&[T; N]; K]) -> [T; K] {
+        let mut x = SMatrix::<T, K, N>::zeros();
+        for (c, column) in x.data.0.iter_mut().enumerate() {
+            for (e, b) in column.iter_mut().zip(rhs.iter()) {
+                *e = b.get(c).copied().unwrap_or_else(T::zero);
+            }
+        }
+        self.right_solve_mut(&mut x);
+        let mut norms = [T::zero(); K];
+        for column in x.as_slice().chunks_exact(K) {
+            for (n, e) in norms.iter_mut().zip(column.iter()) {
+                *n += *e * *e;
+            }
+        }
+        norms
+    }
+
+    /// `X ← X L⁻¹` in place for the `R × N` matrix `X` (`X L = B` by columns from the last
+    /// coordinate down). With `M = Lᵀ L`, `(J L⁻¹)(J L⁻¹)ᵀ = J M⁻¹ Jᵀ`, and `J L⁻¹` keeps the
+    /// column support of `J` closed under ancestors (a Jacobian's support path): columns that
+    /// are zero cost nothing.
+    pub fn right_solve_mut<const R: usize>(&self, x: &mut SMatrix<T, R, N>) {
+        let columns: &mut [[T; R]; N] = &mut x.data.0;
+        for (k, packed) in self.rows.data.0.iter().enumerate().rev() {
+            let Some(column) = columns.get_mut(k) else { break };
+            if column.iter().all(|c| *c == T::zero()) {
+                continue;
+            }
+            let Some((l_kk, below)) = packed.split_first() else { break };
+            let inverse = T::one() / *l_kk;
+            for c in column.iter_mut() {
+                *c *= inverse;
+            }
+            let column = *column;
+            // The ancestors are all `< k`: solved columns are never touched again.
+            for (a, l_ka) in self.structure.ancestors(k).iter().zip(below.iter()) {
+                if let Some(target) = columns.get_mut(usize::from(*a)) {
+                    for (t, c) in target.iter_mut().zip(column.iter()) {
+                        *t -= *l_ka * *c;
+                    }
+                }
+            }
+        }
+    }
+
+    /// `M⁻¹ = L⁻¹ L⁻ᵀ` as a dense symmetric matrix, column by column from the first
+    /// coordinate: with `Z = L⁻¹`, `L Z = I` gives `z_i = (e_i − Σ_a L_ia z_a) / L_ii` over the
+    /// ancestors `a` of `i` (rows of `Z`), so for `j < i`
+    /// `(M⁻¹)_ij = z_i · z_j = −(Σ_a L_ia (M⁻¹)_aj) / L_ii` (as `Z_ji = 0`) and
+    /// `(M⁻¹)_ii = (1/L_ii − Σ_a L_ia (M⁻¹)_ai) / L_ii`: each column is a combination of the
+    /// (already complete, by symmetry) columns of its ancestors. Cost Σ_i i·depth_i
+    /// multiply-adds (contiguous column slices), below the dense `N³/2`.
+    pub fn inverse(&self) -> SMatrix<T, N, N> {
+        let mut w = SMatrix::<T, N, N>::zeros();
+        let columns: &mut [[T; N]; N] = &mut w.data.0;
+        for (i, packed) in self.rows.data.0.iter().enumerate() {
+            let Some((before, rest)) = columns.split_at_mut_checked(i) else { break };
+            let (Some(column), Some((l_ii, below))) = (rest.first_mut(), packed.split_first()) else { break };
+            let Some((head, tail)) = column.split_at_mut_checked(i) else { break };
+            let inverse = T::one() / *l_ii;
+            let ancestors = self.structure.ancestors(i);
+            for (a, l_ia) in ancestors.iter().zip(below.iter()) {
+                if let Some(w_a) = before.get(usize::from(*a)) {
+                    for (x, y) in head.iter_mut().zip(w_a.iter()) {
+                        *x += *l_ia * *y;
+                    }
+                }
+            }
+            for x in head.iter_mut() {
+                *x = -*x * inverse;
+            }
+            let head = &*head;
+            let sum = ancestors
+                .iter()
+                .zip(below.iter())
+                .fold(T::zero(), |s, (a, l_ia)| s + *l_ia * head.get(usize::from(*a)).copied().unwrap_or_else(T::zero));
+            if let Some(d) = tail.first_mut() {
+                *d = (inverse - sum) * inverse;
+            }
+            // Symmetry: row i of the earlier columns.
+            for (w_j, x) in before.iter_mut().zip(head.iter()) {
+                if let Some(y) = w_j.get_mut(i) {
+                    *y = *x;
+                }
+            }
+        }
+        w
     }
 
     /// Solves `M x = b` in place (`x` holds `b` on entry) with the last factor:
     /// `Lᵀ y = b` (from the last coordinate up), then `L x = y` (from the first down), each
     /// along the ancestor chains only.
     pub fn solve_mut(&self, x: &mut SVector<T, N>) {
-        let l = self.factor.as_slice();
-        let parents = &self.parents;
+        let rows = self.rows.as_slice();
         let xs = x.as_mut_slice();
         // Lᵀ y = b: y_k = b_k / L_kk, then b_j −= L_kj y_k for j on the chain of k.
-        for k in (0..N).rev() {
-            let (Some(&l_kk), Some(&b_k)) = (l.get(k * N + k), xs.get(k)) else { continue };
-            let y_k = b_k / l_kk;
-            if let Some(x) = xs.get_mut(k) {
-                *x = y_k;
+        for (k, packed) in rows.chunks_exact(N).enumerate().rev() {
+            let (Some((l_kk, below)), Some(b_k)) = (packed.split_first(), xs.get_mut(k)) else { continue };
+            let y_k = *b_k / *l_kk;
+            *b_k = y_k;
+            if y_k == T::zero() {
+                continue;
             }
-            let mut next = chain(parents, k);
-            while let Some(j) = next {
-                if let (Some(&l_kj), Some(x)) = (l.get(j * N + k), xs.get_mut(j)) {
-                    *x -= l_kj * y_k;
+            for (a, l_kj) in self.structure.ancestors(k).iter().zip(below.iter()) {
+                if let Some(x) = xs.get_mut(usize::from(*a)) {
+                    *x -= *l_kj * y_k;
                 }
-                next = chain(parents, j);
             }
         }
         // L x = y: x_k = (y_k − Σ_j L_kj x_j) / L_kk over the chain of k.
-        for k in 0..N {
+        for (k, packed) in rows.chunks_exact(N).enumerate() {
+            let Some((l_kk, below)) = packed.split_first() else { continue };
             let mut sum = xs.get(k).copied().unwrap_or_else(T::zero);
-            let mut next = chain(parents, k);
-            while let Some(j) = next {
-                if let (Some(&l_kj), Some(&x_j)) = (l.get(j * N + k), xs.get(j)) {
-                    sum -= l_kj * x_j;
-                }
-                next = chain(parents, j);
+            for (a, l_kj) in self.structure.ancestors(k).iter().zip(below.iter()) {
+                sum -= *l_kj * xs.get(usize::from(*a)).copied().unwrap_or_else(T::zero);
             }
-            if let (Some(&l_kk), Some(x)) = (l.get(k * N + k), xs.get_mut(k)) {
-                *x = sum / l_kk;
+            if let Some(x) = xs.get_mut(k) {
+                *x = sum / *l_kk;
             }
         }
     }
 }
 
-/// `λ(k)`, guarded to be `< k` (so every chain walk terminates).
-#[inline]
-fn chain<const N: usize>(parents: &[Option<usize>; N], k: usize) -> Option<usize> {
-    parents.get(k).copied().flatten().filter(|p| *p < k)
+/// A factor of the (closed-loop) inertia that consumers read `M⁻¹` from: the dense
+/// `M = L Lᵀ` (nalgebra's Cholesky) or the tree-sparse `M = Lᵀ L`.
+#[derive(Clone, Copy, Debug)]
+pub enum InertiaFactor<'a, T: RealField, const N: usize> {
+    /// Dense `M = L Lᵀ`.
+    Dense(&'a Cholesky<T, Const<N>>),
+    /// Tree-sparse `M = Lᵀ L` ([`TreeFactorization`]).
+    Tree(&'a TreeFactorization<T, N>),
+}
+
+impl<'a, T: RealField, const N: usize> From<&'a Cholesky<T, Const<N>>> for InertiaFactor<'a, T, N> {
+    fn from(factor: &'a Cholesky<T, Const<N>>) -> Self {
+        Self::Dense(factor)
+    }
+}
+
+impl<'a, T: RealField, const N: usize> From<&'a TreeFactorization<T, N>> for InertiaFactor<'a, T, N> {
+    fn from(factor: &'a TreeFactorization<T, N>) -> Self {
+        Self::Tree(factor)
+    }
 }
 
 #[cfg(test)]
@@ -206,7 +411,7 @@ mod tests {
         let m = *crba(&model, &mut data);
         let mut tree = TreeFactorization::new(&model);
         tree.factorize(&m).unwrap();
-        let l = tree.factor().map(|e| nalgebra::try_convert::<T, f64>(e).unwrap());
+        let l = tree.lower().map(|e| nalgebra::try_convert::<T, f64>(e).unwrap());
         let m64 = m.map(|e| nalgebra::try_convert::<T, f64>(e).unwrap());
         let scale = m64.amax();
         // L is lower triangular and LᵀL reproduces M.
@@ -219,15 +424,76 @@ mod tests {
         let x = x.map(|e| nalgebra::try_convert::<T, f64>(e).unwrap());
         let dense = Cholesky::new(m64).unwrap().solve(&b);
         prop_assert!((x - dense).amax() < tol * 1e3 * (1.0 + dense.amax()), "{}", (x - dense).amax());
+        // (J L⁻¹)(J L⁻¹)ᵀ = J M⁻¹ Jᵀ for a 3 × N matrix with a zero column (outside a support path).
+        let mut j = SMatrix::<f64, 3, N>::from_fn(|r, c| state(seed ^ (r as u64 + 3), 1.0)[c]);
+        j.column_mut(N - 1).fill(0.0);
+        let mut x = j.map(|e| nalgebra::convert::<f64, T>(e));
+        tree.right_solve_mut(&mut x);
+        let x = x.map(|e| nalgebra::try_convert::<T, f64>(e).unwrap());
+        let reference = j * m64.try_inverse().unwrap() * j.transpose();
+        let fast = x * x.transpose();
+        prop_assert!((fast - reference).amax() < tol * 1e3 * (1.0 + reference.amax()), "{}", (fast - reference).amax());
+        // M⁻¹ from the tree factor against the dense inverse.
+        let inverse = tree.inverse().map(|e| nalgebra::try_convert::<T, f64>(e).unwrap());
+        let dense_inverse = m64.try_inverse().unwrap();
+        let error = (inverse - dense_inverse).amax();
+        prop_assert!(error < tol * 1e3 * (1.0 + dense_inverse.amax()), "{}", error);
         Ok(())
     }
 
     proptest! {
-        /// f64 and f32: `LᵀL = M` and the tree solve equals the dense Cholesky solve.
+        /// f64 and f32: `LᵀL = M`, the tree solve equals the dense Cholesky solve and the right solve
+        /// gives `J M⁻¹ Jᵀ`.
         #[test]
         fn tree_factorization_matches_dense_cholesky(seed in any::<u64>()) {
             check::<f64>(seed, 1e-13)?;
             check::<f32>(seed, 1e-5)?;
+        }
+    }
+
+    /// `decouple` of the factor of `M` equals (to the bit) the factorization of `M` with the
+    /// decoupled rows and columns cleared to a new diagonal, for root sets (no refactorization)
+    /// and for a set that is not closed under ancestors (refactorized); a non-positive
+    /// decoupled diagonal is rejected.
+    fn check_decouple<T: RealField + Copy>(seed: u64) {
+        let model = branched::<T>();
+        let mut data = Data::new(&model);
+        let q = state(seed, 2.0).map(|e| nalgebra::convert::<f64, T>(e));
+        forward_kinematics(&model, &mut data, &q, &SVector::zeros()).unwrap();
+        let m = *crba(&model, &mut data);
+        let mut plain = TreeFactorization::new(&model);
+        plain.factorize(&m).unwrap();
+        for set in [&[0_usize][..], &[0, 1], &[2], &[1, 4]] {
+            let mut decoupled = [false; N];
+            let mut cleared = m;
+            for &c in set {
+                decoupled[c] = true;
+                let diagonal = nalgebra::convert::<f64, T>(0.5 + c as f64);
+                cleared.row_mut(c).fill(T::zero());
+                cleared.column_mut(c).fill(T::zero());
+                cleared[(c, c)] = diagonal;
+            }
+            let mut fast = plain.clone();
+            fast.decouple(&decoupled, &cleared).unwrap();
+            let mut reference = TreeFactorization::new(&model);
+            reference.factorize(&cleared).unwrap();
+            assert_eq!(fast.lower(), reference.lower(), "set {set:?}");
+            // The inverse of the decoupled factor is the inverse of the cleared matrix.
+            let to64 = |x: SMatrix<T, N, N>| x.map(|e| nalgebra::try_convert::<T, f64>(e).unwrap());
+            let dense_inverse = to64(cleared).try_inverse().unwrap();
+            let tol = if core::mem::size_of::<T>() == 8 { 1e-10 } else { 1e-3 };
+            assert!((to64(fast.inverse()) - dense_inverse).amax() < tol * (1.0 + dense_inverse.amax()), "set {set:?}");
+            cleared[(set[0], set[0])] = T::zero();
+            let mut fast = plain.clone();
+            assert_eq!(fast.decouple(&decoupled, &cleared), Err(DynamicsError::MassMatrixNotPositiveDefinite));
+        }
+    }
+
+    #[test]
+    fn decoupling_equals_factorizing_the_cleared_matrix() {
+        for seed in 0..20 {
+            check_decouple::<f64>(seed);
+            check_decouple::<f32>(seed);
         }
     }
 
@@ -237,7 +503,7 @@ mod tests {
         let tree = TreeFactorization::<f64, N>::new(&model);
         // Trunk 0 (base) – 1 (yaw); branch 2 – 3 (pitch, elbow and the joint coupled to both);
         // branch 4 – 5 (prismatic, wrist) hangs from the yaw, not from the other branch.
-        assert_eq!(tree.parents(), &[None, Some(0), Some(1), Some(2), Some(1), Some(4)]);
+        assert_eq!(tree.parents(), [None, Some(0), Some(1), Some(2), Some(1), Some(4)]);
         let mut t = tree.clone();
         let mut m = SMatrix::<f64, N, N>::identity();
         m[(2, 2)] = -1.0;

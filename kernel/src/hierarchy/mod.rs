@@ -52,6 +52,10 @@ pub enum Weighting<'a, T: nalgebra::RealField, const N: usize> {
     Identity,
     /// `W = M(q)`, given by its Cholesky factor: dynamically consistent (Def. 4.2, (4.29)).
     Inertia(&'a CholeskyFactor<T, N>),
+    /// `W = M(q)`, given by the dense `W⁻¹ = M⁻¹` (e.g. [`crate::dynamics::TreeFactorization::inverse`]
+    /// of the closed-loop inertia): dynamically consistent (Def. 4.2, (4.29)), as
+    /// [`Weighting::Inertia`].
+    InverseInertia(&'a nalgebra::SMatrix<T, N, N>),
     /// `W = K(q₀)`, given by its Cholesky factor: stiffness consistent (Def. 4.3, (4.51)).
     Stiffness(&'a CholeskyFactor<T, N>),
     /// Acceleration-based, dynamically consistent with `W = I` in acceleration space:

@@ -124,12 +124,13 @@ pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS
     *torque = SVector::zeros();
     *count = level_count;
     let mut scratch = Scratch::<T, N>::default();
-    // W⁻¹ = L⁻ᵀL⁻¹ once for all rows that update the projector.
+    // W⁻¹ once for all rows that update the projector: L⁻ᵀL⁻¹ from a Cholesky factor, or given.
     let updates = level_count > 1 || config.diagnose_last_level;
     let metric_inverse = match config.weighting {
         Weighting::Inertia(factor) | Weighting::Stiffness(factor) if updates => {
             Some(cholesky_inverse::<T, N>(factor.l_dirty().as_slice()))
         }
+        Weighting::InverseInertia(inverse) if updates => Some(*inverse),
         _ => None,
     };
     let mut first_slot = 0;

@@ -142,6 +142,7 @@ fn metric_solve<T: RealField + Copy, const N: usize>(
     match weighting {
         Weighting::Identity | Weighting::AccelerationBased(_) => *x,
         Weighting::Inertia(factor) | Weighting::Stiffness(factor) => factor.solve(x),
+        Weighting::InverseInertia(inverse) => *inverse * x,
     }
 }
 

@@ -28,7 +28,7 @@ use nalgebra::{
 
 use super::model::{CollisionData, CollisionModel, CollisionPair};
 use super::volumes::Proximity;
-use crate::dynamics::DynamicsError;
+use crate::dynamics::{DynamicsError, InertiaFactor, TreeFactorization};
 use crate::math::damping::{double_diagonalization, DampingError, ReflectedInertia};
 use crate::math::spatial::linear_at_point;
 use crate::model::{BodyId, Data, Model};
@@ -368,6 +368,14 @@ pub fn evaluate_pair<
     Ok(PairEvaluation { pair, distance: d, jacobian_first, jacobian_second, inverse_masses, damping, row })
 }
 
+/// The inertia factor of the pair rows: the rows of a dense factor ([`factor_rows`]) or the
+/// tree-sparse factor (reflected masses by [`TreeFactorization::inverse_reflected_masses`] over
+/// the support paths of the two Jacobians).
+enum PairFactor<'a, T: RealField, const N: usize> {
+    Rows(SMatrix<T, N, N>),
+    Tree(&'a TreeFactorization<T, N>),
+}
+
 /// The rows of the Cholesky factor `L` of `M = L Lᵀ` as contiguous slices: `Lᵀ` in
 /// column-major storage (column `i` holds row `i` of `L`; only its first `i + 1` entries, the
 /// lower triangle, are written). Built once per [`collision_rows_from_geometry`] call for the
@@ -537,7 +545,7 @@ fn pair_row<
     collision: &CollisionData<T, V, P>,
     model: &Model<T, N, B, F>,
     data: &Data<T, N, B, F>,
-    factor_rows: &SMatrix<T, N, N>,
+    factor: &PairFactor<'_, T, N>,
     parameters: &CollisionParameters<T>,
     pair: usize,
     cache: &mut PairRowCache<T, N, P, C>,
@@ -548,7 +556,7 @@ fn pair_row<
     let cached = match cache.get(pair) {
         Some(entry) => *entry,
         None => {
-            let entry = pair_kinematics(collision_model, proximity, model, data, factor_rows, pair)?;
+            let entry = pair_kinematics(collision_model, proximity, model, data, factor, pair)?;
             cache.insert(pair, entry);
             entry
         }
@@ -574,7 +582,8 @@ fn pair_row<
 
 /// The configuration-dependent part of pair `pair`'s row: the two projected Jacobians written in
 /// place ([`projected_jacobian_into`]), their difference, and both inverse reflected masses
-/// (3.20) by one forward substitution over `factor_rows` ([`inverse_reflected_masses`]; none
+/// (3.20) by one forward substitution over the factor ([`inverse_reflected_masses`] on dense rows,
+/// [`TreeFactorization::inverse_reflected_masses`] on the tree factor; none
 /// for a world-fixed volume, whose mass is infinite). The proximity must have a direction.
 fn pair_kinematics<
     T: RealField + Copy,
@@ -588,7 +597,7 @@ fn pair_kinematics<
     proximity: &Proximity<T>,
     model: &Model<T, N, B, F>,
     data: &Data<T, N, B, F>,
-    factor_rows: &SMatrix<T, N, N>,
+    factor: &PairFactor<'_, T, N>,
     pair: usize,
 ) -> Result<CachedPairRow<T, N>, TaskError> {
     let invalid = TaskError::InvalidParameter { name: "pair" };
@@ -605,14 +614,20 @@ fn pair_kinematics<
     if let Some(body) = b.body {
         projected_jacobian_into(model, data, body, &proximity.core_second, &e, &mut jacobian_second)?;
     }
-    let inverse_mass_sum = match (a.body.is_some(), b.body.is_some()) {
-        (true, true) => {
-            let [wi, wj] = inverse_reflected_masses(factor_rows, [&jacobian_first, &jacobian_second])?;
+    let inverse_mass_sum = match (a.body.is_some(), b.body.is_some(), factor) {
+        (true, true, PairFactor::Rows(rows)) => {
+            let [wi, wj] = inverse_reflected_masses(rows, [&jacobian_first, &jacobian_second])?;
             wi + wj
         }
-        (true, false) => inverse_reflected_masses(factor_rows, [&jacobian_first])?[0],
-        (false, true) => inverse_reflected_masses(factor_rows, [&jacobian_second])?[0],
-        (false, false) => T::zero(),
+        (true, false, PairFactor::Rows(rows)) => inverse_reflected_masses(rows, [&jacobian_first])?[0],
+        (false, true, PairFactor::Rows(rows)) => inverse_reflected_masses(rows, [&jacobian_second])?[0],
+        (true, true, PairFactor::Tree(tree)) => {
+            let [wi, wj] = tree.inverse_reflected_masses([&jacobian_first, &jacobian_second]);
+            wi + wj
+        }
+        (true, false, PairFactor::Tree(tree)) => tree.inverse_reflected_masses([&jacobian_first])[0],
+        (false, true, PairFactor::Tree(tree)) => tree.inverse_reflected_masses([&jacobian_second])[0],
+        (false, false, _) => T::zero(),
     };
     // The difference and its finiteness in one pass (no early exit: a branch-free flag).
     let mut jacobian = RowSVector::<T, N>::zeros();
@@ -651,10 +666,13 @@ pub struct CollisionReport<T> {
 /// and appends one row per selected pair in pair order ([`evaluate_pair`]). Summed alone the
 /// rows give τ_sca of (3.2)/(3.24): `rows.torque()`.
 ///
-/// Preconditions: `forward_kinematics` at `(q, q̇)`, then `crba` and `mass_matrix_cholesky`.
-/// Writes `collision`; appends to `rows`. Cost O(V + P·R) plus O(R·N²). On error `rows` is
+/// Preconditions: `forward_kinematics` at `(q, q̇)`, then `crba` and the inertia factor `mass`
+/// ([`InertiaFactor`]: `mass_matrix_cholesky`'s dense factor, O(R·N²) for the reflected masses,
+/// or a [`TreeFactorization`], O(R·Σ depth) over the support paths).
+/// Writes `collision`; appends to `rows`. Cost O(V + P·R) plus the reflected masses. On error `rows` is
 /// unchanged (the geometry in `collision` is updated).
 pub fn self_collision_rows<
+    'm,
     T: RealField + Copy,
     const N: usize,
     const B: usize,
@@ -667,12 +685,12 @@ pub fn self_collision_rows<
     collision: &mut CollisionData<T, V, P>,
     model: &Model<T, N, B, F>,
     data: &Data<T, N, B, F>,
-    mass_cholesky: &Cholesky<T, Const<N>>,
+    mass: impl Into<InertiaFactor<'m, T, N>>,
     parameters: &CollisionParameters<T>,
     rows: &mut TaskRows<T, N, R>,
 ) -> Result<CollisionReport<T>, TaskError> {
     collision_model.update(data, collision);
-    collision_rows_from_geometry(collision_model, collision, model, data, mass_cholesky, parameters, rows)
+    collision_rows_from_geometry(collision_model, collision, model, data, mass, parameters, rows)
 }
 
 /// [`self_collision_rows`] without the geometry update: selects and evaluates the pairs from
@@ -714,6 +732,7 @@ pub fn self_collision_rows<
 /// assert_eq!(b, c);
 /// ```
 pub fn collision_rows_from_geometry<
+    'm,
     T: RealField + Copy,
     const N: usize,
     const B: usize,
@@ -726,12 +745,12 @@ pub fn collision_rows_from_geometry<
     collision: &CollisionData<T, V, P>,
     model: &Model<T, N, B, F>,
     data: &Data<T, N, B, F>,
-    mass_cholesky: &Cholesky<T, Const<N>>,
+    mass: impl Into<InertiaFactor<'m, T, N>>,
     parameters: &CollisionParameters<T>,
     rows: &mut TaskRows<T, N, R>,
 ) -> Result<CollisionReport<T>, TaskError> {
     let mut cache = PairRowCache::<T, N, P, R>::default();
-    collision_rows_shared(collision_model, collision, model, data, mass_cholesky, parameters, &mut cache, rows)
+    collision_rows_shared(collision_model, collision, model, data, mass, parameters, &mut cache, rows)
 }
 
 /// [`collision_rows_from_geometry`] with the pair rows shared between fields through `cache`:
@@ -741,6 +760,7 @@ pub fn collision_rows_from_geometry<
 /// with a filled one they are equal to them (the same arithmetic).
 #[allow(clippy::too_many_arguments, reason = "the inputs of collision_rows_from_geometry and the cache")]
 pub fn collision_rows_shared<
+    'm,
     T: RealField + Copy,
     const N: usize,
     const B: usize,
@@ -754,7 +774,7 @@ pub fn collision_rows_shared<
     collision: &CollisionData<T, V, P>,
     model: &Model<T, N, B, F>,
     data: &Data<T, N, B, F>,
-    mass_cholesky: &Cholesky<T, Const<N>>,
+    mass: impl Into<InertiaFactor<'m, T, N>>,
     parameters: &CollisionParameters<T>,
     cache: &mut PairRowCache<T, N, P, C>,
     rows: &mut TaskRows<T, N, R>,
@@ -814,7 +834,10 @@ pub fn collision_rows_shared<
     }
     let mut staged: Vec<TaskRow<T, N>, R> = Vec::new();
     if !selected.is_empty() {
-        let factor = factor_rows(mass_cholesky);
+        let factor = match mass.into() {
+            InertiaFactor::Dense(cholesky) => PairFactor::Rows(factor_rows(cholesky)),
+            InertiaFactor::Tree(tree) => PairFactor::Tree(tree),
+        };
         for (index, _) in chosen.iter().enumerate().filter(|(_, &flag)| flag) {
             let row = pair_row(collision_model, collision, model, data, &factor, parameters, index, cache)?;
             staged.push(row).map_err(|_| TaskError::Capacity { capacity: R })?;
@@ -1080,7 +1103,10 @@ mod tests {
         let rows_of_l = factor_rows(&factor);
         for (row, pair) in few.rows()[1..].iter().zip(&closest) {
             let mut cache = PairRowCache::<f64, N, P, 4>::default();
-            assert_eq!(*row, pair_row(&cm, &cd, &robot, &data, &rows_of_l, &p, *pair, &mut cache).unwrap());
+            assert_eq!(
+                *row,
+                pair_row(&cm, &cd, &robot, &data, &PairFactor::Rows(rows_of_l), &p, *pair, &mut cache).unwrap()
+            );
             let e = evaluate_pair(&cm, &cd, &robot, &data, &factor, &p, *pair).unwrap();
             assert!(row_difference(row, &e.row) <= 1e-12, "{row:?} vs {:?}", e.row);
         }
@@ -1129,6 +1155,9 @@ mod tests {
             crba(&robot, &mut data);
             let factor = mass_matrix_cholesky(&data).unwrap();
             let rows_of_l = factor_rows(&factor);
+            let mut tree = TreeFactorization::new(&robot);
+            tree.factorize(&data.mass_matrix).unwrap();
+            let tree_factor = PairFactor::Tree(&tree);
             cm.update(&data, &mut cd);
             for pair in 0..cm.pairs().len() {
                 let proximity = cd.proximities[pair];
@@ -1136,18 +1165,28 @@ mod tests {
                     continue;
                 }
                 let reference = evaluate_pair(&cm, &cd, &robot, &data, &factor, &p, pair).unwrap();
-                let fast = pair_row(&cm, &cd, &robot, &data, &rows_of_l, &p, pair, &mut fresh_cache()).unwrap();
+                let fast =
+                    pair_row(&cm, &cd, &robot, &data, &PairFactor::Rows(rows_of_l), &p, pair, &mut fresh_cache())
+                        .unwrap();
                 // Shared with another field (other force law and damping): the row from the
                 // cache that field filled is the same row, to the bit.
                 let mut shared = fresh_cache();
-                pair_row(&cm, &cd, &robot, &data, &rows_of_l, &other_field, pair, &mut shared).unwrap();
-                assert_eq!(pair_row(&cm, &cd, &robot, &data, &rows_of_l, &p, pair, &mut shared).unwrap(), fast);
+                pair_row(&cm, &cd, &robot, &data, &PairFactor::Rows(rows_of_l), &other_field, pair, &mut shared)
+                    .unwrap();
+                assert_eq!(
+                    pair_row(&cm, &cd, &robot, &data, &PairFactor::Rows(rows_of_l), &p, pair, &mut shared).unwrap(),
+                    fast
+                );
                 let difference = row_difference(&fast, &reference.row);
                 assert!(
                     difference <= tolerance,
                     "seed {seed} pair {pair}: {difference:e}\n{fast:?}\n{:?}",
                     reference.row
                 );
+                // The tree-sparse factor (M = LᵀL, reflected masses over the support paths).
+                let tree_row = pair_row(&cm, &cd, &robot, &data, &tree_factor, &p, pair, &mut fresh_cache()).unwrap();
+                let difference = row_difference(&tree_row, &reference.row);
+                assert!(difference <= tolerance, "tree, seed {seed} pair {pair}: {difference:e}");
                 let [wi, wj] = inverse_reflected_masses(
                     &rows_of_l,
                     [&reference.jacobian_first.transpose().into(), &reference.jacobian_second.transpose().into()],

@@ -60,7 +60,9 @@ mod kinematics;
 pub use dynamic_limits::{joint2_lines, load_torque, TorqueBand, TorqueLimits, TorqueLine, TorsoLoad};
 pub use kinematics::{direction, Arc, JointLine, Range, TorsoGeometry};
 
-use nalgebra::{Cholesky, Const, RealField, RowSVector, SVector, Vector2};
+use nalgebra::{Cholesky, Const, RealField, RowSVector, SMatrix, SVector, Vector2};
+
+use crate::dynamics::{InertiaFactor, TreeFactorization};
 
 use self::distance::ArcBoundary;
 use self::kinematics::{wrap_from, wrap_to_pi};
@@ -507,9 +509,10 @@ fn governing_side<T: RealField + Copy>(side: &Side<T>, q2: T, q3: T) -> Option<b
 /// `m = 1/(j M⁻¹ jᵀ)`, `ḋ = j q̇`; `V = F_max/(3 d₀²)(d₀ − d)³`; `a` the cubic (4.68) of `d`.
 /// Used alone, `τ = Σ jᵀ f = −(∂V_tws/∂q)ᵀ − D_tws q̇`.
 ///
-/// Inputs: `q`, `q̇` (rad, rad/s), the Cholesky factor of `M(q)`
-/// ([`crate::dynamics::mass_matrix_cholesky`]). Cost O(N²) once (two forward substitutions for
-/// the 2×2 block of `M⁻¹` the rows live in), O(1) per row.
+/// Inputs: `q`, `q̇` (rad, rad/s), a factor of `M(q)` ([`InertiaFactor`]: the dense Cholesky
+/// factor of [`crate::dynamics::mass_matrix_cholesky`], O(N²) once for two forward
+/// substitutions, or a [`TreeFactorization`], O(depth) along the two coordinates' chains) for
+/// the 2×2 block of `M⁻¹` the rows live in; O(1) per row.
 /// Errors (the row list is unchanged): [`TaskError::NonFinite`], [`TaskError::Capacity`] if
 /// fewer than [`BOUNDARIES`] rows are free.
 ///
@@ -534,11 +537,11 @@ fn governing_side<T: RealField + Copy>(side: &Side<T>, q2: T, q3: T) -> Option<b
 /// assert!(d > 0.0 && d < 0.1);
 /// assert!((row.force - 5000.0 * (0.1 - d).powi(2)).abs() < 1e-9);
 /// ```
-pub fn torso_workspace<T: RealField + Copy, const N: usize, const R: usize>(
+pub fn torso_workspace<'m, T: RealField + Copy, const N: usize, const R: usize>(
     task: &TorsoWorkspace<T, N>,
     q: &SVector<T, N>,
     v: &SVector<T, N>,
-    inertia: &Cholesky<T, Const<N>>,
+    inertia: impl Into<InertiaFactor<'m, T, N>>,
     rows: &mut TaskRows<T, N, R>,
 ) -> Result<TorsoWorkspaceReport<T>, TaskError> {
     if !(crate::math::all_finite(q) && crate::math::all_finite(v)) {
@@ -559,8 +562,14 @@ pub fn torso_workspace<T: RealField + Copy, const N: usize, const R: usize>(
     // Every row lives in the columns (i2, i3): j M⁻¹ jᵀ = lᵀ W l with l = (∂d/∂p_t)ᵀ J_t and W
     // the 2×2 block of M⁻¹ on (i2, i3), W_ab = (L⁻¹ e_a)·(L⁻¹ e_b) for M = L Lᵀ: two forward
     // substitutions (from the coordinate on) for all rows instead of one full solve per row.
-    let block =
-        if report.distances.iter().any(Option::is_some) { inverse_block(inertia, i2, i3) } else { [T::zero(); 3] };
+    let block = if report.distances.iter().any(Option::is_some) {
+        match inertia.into() {
+            InertiaFactor::Dense(factor) => inverse_block(factor, i2, i3),
+            InertiaFactor::Tree(factor) => inverse_block_tree(factor, i2, i3),
+        }
+    } else {
+        [T::zero(); 3]
+    };
     let [w22, w23, w33] = block;
     let (v2, v3) = (v.get(i2).copied().unwrap_or_else(T::zero), v.get(i3).copied().unwrap_or_else(T::zero));
     let mut new_rows =
@@ -623,6 +632,32 @@ fn inverse_block<T: RealField + Copy, const N: usize>(inertia: &Cholesky<T, Cons
         a.as_slice().iter().zip(b.as_slice().iter()).fold(T::zero(), |s, (x, y)| s + *x * *y)
     };
     [dot(&y2, &y2), dot(&y2, &y3), dot(&y3, &y3)]
+}
+
+/// [`inverse_block`] on the tree-sparse factor `M = Lᵀ L`: `X = E L⁻¹` for the two unit rows
+/// `E = (e_i2, e_i3)ᵀ` ([`TreeFactorization::right_solve_mut`], only the ancestor chains of
+/// the two coordinates are touched) and `W = X Xᵀ`.
+fn inverse_block_tree<T: RealField + Copy, const N: usize>(
+    inertia: &TreeFactorization<T, N>,
+    i2: usize,
+    i3: usize,
+) -> [T; 3] {
+    let mut x = SMatrix::<T, 2, N>::zeros();
+    if let Some(e) = x.get_mut((0, i2)) {
+        *e = T::one();
+    }
+    if let Some(e) = x.get_mut((1, i3)) {
+        *e = T::one();
+    }
+    inertia.right_solve_mut(&mut x);
+    let (mut w22, mut w23, mut w33) = (T::zero(), T::zero(), T::zero());
+    for column in x.data.0.iter() {
+        let [a, b] = *column;
+        w22 += a * a;
+        w23 += a * b;
+        w33 += b * b;
+    }
+    [w22, w23, w33]
 }
 
 #[cfg(test)]

@@ -497,3 +497,58 @@ fn row_loop_matches_the_reference_f32() {
     let worst = fast_matches_reference::<f32>(1e-5);
     eprintln!("torso fast vs reference, f32: {worst:e}");
 }
+
+/// [`torso_workspace`] on the tree-sparse factor of the branched test model's `M` (torso
+/// coordinates 2 and 3 on one branch, 1 their common ancestor) against
+/// [`reference_torso_workspace`] on the dense Cholesky factor, f64 and f32.
+fn tree_factor_matches_reference<T: RealField + Copy>(tolerance: f64) -> f64 {
+    use crate::dynamics::{crba, forward_kinematics};
+    use crate::model::Data;
+    use crate::test_models::{branched, state as model_state, N};
+    let model = branched::<T>();
+    let mut data = Data::new(&model);
+    let mut tree = TreeFactorization::new(&model);
+    let mut rng = Lcg(0xFACADE);
+    let (mut worst, mut active) = (0.0_f64, 0);
+    for case in 0..300_u64 {
+        let (force, angle) = (300.0 + 700.0 * rng.next(), 360.0 * rng.next());
+        let mut cfg = config::<T>(force, angle, 150.0 + 150.0 * rng.next());
+        cfg.coordinates = [2, 3];
+        let task = TorsoWorkspace::<T, N>::try_new(cfg).unwrap();
+        let (q2, q3) = torso_sample(&mut rng);
+        let mut q = model_state(case, 1.5);
+        (q[2], q[3]) = (q2, q3);
+        let (q, v) = (q.cast::<T>(), model_state(case ^ 7, 1.0).cast::<T>());
+        forward_kinematics(&model, &mut data, &q, &v).unwrap();
+        crba(&model, &mut data);
+        tree.factorize(&data.mass_matrix).unwrap();
+        let dense = Cholesky::new(data.mass_matrix).unwrap();
+        let (mut fast_rows, mut plain_rows) =
+            (TaskRows::<T, N, BOUNDARIES>::new(), TaskRows::<T, N, BOUNDARIES>::new());
+        let fast = torso_workspace(&task, &q, &v, &tree, &mut fast_rows).unwrap();
+        let plain = reference_torso_workspace(&task, &q, &v, &dense, &mut plain_rows).unwrap();
+        assert_eq!(fast, plain, "case {case}");
+        for (a, b) in fast_rows.rows().iter().zip(plain_rows.rows()) {
+            let to_f64 = |x: T| -> f64 { nalgebra::try_convert(x).unwrap() };
+            assert_eq!(a.jacobian, b.jacobian);
+            let error = to_f64((a.force - b.force).abs()) / (to_f64(b.force.abs()) + 1.0);
+            worst = worst.max(error);
+            assert!(error <= tolerance, "case {case}: {} vs {}", a.force, b.force);
+            active += usize::from(b.activation > T::zero() && b.force != T::zero());
+        }
+    }
+    assert!(active > 30, "rows with force seen: {active}");
+    worst
+}
+
+#[test]
+fn tree_factor_matches_the_reference_f64() {
+    let worst = tree_factor_matches_reference::<f64>(1e-12);
+    eprintln!("torso tree vs reference, f64: {worst:e}");
+}
+
+#[test]
+fn tree_factor_matches_the_reference_f32() {
+    let worst = tree_factor_matches_reference::<f32>(1e-5);
+    eprintln!("torso tree vs reference, f32: {worst:e}");
+}
