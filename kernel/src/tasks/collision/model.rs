@@ -169,10 +169,14 @@ impl<T: RealField + Copy, const V: usize, const P: usize> CollisionModel<T, V, P
             if let (Some(limit), Some((ca, ra)), Some((cb, rb))) =
                 (*exact_within, bounding_spheres.get(pair.first.0), bounding_spheres.get(pair.second.0))
             {
-                let gap = (ca - cb).norm() - *ra - *rb;
-                if gap > limit {
-                    *slot = Proximity { distance: gap, core_first: *ca, core_second: *cb, direction: None };
-                    continue;
+                // Squared comparison first: the square root only for the pairs that may be far.
+                let (separation2, reach) = ((ca - cb).norm_squared(), limit + *ra + *rb);
+                if reach <= T::zero() || separation2 > reach * reach {
+                    let gap = separation2.sqrt() - *ra - *rb;
+                    if gap > limit {
+                        *slot = Proximity { distance: gap, core_first: *ca, core_second: *cb, direction: None };
+                        continue;
+                    }
                 }
             }
             *slot = proximity(a, b);
