@@ -335,6 +335,15 @@ impl<T: RealField + Copy> TriangleFrame<T> {
         self.plane.as_ref().map(|plane| plane.normal.dot(&(p - a)))
     }
 
+    /// A lower bound of the squared distance of any point of the triangle's plane to the
+    /// segment whose ends have the heights `hp`, `hq`, as `(min(hp², hq²), ‖n‖²)` (the bound is
+    /// their quotient): `None` (no bound) unless both ends are strictly on one side.
+    #[inline]
+    fn clearance(&self, hp: Option<T>, hq: Option<T>) -> Option<(T, T)> {
+        let (plane, hp, hq) = (self.plane.as_ref()?, hp?, hq?);
+        (hp * hq > T::zero()).then(|| ((hp * hp).min(hq * hq), plane.normal_length2))
+    }
+
     /// `true` if the projection of `x` onto the plane lies inside or on the triangle: `x` is on
     /// the inner side of the three edges, `(n × e_k) · (x − v_k) ≥ 0` (the triple products
     /// `n · (e_k × (x − v_k))` of [`closest_on_triangle`]'s test, regrouped).
@@ -411,6 +420,16 @@ impl<T: RealField + Copy> Nearest<T> {
         Self { pair: (Vector3::zeros(), Vector3::zeros()), distance2: None }
     }
 
+    /// `true` if no pair at a squared distance of at least the [`TriangleFrame::clearance`]
+    /// `bound` can beat the nearest so far.
+    #[inline]
+    fn excludes(&self, bound: Option<(T, T)>) -> bool {
+        match (self.distance2, bound) {
+            (Some(best), Some((h2, n2))) => h2 >= best * n2,
+            _ => false,
+        }
+    }
+
     #[inline]
     fn offer(&mut self, x: &Vector3<T>, y: &Vector3<T>) {
         let d = (y - x).norm_squared();
@@ -436,7 +455,8 @@ fn closest_on_triangle<T: RealField + Copy>(p: &Vector3<T>, t: &[Vector3<T>; 3])
 /// pair `(x, y)` has `x − y` in the normal cone of the triangle at `y`, so with `y` on edge `k`
 /// either `x` lies outside edge `k` (then an end does) or `x` lies above `y` at the distance of
 /// an end that projects inside; an end outside the triangle is no closer than the segment
-/// against an edge it lies outside of.
+/// against an edge it lies outside of. The edges are skipped when the segment's distance from
+/// the plane is no less than the nearest end's.
 fn closest_segment_triangle<T: RealField + Copy>(
     p: &Vector3<T>,
     q: &Vector3<T>,
@@ -454,6 +474,9 @@ fn closest_segment_triangle<T: RealField + Copy>(
             nearest.offer(x, &y);
         }
     }
+    if nearest.excludes(frame.clearance(hp, hq)) {
+        return nearest.pair;
+    }
     let d = q - p;
     let a = d.norm_squared();
     for (((v, e), &length2), (inner_p, inner_q)) in
@@ -467,69 +490,65 @@ fn closest_segment_triangle<T: RealField + Copy>(
     nearest.pair
 }
 
-/// Closest points of two triangles: the nearest of the six edge–triangle pairs of
-/// [`closest_segment_triangle`], in the order (edges of `s` against `t`, then edges of `t`
-/// against `s`), with each plane, vertex height, side and projection computed once and each
-/// edge–edge pair at most once (offered if an end of either edge lies outside the other edge).
-/// The search ends at the first pair at distance zero.
+/// Closest points of two triangles: the nearest of the candidates of the six edge–triangle
+/// pairs of [`closest_segment_triangle`] (edges of `s` against `t`, then edges of `t` against
+/// `s`). The first piercing edge gives a crossing point; else the vertices that project inside
+/// the other triangle, then each edge–edge pair once, if an end of either edge lies outside the
+/// other edge and neither edge's distance from the other triangle's plane rules it out. Each
+/// plane, vertex height, side and projection is computed once.
 fn closest_triangle_triangle<T: RealField + Copy>(
     s: &[Vector3<T>; 3],
     t: &[Vector3<T>; 3],
 ) -> (Vector3<T>, Vector3<T>) {
     let (fs, ft) = (TriangleFrame::new(s), TriangleFrame::new(t));
-    let [ha, hb, hc] = s.each_ref().map(|v| ft.height(v));
-    let [hd, he, hf] = t.each_ref().map(|v| fs.height(v));
     let [a, b, c] = s;
     let [d, e, f] = t;
-    let [sa, sb, sc] = s.each_ref().map(|v| ft.sides(v));
-    let [sd, se, sf] = t.each_ref().map(|v| fs.sides(v));
-    let [pa, pb, pc] = [(a, ha, sa), (b, hb, sb), (c, hc, sc)].map(|(v, h, side)| ft.projection(v, h, side));
-    let [pd, pe, pf] = [(d, hd, sd), (e, he, se), (f, hf, sf)].map(|(v, h, side)| fs.projection(v, h, side));
-    // Edge k of t lies outside edge j of s at an end: `outer_t[k][j]`.
-    let outer = |[x0, x1, x2]: [bool; 3], [y0, y1, y2]: [bool; 3]| [!(x0 && y0), !(x1 && y1), !(x2 && y2)];
-    let outer_t = [outer(sd, se), outer(se, sf), outer(sf, sd)];
-    let zero = Some(T::zero());
-    let mut nearest = Nearest::new();
-    let edges_s = fs.edges.iter().zip(&fs.edge_length2);
-    let ends_s = [(a, ha, sa, pa), (b, hb, sb, pb), (c, hc, sc, pc)];
-    for (j, (((p, hp, sp, pp), (q, hq, sq, pq)), (edge, &length2))) in
-        ends_s.into_iter().zip([(b, hb, sb, pb), (c, hc, sc, pc), (a, ha, sa, pa)]).zip(edges_s).enumerate()
-    {
+    let [ha, hb, hc] = s.each_ref().map(|v| ft.height(v));
+    let [hd, he, hf] = t.each_ref().map(|v| fs.height(v));
+    let edges_s = [(a, b, ha, hb), (b, c, hb, hc), (c, a, hc, ha)];
+    let edges_t = [(d, e, hd, he), (e, f, he, hf), (f, d, hf, hd)];
+    for (p, q, hp, hq) in edges_s {
         if let Some(x) = ft.piercing(p, q, hp, hq) {
             return (x, x);
         }
-        for (x, end) in [(p, pp), (q, pq)] {
-            if let Some(y) = end {
-                nearest.offer(x, &y);
-            }
+    }
+    for (p, q, hp, hq) in edges_t {
+        if let Some(x) = fs.piercing(p, q, hp, hq) {
+            return (x, x);
+        }
+    }
+    let [sa, sb, sc] = s.each_ref().map(|v| ft.sides(v));
+    let [sd, se, sf] = t.each_ref().map(|v| fs.sides(v));
+    let mut nearest = Nearest::new();
+    for (v, h, side) in [(a, ha, sa), (b, hb, sb), (c, hc, sc)] {
+        if let Some(y) = ft.projection(v, h, side) {
+            nearest.offer(v, &y);
+        }
+    }
+    for (v, h, side) in [(d, hd, sd), (e, he, se), (f, hf, sf)] {
+        if let Some(x) = fs.projection(v, h, side) {
+            nearest.offer(&x, v);
+        }
+    }
+    // Edge k of t has an end outside edge j of s: `outer_t[k][j]`; the bound of edge k of t.
+    let outer = |[x0, x1, x2]: [bool; 3], [y0, y1, y2]: [bool; 3]| [!(x0 && y0), !(x1 && y1), !(x2 && y2)];
+    let outer_t = [outer(sd, se), outer(se, sf), outer(sf, sd)];
+    let bounds_t = edges_t.map(|(_, _, hp, hq)| fs.clearance(hp, hq));
+    let sides_s = [(sa, sb), (sb, sc), (sc, sa)];
+    for (j, (((p, _, hp, hq), (sp, sq)), (edge, &length2))) in
+        edges_s.into_iter().zip(sides_s).zip(fs.edges.iter().zip(&fs.edge_length2)).enumerate()
+    {
+        let bound_s = ft.clearance(hp, hq);
+        if nearest.excludes(bound_s) {
+            continue;
         }
         let outer_s = outer(sp, sq);
-        for ((((v, e), &e2), out_s), out_t) in
-            ft.vertices.iter().zip(&ft.edges).zip(&ft.edge_length2).zip(outer_s).zip(&outer_t)
-        {
-            if out_s || out_t.get(j).copied().unwrap_or(true) {
+        let edges = ft.vertices.iter().zip(&ft.edges).zip(&ft.edge_length2);
+        for ((((v, e), &e2), out_s), (out_t, bound_t)) in edges.zip(outer_s).zip(outer_t.iter().zip(&bounds_t)) {
+            if (out_s || out_t.get(j).copied().unwrap_or(true)) && !nearest.excludes(*bound_t) {
                 let (x, y) = closest_edge_edge(p, edge, length2, v, e, e2);
                 nearest.offer(&x, &y);
             }
-        }
-        if nearest.distance2 == zero {
-            return nearest.pair;
-        }
-    }
-    for ((p, hp, pp), (q, hq, pq)) in
-        [(d, hd, pd), (e, he, pe), (f, hf, pf)].into_iter().zip([(e, he, pe), (f, hf, pf), (d, hd, pd)])
-    {
-        if let Some(x) = fs.piercing(p, q, hp, hq) {
-            // Nothing offered so far is at distance zero.
-            return (x, x);
-        }
-        for (y, end) in [(p, pp), (q, pq)] {
-            if let Some(x) = end {
-                nearest.offer(&x, y);
-            }
-        }
-        if nearest.distance2 == zero {
-            return nearest.pair;
         }
     }
     nearest.pair
