@@ -297,145 +297,150 @@ fn triangle_normal<T: RealField + Copy>([a, b, c]: &[Vector3<T>; 3]) -> Option<V
     (n.norm_squared() > eps * eps * scale * scale + negligible::<T>()).then_some(n)
 }
 
-/// The plane of a non-degenerate triangle: normal `n` ([`triangle_normal`]), `‖n‖²`, and the
-/// in-plane edge normals `n × e_k` that point into the triangle.
-#[derive(Clone, Copy)]
-struct TrianglePlane<T: RealField> {
-    normal: Vector3<T>,
-    normal_length2: T,
-    edge_normals: [Vector3<T>; 3],
-}
-
 /// A triangle `(v₀, v₁, v₂)` with the quantities every distance test against it shares: the
-/// edges `e_k = v_{k+1} − v_k` and `‖e_k‖²`, and its plane (`None` for a degenerate triangle).
+/// edges `e_k = v_{k+1} − v_k` and `‖e_k‖²`; if it is not degenerate (`planar`), its normal `n`
+/// ([`triangle_normal`]), `‖n‖²` and the in-plane edge normals `n × e_k` that point into the
+/// triangle (zeros and one for a degenerate triangle, which has no plane).
 #[derive(Clone, Copy)]
 struct TriangleFrame<T: RealField> {
     vertices: [Vector3<T>; 3],
     edges: [Vector3<T>; 3],
     edge_length2: [T; 3],
-    plane: Option<TrianglePlane<T>>,
+    planar: bool,
+    normal: Vector3<T>,
+    normal_length2: T,
+    edge_normals: [Vector3<T>; 3],
 }
 
 impl<T: RealField + Copy> TriangleFrame<T> {
     fn new(t: &[Vector3<T>; 3]) -> Self {
         let [a, b, c] = t;
         let edges = [b - a, c - b, a - c];
-        let plane = triangle_normal(t).map(|normal| TrianglePlane {
-            normal,
-            normal_length2: normal.norm_squared(),
-            edge_normals: edges.each_ref().map(|e| normal.cross(e)),
-        });
-        Self { vertices: *t, edges, edge_length2: edges.each_ref().map(|e| e.norm_squared()), plane }
+        let edge_length2 = edges.each_ref().map(|e| e.norm_squared());
+        match triangle_normal(t) {
+            Some(normal) => Self {
+                vertices: *t,
+                edges,
+                edge_length2,
+                planar: true,
+                normal,
+                normal_length2: normal.norm_squared(),
+                edge_normals: edges.each_ref().map(|e| normal.cross(e)),
+            },
+            None => Self {
+                vertices: *t,
+                edges,
+                edge_length2,
+                planar: false,
+                normal: Vector3::zeros(),
+                normal_length2: T::one(),
+                edge_normals: [Vector3::zeros(); 3],
+            },
+        }
     }
 
-    /// Signed height `n · (p − v₀)` of `p` above the plane (unnormalised), if there is one.
+    /// Signed height `n · (p − v₀)` of `p` above the plane (unnormalised; zero without a plane).
     #[inline]
-    fn height(&self, p: &Vector3<T>) -> Option<T> {
+    fn height(&self, p: &Vector3<T>) -> T {
         let [a, _, _] = &self.vertices;
-        self.plane.as_ref().map(|plane| plane.normal.dot(&(p - a)))
+        self.normal.dot(&(p - a))
     }
 
     /// A lower bound of the squared distance of any point of the triangle's plane to the
     /// segment whose ends have the heights `hp`, `hq`, as `(min(hp², hq²), ‖n‖²)` (the bound is
-    /// their quotient): `None` (no bound) unless both ends are strictly on one side.
+    /// their quotient): zero unless both ends are strictly on one side of a plane.
     #[inline]
-    fn clearance(&self, hp: Option<T>, hq: Option<T>) -> Option<(T, T)> {
-        let (plane, hp, hq) = (self.plane.as_ref()?, hp?, hq?);
-        (hp * hq > T::zero()).then(|| ((hp * hp).min(hq * hq), plane.normal_length2))
+    fn clearance(&self, hp: T, hq: T) -> (T, T) {
+        if self.planar && hp * hq > T::zero() {
+            ((hp * hp).min(hq * hq), self.normal_length2)
+        } else {
+            (T::zero(), T::one())
+        }
     }
 
-    /// `true` if the projection of `x` onto the plane lies inside or on the triangle: `x` is on
-    /// the inner side of the three edges, `(n × e_k) · (x − v_k) ≥ 0` (the triple products
-    /// `n · (e_k × (x − v_k))` of [`closest_on_triangle`]'s test, regrouped).
+    /// For each edge `k`, `true` if `x` lies on its inner side, `(n × e_k) · (x − v_k) ≥ 0`
+    /// (the triple products `n · (e_k × (x − v_k))` of [`closest_on_triangle`]'s test,
+    /// regrouped): all `true` if the projection of `x` onto the plane lies inside or on the
+    /// triangle; all `false` for a degenerate triangle.
     #[inline]
-    fn inside(&self, plane: &TrianglePlane<T>, x: &Vector3<T>) -> [bool; 3] {
+    fn sides(&self, x: &Vector3<T>) -> [bool; 3] {
+        if !self.planar {
+            return [false; 3];
+        }
         let zero = T::zero();
-        let [m0, m1, m2] = &plane.edge_normals;
+        let [m0, m1, m2] = &self.edge_normals;
         let [a, b, c] = &self.vertices;
         [m0.dot(&(x - a)) >= zero, m1.dot(&(x - b)) >= zero, m2.dot(&(x - c)) >= zero]
+    }
+
+    /// The projection of `x` (height `height`) onto the plane if `sides` (its [`Self::sides`])
+    /// puts it inside or on the triangle.
+    #[inline]
+    fn projection(&self, x: &Vector3<T>, height: T, sides: [bool; 3]) -> Option<Vector3<T>> {
+        (sides == [true; 3]).then(|| x - self.normal * (height / self.normal_length2))
     }
 
     /// Closest point to `p` on the triangle, with `height = self.height(p)`: the projection onto
     /// the plane if it falls inside, else the nearest point of the edges `p` lies outside of
     /// (the closest point of a triangle to an outside point is on such an edge; all three
     /// edges for a degenerate triangle).
-    fn closest_point(&self, p: &Vector3<T>, height: Option<T>) -> Vector3<T> {
-        let mut outside = [true; 3];
-        if let (Some(plane), Some(h)) = (self.plane.as_ref(), height) {
-            let inside = self.inside(plane, p);
-            if inside == [true; 3] {
-                return p - plane.normal * (h / plane.normal_length2);
-            }
-            outside = inside.map(|i| !i);
+    fn closest_point(&self, p: &Vector3<T>, height: T) -> Vector3<T> {
+        let sides = self.sides(p);
+        if let Some(x) = self.projection(p, height, sides) {
+            return x;
         }
         let mut nearest = Nearest::new();
-        for (((v, e), &length2), out) in self.vertices.iter().zip(&self.edges).zip(&self.edge_length2).zip(outside) {
-            if out {
+        for (((v, e), &length2), inner) in self.vertices.iter().zip(&self.edges).zip(&self.edge_length2).zip(sides) {
+            if !inner {
                 nearest.offer(p, &closest_on_edge(p, v, e, length2));
             }
         }
         nearest.pair.1
     }
 
-    /// The point where the segment `[p, q]` pierces the triangle, given the heights `hp`, `hq`
+    /// The point where the segment `[p, q]` pierces the triangle, given the heights `dp`, `dq`
     /// of its ends, if it does.
-    fn piercing(&self, p: &Vector3<T>, q: &Vector3<T>, hp: Option<T>, hq: Option<T>) -> Option<Vector3<T>> {
-        let (plane, dp, dq) = (self.plane.as_ref()?, hp?, hq?);
+    #[inline]
+    fn piercing(&self, p: &Vector3<T>, q: &Vector3<T>, dp: T, dq: T) -> Option<Vector3<T>> {
         let zero = T::zero();
         let crosses = (dp <= zero && dq >= zero) || (dp >= zero && dq <= zero);
-        if crosses && dp != dq {
+        if self.planar && crosses && dp != dq {
             let x = p + (q - p) * (dp / (dp - dq));
-            if self.inside(plane, &x) == [true; 3] {
+            if self.sides(&x) == [true; 3] {
                 return Some(x);
             }
         }
         None
-    }
-
-    /// For each edge `k`, `true` if `x` lies on the inner side of it ([`Self::inside`]);
-    /// all `false` for a degenerate triangle.
-    #[inline]
-    fn sides(&self, x: &Vector3<T>) -> [bool; 3] {
-        self.plane.as_ref().map_or([false; 3], |plane| self.inside(plane, x))
-    }
-
-    /// The projection of `x` (height `height`) onto the plane if `sides` (its [`Self::sides`])
-    /// puts it inside or on the triangle.
-    #[inline]
-    fn projection(&self, x: &Vector3<T>, height: Option<T>, sides: [bool; 3]) -> Option<Vector3<T>> {
-        let (plane, h) = (self.plane.as_ref()?, height?);
-        (sides == [true; 3]).then(|| x - plane.normal * (h / plane.normal_length2))
     }
 }
 
 /// The running nearest of candidate pairs (the first wins ties).
 struct Nearest<T: RealField> {
     pair: (Vector3<T>, Vector3<T>),
-    distance2: Option<T>,
+    distance2: T,
+    empty: bool,
 }
 
 impl<T: RealField + Copy> Nearest<T> {
     #[inline]
     fn new() -> Self {
-        Self { pair: (Vector3::zeros(), Vector3::zeros()), distance2: None }
+        Self { pair: (Vector3::zeros(), Vector3::zeros()), distance2: T::zero(), empty: true }
     }
 
     /// `true` if no pair at a squared distance of at least the [`TriangleFrame::clearance`]
-    /// `bound` can beat the nearest so far.
+    /// `(h2, n2)` (that is `h2 / n2`) can beat the nearest so far.
     #[inline]
-    fn excludes(&self, bound: Option<(T, T)>) -> bool {
-        match (self.distance2, bound) {
-            (Some(best), Some((h2, n2))) => h2 >= best * n2,
-            _ => false,
-        }
+    fn excludes(&self, (h2, n2): (T, T)) -> bool {
+        !self.empty && h2 >= self.distance2 * n2
     }
 
     #[inline]
     fn offer(&mut self, x: &Vector3<T>, y: &Vector3<T>) {
         let d = (y - x).norm_squared();
-        if self.distance2.is_none_or(|b| d < b) {
+        if self.empty || d < self.distance2 {
             self.pair = (*x, *y);
-            self.distance2 = Some(d);
+            self.distance2 = d;
+            self.empty = false;
         }
     }
 }
