@@ -102,6 +102,9 @@ impl core::error::Error for CollisionError {}
 #[derive(Clone, Debug, PartialEq)]
 pub struct CollisionModel<T: RealField, const V: usize, const P: usize> {
     volumes: Vec<Volume<T>, V>,
+    /// [`SweptSphere::bounding_sphere`] of each volume in its body frame (world frame for an
+    /// environment volume): a rigid motion maps it onto a bounding sphere of the moved volume.
+    bounds: Vec<(Vector3<T>, T), V>,
     pairs: Vec<CollisionPair, P>,
 }
 
@@ -133,22 +136,21 @@ impl<T: RealField + Copy, const V: usize, const P: usize> CollisionModel<T, V, P
         self.compute_distances(collision);
     }
 
-    /// Transforms every volume into the world frame with the body placements of the last
-    /// [`crate::dynamics::forward_kinematics`]: writes `collision.world_volumes`. Cost O(V).
+    /// Transforms every volume and its bounding sphere into the world frame with the body
+    /// placements of the last [`crate::dynamics::forward_kinematics`]: writes
+    /// `collision.world_volumes` and `collision.bounding_spheres`. Cost O(V).
     pub fn update_world<const N: usize, const B: usize, const F: usize>(
         &self,
         data: &Data<T, N, B, F>,
         collision: &mut CollisionData<T, V, P>,
     ) {
-        for ((volume, slot), bound) in
-            self.volumes.iter().zip(collision.world_volumes.iter_mut()).zip(collision.bounding_spheres.iter_mut())
-        {
-            let placement = volume.body.and_then(|b| data.body_placements.get(b.0)).copied();
-            *slot = match placement {
-                Some(p) => volume.shape.transformed(&p),
-                None => volume.shape,
+        let world = collision.world_volumes.iter_mut().zip(collision.bounding_spheres.iter_mut());
+        for ((volume, (center, radius)), (slot, bound)) in self.volumes.iter().zip(&self.bounds).zip(world) {
+            let placement = volume.body.and_then(|b| data.body_placements.get(b.0));
+            (*slot, *bound) = match placement {
+                Some(p) => (volume.shape.transformed(p), (p.rotation * center + p.translation.vector, *radius)),
+                None => (volume.shape, (*center, *radius)),
             };
-            *bound = slot.bounding_sphere();
         }
     }
 
@@ -292,7 +294,11 @@ impl<T: RealField + Copy, const V: usize, const P: usize> CollisionModelBuilder<
                     .map_err(|_| CollisionError::TooManyPairs { capacity: P })?;
             }
         }
-        Ok(CollisionModel { volumes: self.volumes, pairs })
+        let mut bounds = Vec::new();
+        for volume in &self.volumes {
+            bounds.push(volume.shape.bounding_sphere()).map_err(|_| CollisionError::TooManyVolumes { capacity: V })?;
+        }
+        Ok(CollisionModel { volumes: self.volumes, bounds, pairs })
     }
 }
 
