@@ -155,7 +155,7 @@ impl<T: RealField + Copy, const V: usize, const P: usize> CollisionModel<T, V, P
     }
 
     /// Distance and closest points of every enabled pair from `collision.world_volumes`:
-    /// writes `collision.proximities`. Cost O(P), fixed per pair kind.
+    /// writes `collision.proximities`. Cost O(P), bounded per pair kind.
     ///
     /// With `collision.exact_within = Some(d)` (broad phase), a pair whose bounding spheres are
     /// more than `d` apart gets that gap as its distance — a lower bound of the true distance,

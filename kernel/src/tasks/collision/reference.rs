@@ -217,23 +217,6 @@ pub fn closest_segment_triangle_boundary<T: RealField + Copy>(
     ])
 }
 
-/// [`closest_segment_triangle`] with the triangle's [`triangle_normal`] and the closest points
-/// of the triangle to `p` and `q` given by the caller: a triangle–triangle test computes them
-/// once per triangle and vertex instead of once per edge (the same operations, so the same
-/// result).
-pub fn closest_segment_triangle_with<T: RealField + Copy>(
-    p: &Vector3<T>,
-    q: &Vector3<T>,
-    t: &[Vector3<T>; 3],
-    normal: Option<&Vector3<T>>,
-    ends: [Vector3<T>; 2],
-) -> (Vector3<T>, Vector3<T>) {
-    match segment_piercing(p, q, t, normal) {
-        Some(x) => (x, x),
-        None => closest_segment_triangle_boundary(p, q, t, ends),
-    }
-}
-
 /// Closest points of two triangles: the nearest of the six edge–triangle pairs, each computed
 /// from scratch.
 pub fn closest_triangle_triangle<T: RealField + Copy>(

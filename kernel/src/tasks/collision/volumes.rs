@@ -5,16 +5,16 @@
 //! triangle"). The distance of two volumes is the distance of their cores minus both radii, and
 //! the closest surface points lie on the line through the closest core points. The thesis uses
 //! GJK on these spherically extended convex hulls (\[GJK88\], \[TBF11\]); here every core pair has
-//! an exact closed-form solution, so the cost is fixed per pair kind (no iteration):
+//! an exact closed-form solution, so the cost is bounded per pair kind (no iteration):
 //!
 //! | cores | method |
 //! | --- | --- |
 //! | point–point | difference |
 //! | point–segment | clamped projection |
 //! | segment–segment | minimum of the convex quadratic `‖p₁ + s d₁ − p₂ − t d₂‖²` over `[0,1]²`: line solution, clamp `s`, best `t`, clamp, best `s` |
-//! | point–triangle | projection onto the plane if it falls inside, else the nearest edge |
-//! | segment–triangle | crossing point if the segment pierces the triangle, else the nearest of {both endpoints vs the triangle, the segment vs the three edges} |
-//! | triangle–triangle | the nearest of the six edge–triangle pairs |
+//! | point–triangle | projection onto the plane if it falls inside, else the nearest of the edges it lies outside of |
+//! | segment–triangle | crossing point if the segment pierces the triangle, else the nearest of {the endpoints that project inside, the segment vs each edge an endpoint lies outside of} |
+//! | triangle–triangle | the nearest of the six edge–triangle pairs, each edge–edge pair at most once |
 //!
 //! The last two rest on a property of convex polytopes: if neither closest point is on the
 //! relative boundary of its feature, the features are parallel and a boundary pair is as close.
@@ -178,8 +178,8 @@ pub fn proximity<T: RealField + Copy>(a: &SweptSphere<T>, b: &SweptSphere<T>) ->
     Proximity { distance: core_distance - a.radius - b.radius, core_first, core_second, direction }
 }
 
-/// Closest points `(on a, on b)` of two cores in the same frame. Cost: fixed per kind, at most
-/// six segment–triangle tests (triangle–triangle).
+/// Closest points `(on a, on b)` of two cores in the same frame. Cost: bounded per kind, at most six
+/// piercing tests, six vertex projections and nine edge–edge tests (triangle–triangle).
 pub fn closest_points<T: RealField + Copy>(a: &Core<T>, b: &Core<T>) -> (Vector3<T>, Vector3<T>) {
     let swap = |(x, y): (Vector3<T>, Vector3<T>)| (y, x);
     match (a, b) {
