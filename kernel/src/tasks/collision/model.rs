@@ -102,6 +102,9 @@ impl core::error::Error for CollisionError {}
 #[derive(Clone, Debug, PartialEq)]
 pub struct CollisionModel<T: RealField, const V: usize, const P: usize> {
     volumes: Vec<Volume<T>, V>,
+    /// [`SweptSphere::bounding_sphere`] of each volume in its body frame (world frame for an
+    /// environment volume): a rigid motion maps it onto a bounding sphere of the moved volume.
+    bounds: Vec<(Vector3<T>, T), V>,
     pairs: Vec<CollisionPair, P>,
 }
 
@@ -133,27 +136,26 @@ impl<T: RealField + Copy, const V: usize, const P: usize> CollisionModel<T, V, P
         self.compute_distances(collision);
     }
 
-    /// Transforms every volume into the world frame with the body placements of the last
-    /// [`crate::dynamics::forward_kinematics`]: writes `collision.world_volumes`. Cost O(V).
+    /// Transforms every volume and its bounding sphere into the world frame with the body
+    /// placements of the last [`crate::dynamics::forward_kinematics`]: writes
+    /// `collision.world_volumes` and `collision.bounding_spheres`. Cost O(V).
     pub fn update_world<const N: usize, const B: usize, const F: usize>(
         &self,
         data: &Data<T, N, B, F>,
         collision: &mut CollisionData<T, V, P>,
     ) {
-        for ((volume, slot), bound) in
-            self.volumes.iter().zip(collision.world_volumes.iter_mut()).zip(collision.bounding_spheres.iter_mut())
-        {
-            let placement = volume.body.and_then(|b| data.body_placements.get(b.0)).copied();
-            *slot = match placement {
-                Some(p) => volume.shape.transformed(&p),
-                None => volume.shape,
+        let world = collision.world_volumes.iter_mut().zip(collision.bounding_spheres.iter_mut());
+        for ((volume, (center, radius)), (slot, bound)) in self.volumes.iter().zip(&self.bounds).zip(world) {
+            let placement = volume.body.and_then(|b| data.body_placements.get(b.0));
+            (*slot, *bound) = match placement {
+                Some(p) => (volume.shape.transformed(p), (p.rotation * center + p.translation.vector, *radius)),
+                None => (volume.shape, (*center, *radius)),
             };
-            *bound = slot.bounding_sphere();
         }
     }
 
     /// Distance and closest points of every enabled pair from `collision.world_volumes`:
-    /// writes `collision.proximities`. Cost O(P), fixed per pair kind.
+    /// writes `collision.proximities`. Cost O(P), bounded per pair kind.
     ///
     /// With `collision.exact_within = Some(d)` (broad phase), a pair whose bounding spheres are
     /// more than `d` apart gets that gap as its distance — a lower bound of the true distance,
@@ -169,10 +171,14 @@ impl<T: RealField + Copy, const V: usize, const P: usize> CollisionModel<T, V, P
             if let (Some(limit), Some((ca, ra)), Some((cb, rb))) =
                 (*exact_within, bounding_spheres.get(pair.first.0), bounding_spheres.get(pair.second.0))
             {
-                let gap = (ca - cb).norm() - *ra - *rb;
-                if gap > limit {
-                    *slot = Proximity { distance: gap, core_first: *ca, core_second: *cb, direction: None };
-                    continue;
+                // Squared comparison first: the square root only for the pairs that may be far.
+                let (separation2, reach) = ((ca - cb).norm_squared(), limit + *ra + *rb);
+                if reach <= T::zero() || separation2 > reach * reach {
+                    let gap = separation2.sqrt() - *ra - *rb;
+                    if gap > limit {
+                        *slot = Proximity { distance: gap, core_first: *ca, core_second: *cb, direction: None };
+                        continue;
+                    }
                 }
             }
             *slot = proximity(a, b);
@@ -288,7 +294,11 @@ impl<T: RealField + Copy, const V: usize, const P: usize> CollisionModelBuilder<
                     .map_err(|_| CollisionError::TooManyPairs { capacity: P })?;
             }
         }
-        Ok(CollisionModel { volumes: self.volumes, pairs })
+        let mut bounds = Vec::new();
+        for volume in &self.volumes {
+            bounds.push(volume.shape.bounding_sphere()).map_err(|_| CollisionError::TooManyVolumes { capacity: V })?;
+        }
+        Ok(CollisionModel { volumes: self.volumes, bounds, pairs })
     }
 }
 
