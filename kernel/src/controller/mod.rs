@@ -62,6 +62,7 @@ use crate::dynamics::{
 use crate::hierarchy::{
     project, push_scaled, push_transitioning, transition_weight, HierarchyConfig, HierarchyData, Stack, Weighting,
 };
+use crate::math::sqrt;
 use crate::math::Placement;
 use crate::model::{Data, Model};
 use crate::platform::admittance::Admittance;
@@ -730,7 +731,7 @@ impl<
             {
                 *kind = Some(entry.kind);
                 *activation = self.rows.rows().iter().fold(T::zero(), |a, r| a.max(r.activation));
-                *norm = self.rows.torque().norm();
+                *norm = sqrt(self.rows.torque().norm_squared());
             }
         }
         self.cartesian_damping = scratch.cartesian_damping;
@@ -910,7 +911,7 @@ impl<
         let residual = *self.observer.update(&self.data, &measured, &observed, dt);
         let t = &mut self.telemetry;
         t.external_torque = residual;
-        t.contact = residual.norm() > self.config.observer.contact_threshold;
+        t.contact = sqrt(residual.norm_squared()) > self.config.observer.contact_threshold;
         t.level_count = self.projection.level_count;
         // The stored energy of every level in one pass over the stack (each level's sum in stack
         // order).

@@ -10,6 +10,7 @@
 use nalgebra::{Cholesky, Const, RealField, SMatrix, SVector};
 
 use super::DynamicsError;
+use crate::math::sqrt;
 use crate::model::Model;
 
 /// The symbolic part of [`TreeFactorization`]: for every coordinate `k` its ancestor chain
@@ -185,7 +186,7 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
             if *diagonal <= T::zero() || !diagonal.is_finite() {
                 return Err(DynamicsError::MassMatrixNotPositiveDefinite);
             }
-            let l_kk = diagonal.sqrt();
+            let l_kk = sqrt(*diagonal);
             *diagonal = l_kk;
             for x in below.iter_mut() {
                 *x /= l_kk;
@@ -234,7 +235,7 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
                 if d <= T::zero() || !d.is_finite() {
                     return Err(DynamicsError::MassMatrixNotPositiveDefinite);
                 }
-                *diagonal = d.sqrt();
+                *diagonal = sqrt(d);
             }
             let chain = structure.chains.get(k).map_or(&[][..], |c| c.get(1..=usize::from(*depth)).unwrap_or(&[]));
             let kept = chain.iter().take_while(|a| !decoupled.get(usize::from(**a)).copied().unwrap_or(false)).count();

@@ -3,6 +3,7 @@
 use nalgebra::{RealField, SMatrix, SVector};
 
 use super::{HierarchyConfig, HierarchyError, Recursion, Shaping, Stack, Weighting};
+use crate::math::sqrt;
 #[cfg(test)]
 use {
     super::push_transitioning,
@@ -316,7 +317,7 @@ fn transmission<T: RealField + Copy, const N: usize>(
         _ => projected_norm_squared::<T, N>(input.as_slice(), row),
     };
     if row_squared > T::zero() {
-        (projected_squared / row_squared).sqrt()
+        sqrt(projected_squared / row_squared)
     } else {
         T::one()
     }
@@ -337,7 +338,7 @@ fn single_entry<T: RealField + Copy>(row: &[T]) -> Option<usize> {
 fn column_norms_of<T: RealField + Copy, const N: usize>(a: &[T]) -> [T; N] {
     let mut norms = [T::zero(); N];
     for (norm, column) in norms.iter_mut().zip(a.chunks_exact(N.max(1))) {
-        *norm = norm_squared(column).sqrt();
+        *norm = sqrt(norm_squared(column));
     }
     norms
 }
@@ -498,7 +499,7 @@ fn level_result<T: RealField + Copy, const N: usize>(
     torque: &SVector<T, N>,
     projected: &SVector<T, N>,
 ) -> LevelDiagnostics<T> {
-    let (torque_norm, projected_torque_norm) = (torque.norm(), projected.norm());
+    let (torque_norm, projected_torque_norm) = (sqrt(torque.norm_squared()), sqrt(projected.norm_squared()));
     let conflict = if torque_norm > T::zero() {
         (T::one() - projected_torque_norm / torque_norm).max(T::zero()).min(T::one())
     } else {

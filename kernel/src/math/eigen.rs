@@ -120,7 +120,7 @@ mod tests {
                     off += *x * *x;
                 }
             }
-            if sqrt(off) <= T::default_epsilon() * (a.norm() + tiny) {
+            if sqrt(off) <= T::default_epsilon() * (sqrt(a.norm_squared()) + tiny) {
                 break;
             }
             for p in 0..D {

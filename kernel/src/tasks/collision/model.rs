@@ -11,6 +11,7 @@ use heapless::Vec;
 use nalgebra::{RealField, Vector3};
 
 use super::volumes::{proximity, Core, Proximity, SweptSphere};
+use crate::math::sqrt;
 use crate::model::{BodyId, Data, Model};
 
 /// Index of a volume in [`CollisionModel::volumes`].
@@ -174,7 +175,7 @@ impl<T: RealField + Copy, const V: usize, const P: usize> CollisionModel<T, V, P
                 // Squared comparison first: the square root only for the pairs that may be far.
                 let (separation2, reach) = ((ca - cb).norm_squared(), limit + *ra + *rb);
                 if reach <= T::zero() || separation2 > reach * reach {
-                    let gap = separation2.sqrt() - *ra - *rb;
+                    let gap = sqrt(separation2) - *ra - *rb;
                     if gap > limit {
                         *slot = Proximity { distance: gap, core_first: *ca, core_second: *cb, direction: None };
                         continue;

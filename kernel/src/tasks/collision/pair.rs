@@ -31,6 +31,7 @@ use super::volumes::Proximity;
 use crate::dynamics::{DynamicsError, InertiaFactor, TreeFactorization};
 use crate::math::damping::{double_diagonalization, DampingError, ReflectedInertia};
 use crate::math::spatial::linear_at_point;
+use crate::math::sqrt;
 use crate::model::{BodyId, Data, Model};
 use crate::tasks::{TaskError, TaskRow, TaskRows};
 
@@ -563,7 +564,7 @@ fn pair_row<
     };
     let stiffness = parameters.stiffness(d);
     let c = if stiffness > T::zero() && cached.inverse_mass_sum > T::zero() {
-        convert::<f64, T>(2.0) * parameters.damping_ratio * (stiffness / cached.inverse_mass_sum).sqrt()
+        convert::<f64, T>(2.0) * parameters.damping_ratio * sqrt(stiffness / cached.inverse_mass_sum)
     } else {
         T::zero()
     };

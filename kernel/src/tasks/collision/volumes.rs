@@ -31,6 +31,7 @@
 use nalgebra::{convert, RealField, Unit, Vector3};
 
 use crate::math::spatial::Placement;
+use crate::math::sqrt;
 
 /// The convex set a sphere is swept over, in some frame (m).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -116,12 +117,12 @@ impl<T: RealField + Copy> SweptSphere<T> {
         let center = points.iter().fold(Vector3::zeros(), |c, p| c + p) / count;
         // The largest squared distance, then one square root (the same value: sqrt is monotone).
         let reach2 = points.iter().map(|p| (p - center).norm_squared()).fold(T::zero(), |m, d| m.max(d));
-        (center, reach2.sqrt() + self.radius)
+        (center, sqrt(reach2) + self.radius)
     }
 
     /// Signed distance of the point `p` to the surface (negative inside).
     pub fn signed_distance_to(&self, p: &Vector3<T>) -> T {
-        (p - self.core.closest_point_to(p)).norm() - self.radius
+        sqrt((p - self.core.closest_point_to(p)).norm_squared()) - self.radius
     }
 }
 
@@ -172,7 +173,7 @@ pub fn direction_threshold<T: RealField + Copy>() -> T {
 pub fn proximity<T: RealField + Copy>(a: &SweptSphere<T>, b: &SweptSphere<T>) -> Proximity<T> {
     let (core_first, core_second) = closest_points(&a.core, &b.core);
     let delta = core_second - core_first;
-    let core_distance = delta.norm();
+    let core_distance = sqrt(delta.norm_squared());
     let direction =
         if core_distance > direction_threshold() { Some(Unit::new_unchecked(delta / core_distance)) } else { None };
     Proximity { distance: core_distance - a.radius - b.radius, core_first, core_second, direction }

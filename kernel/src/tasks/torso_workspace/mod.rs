@@ -68,6 +68,7 @@ use self::distance::ArcBoundary;
 use self::kinematics::{wrap_from, wrap_to_pi};
 use super::{TaskError, TaskRow, TaskRows};
 use crate::math::cholesky::solve_lower_in_place;
+use crate::math::sqrt;
 use crate::math::switching::transition_activation;
 
 /// Number of workspace boundaries (rows) of the torso.
@@ -590,9 +591,9 @@ pub fn torso_workspace<'m, T: RealField + Copy, const N: usize, const R: usize>(
         // Damping 2ξ√(k m) ḋ with m = 1/(j M⁻¹ jᵀ): 2ξ√k ḋ/√(j M⁻¹ jᵀ). At a singular row
         // (j → 0) both ḋ and √(j M⁻¹ jᵀ) vanish linearly; below the guard no damping.
         let stiffness = gains.stiffness(d);
-        let mobility = (l2 * (l2 * w22 + l3 * w23) + l3 * (l2 * w23 + l3 * w33)).max(T::zero()).sqrt();
+        let mobility = sqrt((l2 * (l2 * w22 + l3 * w23) + l3 * (l2 * w23 + l3 * w33)).max(T::zero()));
         let damping = crate::math::guarded_divide(
-            two * gains.damping_ratio * stiffness.sqrt() * rate,
+            two * gains.damping_ratio * sqrt(stiffness) * rate,
             mobility,
             T::default_epsilon(),
         )
