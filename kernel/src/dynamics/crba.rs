@@ -14,7 +14,7 @@ use crate::model::{Data, Model, WorldInertia};
 /// sparsity: they are zero). Both triangles are filled; `M` is symmetric positive definite for a
 /// valid model.
 ///
-/// Precondition: [`super::forward_kinematics`] at `q`. Writes `composite_world_inertias`,
+/// Precondition: [`super::forward_kinematics`] or [`super::placement_kinematics`] at `q`. Writes `composite_world_inertias`,
 /// `composite_inertias` (6×6 form) and `mass_matrix` (returned). Cost O(B·depth).
 pub fn crba<'d, T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
     model: &Model<T, N, B, F>,

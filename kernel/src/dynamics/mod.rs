@@ -1,12 +1,16 @@
 //! Rigid-body dynamics of the kinematic tree (Sec. 2.1 of the thesis; Featherstone's
 //! algorithms), one algorithm per file.
 //!
-//! Call [`forward_kinematics`] once per state; the other algorithms read the kinematics it
-//! stored in [`crate::model::Data`] and write their own outputs there:
+//! Call [`forward_kinematics`] once per state (or, when only positions are needed,
+//! [`placement_kinematics`] for CRBA, gravity and Jacobians, [`support_kinematics`] for the
+//! Jacobians of one body); the other algorithms read the kinematics it stored in
+//! [`crate::model::Data`] and write their own outputs there:
 //!
 //! | algorithm | computes | cost |
 //! | --- | --- | --- |
 //! | [`forward_kinematics`] | placements, motion subspaces, body velocities and drifts | O(B) |
+//! | [`placement_kinematics`] | placements, motion subspaces, world inertias (for CRBA, gravity, Jacobians) | O(B) |
+//! | [`support_kinematics`] | placements and motion subspaces of one support path (for its Jacobians) | O(depth) |
 //! | [`frame_jacobian`], [`point_jacobian`] | 6×N Jacobian, world-aligned, linear rows first | O(depth) |
 //! | [`frame_drift`], [`point_drift`] | `J̇(q, q̇) q̇` | O(1) |
 //! | [`rnea`] | `M q̈ + C q̇ + g` | O(B) |
@@ -38,7 +42,7 @@ pub use crba::crba;
 pub use energy::{kinetic_energy, potential_energy};
 pub use error::DynamicsError;
 pub use forward_dynamics::{forward_dynamics, mass_matrix_cholesky};
-pub use forward_kinematics::forward_kinematics;
+pub use forward_kinematics::{forward_kinematics, placement_kinematics, support_kinematics};
 pub use frame_drift::{frame_drift, point_drift};
 pub use frame_jacobian::{frame_jacobian, point_jacobian};
 pub use gravity::gravity;
