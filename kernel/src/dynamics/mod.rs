@@ -294,7 +294,72 @@ mod reference_tests {
         Ok(())
     }
 
+    /// `M`, `g` and both frame Jacobians after the position-only passes on fresh workspaces
+    /// (`placement_kinematics` for all of them, then `support_kinematics` of each frame's body
+    /// alone for its Jacobian), cast to f64.
+    fn positions_only<T: RealField + Copy>(model: &Model<T, N, B, F>, q: &SVector<f64, N>) -> std::vec::Vec<f64> {
+        let q = q.map(|e| nalgebra::convert::<f64, T>(e));
+        let mut out = std::vec::Vec::new();
+        let mut push = |x: &[T]| out.extend(x.iter().map(|e| nalgebra::try_convert::<T, f64>(*e).unwrap()));
+        let mut data = Data::new(model);
+        placement_kinematics(model, &mut data, &q).unwrap();
+        push(crba(model, &mut data).as_slice());
+        push(gravity(model, &mut data).as_slice());
+        for k in 0..2 {
+            let mut j = SMatrix::<T, 6, N>::zeros();
+            frame_jacobian(model, &data, crate::model::FrameId(k), &mut j).unwrap();
+            push(j.as_slice());
+            let mut support = Data::new(model);
+            let body = model.frames()[k].parent.unwrap();
+            support_kinematics(model, &mut support, &q, body).unwrap();
+            let mut j = SMatrix::<T, 6, N>::from_element(T::one());
+            frame_jacobian(model, &support, crate::model::FrameId(k), &mut j).unwrap();
+            push(j.as_slice());
+        }
+        out
+    }
+
+    /// The reference values in the order of [`positions_only`].
+    fn reference_positions_only(model: &Model<f64, N, B, F>, q: &SVector<f64, N>) -> std::vec::Vec<f64> {
+        let zero = SVector::zeros();
+        let r = reference_outputs(model, q, &zero, &zero);
+        let mut out = std::vec::Vec::new();
+        out.extend_from_slice(r.m.as_slice());
+        out.extend_from_slice(r.g.as_slice());
+        for j in &r.jacobians {
+            out.extend_from_slice(j.as_slice());
+            out.extend_from_slice(j.as_slice());
+        }
+        out
+    }
+
     proptest! {
+        /// The position-only passes give the reference `M`, `g` and frame Jacobians: f64 to
+        /// rounding, f32 within single-precision rounding.
+        #[test]
+        fn position_kinematics_equal_reference(seed in any::<u64>()) {
+            let (m64, m32) = (branched::<f64>(), branched::<f32>());
+            let q = state(seed, 2.0);
+            let reference = reference_positions_only(&m64, &q);
+            let scale = 1.0 + reference.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            let d64 = diff(&positions_only(&m64, &q), &reference);
+            prop_assert!(d64 <= 1e-12 * scale, "f64: difference {d64:e}");
+            let d32 = diff(&positions_only(&m32, &q), &reference);
+            prop_assert!(d32 <= 2e-5 * scale, "f32: difference {d32:e}");
+        }
+
+        /// An unknown body is an error of `support_kinematics`, a non-finite `q` of both passes.
+        #[test]
+        fn position_kinematics_reject_bad_input(seed in any::<u64>()) {
+            let model = branched::<f64>();
+            let mut data = Data::new(&model);
+            let mut q = state(seed, 2.0);
+            prop_assert_eq!(support_kinematics(&model, &mut data, &q, BodyId(B)), Err(DynamicsError::UnknownBody));
+            q[0] = f64::NAN;
+            prop_assert!(placement_kinematics(&model, &mut data, &q).is_err());
+            prop_assert!(support_kinematics(&model, &mut data, &q, BodyId(0)).is_err());
+        }
+
         /// f64: the fast FK, CRBA, Coriolis matrix (and `B^c`), gravity, RNEA and frame
         /// Jacobians equal the reference to rounding.
         #[test]
