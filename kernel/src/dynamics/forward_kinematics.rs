@@ -168,7 +168,7 @@ fn joint_step<T: RealField + Copy, const N: usize>(
     let t = joint_frame.translation.vector;
     match body.joint {
         JointKind::Revolute { .. } => {
-            let rotated = mul33(&r, &axis_angle(&[a.x, a.y, a.z], value));
+            let rotated = rotate(&r, &[a.x, a.y, a.z], value);
             let [a0, a1, a2] = axis;
             let lin = [t.y * a2 - t.z * a1, t.z * a0 - t.x * a2, t.x * a1 - t.y * a0];
             (from_columns(rotated, [t.x, t.y, t.z]), Vector6::new(a0, a1, a2, lin[0], lin[1], lin[2]))
@@ -229,6 +229,40 @@ fn mul33<T: RealField + Copy>(a: &Columns<T>, b: &Columns<T>) -> Columns<T> {
 fn compose<T: RealField + Copy>(a: &Placement<T>, b: &Placement<T>) -> Placement<T> {
     let t = transform_point(a, &b.translation.vector);
     from_columns(mul33(&columns(a), &columns(b)), [t.x, t.y, t.z])
+}
+
+/// `R · Rot(a, angle)` for `R` given by columns and the unit axis `a`. About a coordinate axis
+/// the product touches two columns of `R` (e.g. about `z`: `(c r₀ + s r₁, c r₁ − s r₀, r₂)`);
+/// about any other axis it is the product with [`axis_angle`].
+#[inline(always)]
+fn rotate<T: RealField + Copy>(r: &Columns<T>, a: &[T; 3], angle: T) -> Columns<T> {
+    let (z, o) = (T::zero(), T::one());
+    let [r0, r1, r2] = *r;
+    let turn = |x: &[T; 3], y: &[T; 3], s: T, c: T| -> ([T; 3], [T; 3]) {
+        // (c x + s y, c y − s x): the plane of `x`, `y` turned by the angle.
+        (
+            [c * x[0] + s * y[0], c * x[1] + s * y[1], c * x[2] + s * y[2]],
+            [c * y[0] - s * x[0], c * y[1] - s * x[1], c * y[2] - s * x[2]],
+        )
+    };
+    match *a {
+        [x, y, w] if x == z && y == z && w == o => {
+            let (s, c) = angle.sin_cos();
+            let (n0, n1) = turn(&r0, &r1, s, c);
+            [n0, n1, r2]
+        }
+        [x, y, w] if x == o && y == z && w == z => {
+            let (s, c) = angle.sin_cos();
+            let (n1, n2) = turn(&r1, &r2, s, c);
+            [r0, n1, n2]
+        }
+        [x, y, w] if x == z && y == o && w == z => {
+            let (s, c) = angle.sin_cos();
+            let (n2, n0) = turn(&r2, &r0, s, c);
+            [n0, r1, n2]
+        }
+        _ => mul33(r, &axis_angle(a, angle)),
+    }
 }
 
 /// Rotation by `angle` about the unit axis `a` (Rodrigues): `cos θ 1 + sin θ [a]× + (1 − cos θ) a aᵀ`,
