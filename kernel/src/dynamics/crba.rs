@@ -21,16 +21,18 @@ pub fn crba<'d, T: RealField + Copy, const N: usize, const B: usize, const F: us
     data: &'d mut Data<T, N, B, F>,
 ) -> &'d SMatrix<T, N, N> {
     accumulate_world_composites(model, &data.world_inertias, &mut data.composite_world_inertias);
-    for (out, c) in data.composite_inertias.iter_mut().zip(data.composite_world_inertias.iter()) {
-        *out = c.matrix();
-    }
     let m = data.mass_matrix.as_mut_slice();
     m.fill(T::zero());
     let bodies = model.bodies();
     let singles = single_terms(model);
-    for (((body, composite), s_i), &single) in
-        bodies.iter().zip(data.composite_world_inertias.iter()).zip(data.motion_subspaces.iter()).zip(singles.iter())
+    for ((((body, composite), s_i), &single), matrix) in bodies
+        .iter()
+        .zip(data.composite_world_inertias.iter())
+        .zip(data.motion_subspaces.iter())
+        .zip(singles.iter())
+        .zip(data.composite_inertias.iter_mut())
     {
+        *matrix = composite.matrix();
         let force = composite.apply(s_i);
         let terms = body.drive.terms();
         add_coupled::<T, N>(m, terms, terms, dot6(s_i, &force));
