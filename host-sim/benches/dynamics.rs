@@ -8,10 +8,16 @@
 //! - `<robot>/crba`, `rnea`, `coriolis_matrix`, `frame_jacobian`: the algorithm **alone**,
 //!   after one `forward_kinematics` at the same state outside the timed loop (every one of them
 //!   needs it; add the `forward_kinematics` figure for the cost from a fresh state).
-//! - `<robot>/fk+crba`, `fk+rnea`, `fk+coriolis_matrix`, `fk+frame_jacobian`:
-//!   `forward_kinematics` followed by the algorithm, the work Pinocchio's `crba(q)`,
+//! - `<robot>/placement_kinematics`, `support_kinematics`: the position-only passes alone
+//!   (every body; the support of the TCP's body).
+//! - `<robot>/fk+crba`, `fk+rnea`, `fk+coriolis_matrix`, `fk+frame_jacobian`: the kinematics
+//!   each algorithm needs followed by the algorithm, the work Pinocchio's `crba(q)`,
 //!   `rnea(q, v, a)`, `computeCoriolisMatrix(q, v)` and `computeFrameJacobian(q, frame)` do
-//!   (compare with `fixtures/pinocchio/bench_pinocchio.sh` run on the same machine).
+//!   (compare with `fixtures/pinocchio/bench_pinocchio.sh` run on the same machine):
+//!   `placement_kinematics` before CRBA (placements and inertias, as Pinocchio's `crba`),
+//!   `forward_kinematics` before RNEA and the Coriolis matrix (they need velocities),
+//!   `support_kinematics` of the frame's body before the frame Jacobian (as Pinocchio's
+//!   `computeFrameJacobian`, which walks the frame's support only).
 //! - `justin/sim_physics_step`: one RK4 physics step of `host_sim::sim::Simulator` (four
 //!   evaluations of kinematics, RNEA, CRBA and a 17×17 Cholesky solve).
 //! - `justin/cartesian_impedance_step`: one `CartesianJointImpedance::step` through the `hal`
@@ -27,7 +33,9 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use host_sim::controllers::{CartesianJointGains, CartesianJointImpedance};
 use host_sim::sim::{SimConfig, Simulator};
 use host_sim::urdf::{load, Coupling};
-use kernel::dynamics::{coriolis_matrix, crba, forward_kinematics, frame_jacobian, rnea};
+use kernel::dynamics::{
+    coriolis_matrix, crba, forward_kinematics, frame_jacobian, placement_kinematics, rnea, support_kinematics,
+};
 use kernel::model::{Data, FrameId, Model};
 use nalgebra::{SMatrix, SVector};
 
@@ -57,6 +65,16 @@ fn algorithms<const N: usize, const B: usize, const F: usize>(
     group.bench_function("forward_kinematics", |b| {
         b.iter(|| forward_kinematics(model, &mut data, black_box(&q), black_box(&v)));
     });
+    group.bench_function("placement_kinematics", |b| {
+        b.iter(|| placement_kinematics(model, &mut data, black_box(&q)));
+    });
+    let Some(tcp_body) = model.frame(tcp).and_then(|f| f.parent) else {
+        eprintln!("skipping {robot}: the TCP frame is not attached to a body");
+        return;
+    };
+    group.bench_function("support_kinematics", |b| {
+        b.iter(|| support_kinematics(model, &mut data, black_box(&q), black_box(tcp_body)));
+    });
     let _ = forward_kinematics(model, &mut data, &q, &v);
     group.bench_function("crba", |b| b.iter(|| *crba(black_box(model), &mut data)));
     group.bench_function("rnea", |b| b.iter(|| rnea(black_box(model), &mut data, black_box(&a)).copied()));
@@ -68,7 +86,7 @@ fn algorithms<const N: usize, const B: usize, const F: usize>(
     // From a fresh state, as Pinocchio's `crba(q)`, `rnea(q, v, a)`, `computeCoriolisMatrix(q, v)`
     // and `computeFrameJacobian(q, frame)` (fixtures/pinocchio/bench_pinocchio.sh) are timed.
     group.bench_function("fk+crba", |b| {
-        b.iter(|| forward_kinematics(model, &mut data, black_box(&q), black_box(&v)).map(|()| *crba(model, &mut data)));
+        b.iter(|| placement_kinematics(model, &mut data, black_box(&q)).map(|()| *crba(model, &mut data)));
     });
     group.bench_function("fk+rnea", |b| {
         b.iter(|| {
@@ -84,7 +102,7 @@ fn algorithms<const N: usize, const B: usize, const F: usize>(
     });
     group.bench_function("fk+frame_jacobian", |b| {
         b.iter(|| {
-            forward_kinematics(model, &mut data, black_box(&q), black_box(&v))
+            support_kinematics(model, &mut data, black_box(&q), tcp_body)
                 .and_then(|()| frame_jacobian(model, &data, black_box(tcp), &mut jacobian))
         });
     });

@@ -12,7 +12,9 @@ mod reference {
     include!("../../kernel/src/dynamics/reference.rs");
 }
 
-use kernel::dynamics::{coriolis_matrix, crba, forward_kinematics, frame_jacobian, gravity, rnea};
+use kernel::dynamics::{
+    coriolis_matrix, crba, forward_kinematics, frame_jacobian, gravity, placement_kinematics, rnea, support_kinematics,
+};
 use kernel::model::FrameId;
 use kernel::{Data, Model};
 use nalgebra::{DVector, RealField, SVector};
@@ -99,6 +101,50 @@ fn plain<const N: usize, const B: usize, const F: usize>(
     out
 }
 
+/// The outputs that need positions only, after the position-only passes on fresh workspaces:
+/// `M` and `g` after `placement_kinematics`, every frame Jacobian after `placement_kinematics`
+/// and again after `support_kinematics` of the frame's body alone.
+fn positions_only<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
+    model: &Model<T, N, B, F>,
+    q: &SVector<f64, N>,
+) -> Outputs {
+    let q = q.map(|e| nalgebra::convert::<f64, T>(e));
+    let mut data = Data::new(model);
+    placement_kinematics(model, &mut data, &q).unwrap();
+    let mut out = vec![("M", to_f64(crba(model, &mut data).as_slice()))];
+    out.push(("g", to_f64(gravity(model, &mut data).as_slice())));
+    for k in 0..model.frames().len() {
+        let mut j = nalgebra::SMatrix::<T, 6, N>::zeros();
+        frame_jacobian(model, &data, FrameId(k), &mut j).unwrap();
+        out.push(("J", to_f64(j.as_slice())));
+    }
+    for (k, frame) in model.frames().iter().enumerate() {
+        let mut support = Data::new(model);
+        if let Some(body) = frame.parent {
+            support_kinematics(model, &mut support, &q, body).unwrap();
+        }
+        let mut j = nalgebra::SMatrix::<T, 6, N>::from_element(T::one());
+        frame_jacobian(model, &support, FrameId(k), &mut j).unwrap();
+        out.push(("J (support)", to_f64(j.as_slice())));
+    }
+    out
+}
+
+/// The reference outputs matching [`positions_only`].
+fn plain_positions_only<const N: usize, const B: usize, const F: usize>(
+    model: &Model<f64, N, B, F>,
+    q: &SVector<f64, N>,
+) -> Outputs {
+    let all = plain(model, q, &SVector::zeros(), &SVector::zeros());
+    let pick = |name: &str| all.iter().filter(|(n, _)| *n == name).cloned().collect::<Vec<_>>();
+    let jacobians = pick("J");
+    let mut out = pick("M");
+    out.extend(pick("g"));
+    out.extend(jacobians.iter().cloned());
+    out.extend(jacobians.into_iter().map(|(_, j)| ("J (support)", j)));
+    out
+}
+
 /// Each fast output within `tol · (1 + max |reference|)` of the reference.
 fn check(fast: &Outputs, reference: &Outputs, tol: f64) -> Result<(), TestCaseError> {
     prop_assert_eq!(fast.len(), reference.len());
@@ -128,6 +174,17 @@ proptest! {
         let reference = plain(&m64, &q, &v, &a);
         check(&fast(&m64, &q, &v, &a), &reference, F64_RELATIVE)?;
         check(&fast(&m32, &q, &v, &a), &reference, F32_RELATIVE)?;
+    }
+
+    /// `placement_kinematics` and `support_kinematics` (positions only, fresh workspaces) give
+    /// the reference `M`, `g` and frame Jacobians on Justin.
+    #[test]
+    fn justin_position_kinematics_equal_reference(offset in vector::<20>(0.5)) {
+        let (m64, m32) = (fixtures::justin::model::<f64>().unwrap(), fixtures::justin::model::<f32>().unwrap());
+        let q = fixtures::justin::home_configuration::<f64>() + offset;
+        let reference = plain_positions_only(&m64, &q);
+        check(&positions_only(&m64, &q), &reference, F64_RELATIVE)?;
+        check(&positions_only(&m32, &q), &reference, F32_RELATIVE)?;
     }
 
     #[test]

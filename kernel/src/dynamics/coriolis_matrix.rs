@@ -4,7 +4,7 @@ use nalgebra::{RealField, SMatrix, Vector6};
 
 use super::crba::accumulate_world_composites;
 use super::rnea::force_cross;
-use super::{add6, add_coupled, add_scaled6, dot6};
+use super::{add6, add_coupled, add_coupled_pair, add_scaled6, dot6, single_terms};
 use crate::math::spatial::{SpatialForce, SpatialMatrix};
 use crate::model::{Data, Model, WorldInertia};
 
@@ -29,8 +29,8 @@ use crate::model::{Data, Model, WorldInertia};
 /// and never visited.
 ///
 /// Precondition: [`super::forward_kinematics`] at `(q, q̇)`. Writes `composite_world_inertias`,
-/// `composite_inertia_rates`, `composite_momenta`, the 6×6 `composite_inertias` and
-/// `composite_coriolis` (`B^c`), and `coriolis` (returned).
+/// `composite_inertia_rates`, `composite_momenta`, the 6×6 `composite_coriolis` (`B^c`), and
+/// `coriolis` (returned); the 6×6 `composite_inertias` are [`super::crba`]'s.
 pub fn coriolis_matrix<'d, T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
     model: &Model<T, N, B, F>,
     data: &'d mut Data<T, N, B, F>,
@@ -62,28 +62,24 @@ pub fn coriolis_matrix<'d, T: RealField + Copy, const N: usize, const B: usize, 
             }
         }
     }
-    for ((((ic, bc), c), rate), momentum) in data
-        .composite_inertias
-        .iter_mut()
-        .zip(data.composite_coriolis.iter_mut())
-        .zip(data.composite_world_inertias.iter())
-        .zip(data.composite_inertia_rates.iter())
-        .zip(data.composite_momenta.iter())
+    for ((bc, rate), momentum) in
+        data.composite_coriolis.iter_mut().zip(data.composite_inertia_rates.iter()).zip(data.composite_momenta.iter())
     {
-        *ic = c.matrix();
         *bc = coriolis_operator(rate, momentum, half);
     }
 
     let m = data.coriolis.as_mut_slice();
     m.fill(T::zero());
     let bodies = model.bodies();
+    let singles = single_terms(model);
     let per_body = bodies
         .iter()
         .zip(data.composite_world_inertias.iter())
         .zip(data.composite_inertia_rates.iter())
         .zip(data.composite_momenta.iter())
-        .zip(data.motion_subspaces.iter().zip(data.subspace_rates.iter()));
-    for ((((body, ic), rate), momentum), (s_j, s_dot_j)) in per_body {
+        .zip(data.motion_subspaces.iter().zip(data.subspace_rates.iter()))
+        .zip(singles.iter());
+    for (((((body, ic), rate), momentum), (s_j, s_dot_j)), &single) in per_body {
         let d = scale6(&rate.apply(s_j), half);
         let e = scale6(&force_cross(s_j, momentum), half);
         let column_force = add6(&add6(&ic.apply(s_dot_j), &d), &e);
@@ -93,14 +89,14 @@ pub fn coriolis_matrix<'d, T: RealField + Copy, const N: usize, const B: usize, 
         add_coupled::<T, N>(m, terms, terms, dot6(s_j, &column_force));
         let mut next = body.parent;
         while let Some(a) = next {
-            let (Some(ancestor), Some(s_a), Some(s_dot_a)) =
-                (bodies.get(a.0), data.motion_subspaces.get(a.0), data.subspace_rates.get(a.0))
+            let (Some(ancestor), Some(s_a), Some(s_dot_a), Some(&single_a)) =
+                (bodies.get(a.0), data.motion_subspaces.get(a.0), data.subspace_rates.get(a.0), singles.get(a.0))
             else {
                 break;
             };
-            add_coupled::<T, N>(m, ancestor.drive.terms(), terms, dot6(s_a, &column_force));
-            let value = dot6(&row_inertia, s_dot_a) + dot6(&row_coriolis, s_a);
-            add_coupled::<T, N>(m, terms, ancestor.drive.terms(), value);
+            let column = dot6(s_a, &column_force);
+            let row = dot6(&row_inertia, s_dot_a) + dot6(&row_coriolis, s_a);
+            add_coupled_pair::<T, N>(m, single_a, ancestor.drive.terms(), single, terms, column, row);
             next = ancestor.parent.filter(|p| p.0 < a.0);
         }
     }

@@ -2,7 +2,7 @@
 
 use nalgebra::{RealField, SMatrix};
 
-use super::{add_coupled, dot6};
+use super::{add_coupled, add_coupled_pair, dot6, single_terms};
 use crate::model::{Data, Model, WorldInertia};
 
 /// Joint-space inertia matrix `M(q)` ((2.1)) by the composite rigid-body algorithm.
@@ -14,31 +14,37 @@ use crate::model::{Data, Model, WorldInertia};
 /// sparsity: they are zero). Both triangles are filled; `M` is symmetric positive definite for a
 /// valid model.
 ///
-/// Precondition: [`super::forward_kinematics`] at `q`. Writes `composite_world_inertias`,
+/// Precondition: [`super::forward_kinematics`] or [`super::placement_kinematics`] at `q`. Writes `composite_world_inertias`,
 /// `composite_inertias` (6×6 form) and `mass_matrix` (returned). Cost O(B·depth).
 pub fn crba<'d, T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
     model: &Model<T, N, B, F>,
     data: &'d mut Data<T, N, B, F>,
 ) -> &'d SMatrix<T, N, N> {
     accumulate_world_composites(model, &data.world_inertias, &mut data.composite_world_inertias);
-    for (out, c) in data.composite_inertias.iter_mut().zip(data.composite_world_inertias.iter()) {
-        *out = c.matrix();
-    }
     let m = data.mass_matrix.as_mut_slice();
     m.fill(T::zero());
     let bodies = model.bodies();
-    for ((body, composite), s_i) in
-        bodies.iter().zip(data.composite_world_inertias.iter()).zip(data.motion_subspaces.iter())
+    let singles = single_terms(model);
+    for ((((body, composite), s_i), &single), matrix) in bodies
+        .iter()
+        .zip(data.composite_world_inertias.iter())
+        .zip(data.motion_subspaces.iter())
+        .zip(singles.iter())
+        .zip(data.composite_inertias.iter_mut())
     {
+        *matrix = composite.matrix();
         let force = composite.apply(s_i);
         let terms = body.drive.terms();
         add_coupled::<T, N>(m, terms, terms, dot6(s_i, &force));
         let mut next = body.parent;
         while let Some(j) = next {
-            let (Some(ancestor), Some(s_j)) = (bodies.get(j.0), data.motion_subspaces.get(j.0)) else { break };
+            let (Some(ancestor), Some(s_j), Some(&single_j)) =
+                (bodies.get(j.0), data.motion_subspaces.get(j.0), singles.get(j.0))
+            else {
+                break;
+            };
             let value = dot6(s_j, &force);
-            add_coupled::<T, N>(m, ancestor.drive.terms(), terms, value);
-            add_coupled::<T, N>(m, terms, ancestor.drive.terms(), value);
+            add_coupled_pair::<T, N>(m, single_j, ancestor.drive.terms(), single, terms, value, value);
             next = ancestor.parent.filter(|p| p.0 < j.0);
         }
     }

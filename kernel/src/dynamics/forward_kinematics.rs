@@ -1,22 +1,22 @@
 //! Forward kinematics: placements, motion subspaces, velocities and velocity-product
-//! accelerations of every body, and frame placements.
+//! accelerations of every body, and frame placements; and the position-only passes
+//! (placements and subspaces of every body or of one support path) built on the same step.
 
-use nalgebra::{ArrayStorage, Matrix3, RealField, Rotation3, SVector, Translation3, Vector6};
+use nalgebra::{ArrayStorage, Matrix3, RealField, Rotation3, SVector, Translation3, Vector3, Vector6};
 
 use super::{add_scaled6, check_finite, DynamicsError};
 use crate::math::spatial::{Motion, Placement};
-use crate::model::{Data, JointKind, Model, WorldInertia};
+use crate::model::{Body, BodyId, Data, JointKind, Model, WorldInertia};
 
 /// Forward kinematics at state `(q, q̇)`.
 ///
-/// For each body `i` with parent `p` (world placements `⁰X`):
-/// `⁰X_i = ⁰X_p · X_J(placement) · X(q_i)`, motion subspace `S_i = (a; p_i × a)` for a revolute
-/// joint with world axis `a` through the body origin `p_i`, `S_i = (0; a)` for a prismatic one,
-/// velocity `v_i = v_p + S_i q̇_i`, subspace rate `Ṡ_i = v_i × S_i`, drift
+/// For each body `i` with parent `p` (world placements `⁰X`), the placement pass
+/// [`joint_step`]: `⁰X_i = ⁰X_p · X_J(placement) · X(q_i)`, motion subspace `S_i = (a; p_i × a)`
+/// for a revolute joint with world axis `a` through the body origin `p_i`, `S_i = (0; a)` for a
+/// prismatic one; then velocity `v_i = v_p + S_i q̇_i`, subspace rate `Ṡ_i = v_i × S_i`, drift
 /// `ζ_i = ζ_p + Ṡ_i q̇_i`, world spatial inertia `I_i` (Featherstone (2.63), as a 6×6 matrix and
 /// in ten-parameter form); then every frame placement. `q_i`, `q̇_i` are joint values through
-/// the drive (coupling) map. The placement products are written out on 3×3 arrays (no generic
-/// matrix iteration).
+/// the drive (coupling) map.
 ///
 /// Writes `q, v, body_placements, motion_subspaces, subspace_rates, body_velocities,
 /// body_drift_accelerations, body_inertias, world_inertias, frame_placements`. Cost O(B + F).
@@ -33,38 +33,13 @@ pub fn forward_kinematics<T: RealField + Copy, const N: usize, const B: usize, c
     data.v = *v;
     for (i, body) in model.bodies().iter().enumerate() {
         let parent = body.parent.map(|p| p.0);
-        let joint_frame = match parent.and_then(|p| data.body_placements.get(p)) {
-            Some(parent_placement) => compose(parent_placement, &body.joint_placement),
-            None => body.joint_placement,
-        };
+        let (placement, subspace) = joint_step(body, parent.and_then(|p| data.body_placements.get(p)), q);
         let (parent_velocity, parent_drift) = match (
             parent.and_then(|p| data.body_velocities.get(p)),
             parent.and_then(|p| data.body_drift_accelerations.get(p)),
         ) {
             (Some(v), Some(z)) => (*v, *z),
             _ => (Motion::zeros(), Motion::zeros()),
-        };
-
-        let value = body.drive.evaluate(q, true);
-        let a = body.joint.axis().into_inner();
-        let r = columns(&joint_frame);
-        let axis = mul3(&r, &[a.x, a.y, a.z]);
-        let t = joint_frame.translation.vector;
-        let (placement, subspace) = match body.joint {
-            JointKind::Revolute { .. } => {
-                let rotated = mul33(&r, &axis_angle(&[a.x, a.y, a.z], value));
-                let [a0, a1, a2] = axis;
-                let lin = [t.y * a2 - t.z * a1, t.z * a0 - t.x * a2, t.x * a1 - t.y * a0];
-                (from_columns(rotated, [t.x, t.y, t.z]), Vector6::new(a0, a1, a2, lin[0], lin[1], lin[2]))
-            }
-            JointKind::Prismatic { .. } => {
-                let [a0, a1, a2] = axis;
-                let z = T::zero();
-                (
-                    from_columns(r, [t.x + a0 * value, t.y + a1 * value, t.z + a2 * value]),
-                    Vector6::new(z, z, z, a0, a1, a2),
-                )
-            }
         };
         let rate = body.drive.evaluate(v, false);
         let velocity = add_scaled6(&parent_velocity, &subspace, rate);
@@ -98,6 +73,121 @@ pub fn forward_kinematics<T: RealField + Copy, const N: usize, const B: usize, c
         };
     }
     Ok(())
+}
+
+/// Position kinematics at `q` for the joint-space inertia matrix and gravity: the placement
+/// pass of [`forward_kinematics`] ([`joint_step`]: placements `⁰X_i` and motion subspaces
+/// `S_i` of every body) and the world inertias `I_i` in ten-parameter form (Featherstone
+/// (2.63)); no velocities, drifts, 6×6 inertias or frame placements (Pinocchio's `crba(q)`
+/// computes the same before its backward pass).
+///
+/// Writes `q, body_placements, motion_subspaces, world_inertias`: enough for
+/// [`super::crba`], [`super::gravity`] and the body-point Jacobians
+/// ([`super::point_jacobian`], [`super::frame_jacobian`]). Cost O(B).
+/// Errors: [`DynamicsError::NonFinite`] if `q` has NaN/inf (nothing written).
+pub fn placement_kinematics<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
+    model: &Model<T, N, B, F>,
+    data: &mut Data<T, N, B, F>,
+    q: &SVector<T, N>,
+) -> Result<(), DynamicsError> {
+    check_finite(q, "q")?;
+    data.q = *q;
+    for (i, body) in model.bodies().iter().enumerate() {
+        let parent = body.parent.and_then(|p| data.body_placements.get(p.0));
+        let (placement, subspace) = joint_step(body, parent, q);
+        let world_inertia = WorldInertia::from_body(&body.inertia, &placement);
+        let slots = (data.body_placements.get_mut(i), data.motion_subspaces.get_mut(i), data.world_inertias.get_mut(i));
+        if let (Some(x), Some(s), Some(wi)) = slots {
+            *x = placement;
+            *s = subspace;
+            *wi = world_inertia;
+        }
+    }
+    Ok(())
+}
+
+/// Position kinematics at `q` along one support path: the placement pass of
+/// [`forward_kinematics`] ([`joint_step`]) for `body` and its ancestors only, root first
+/// (Pinocchio's `computeFrameJacobian(q)` walks the same joints).
+///
+/// Writes `q` and the `body_placements` and `motion_subspaces` of the support of `body`:
+/// enough for [`super::point_jacobian`] on `body` and [`super::frame_jacobian`] of a frame
+/// attached to it. Cost O(depth). Errors: [`DynamicsError::NonFinite`] if `q` has NaN/inf,
+/// [`DynamicsError::UnknownBody`] (nothing written in either case).
+pub fn support_kinematics<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
+    model: &Model<T, N, B, F>,
+    data: &mut Data<T, N, B, F>,
+    q: &SVector<T, N>,
+    body: BodyId,
+) -> Result<(), DynamicsError> {
+    check_finite(q, "q")?;
+    let bodies = model.bodies();
+    bodies.get(body.0).ok_or(DynamicsError::UnknownBody)?;
+    // The support, leaf first (parents have smaller indices, so at most B entries).
+    let mut path = [0usize; B];
+    let mut len = 0;
+    let mut next = Some(body);
+    while let (Some(id), Some(slot)) = (next, path.get_mut(len)) {
+        let Some(b) = bodies.get(id.0) else { break };
+        *slot = id.0;
+        len += 1;
+        next = b.parent.filter(|p| p.0 < id.0);
+    }
+    data.q = *q;
+    for &i in path.get(..len).unwrap_or(&[]).iter().rev() {
+        let Some(b) = bodies.get(i) else { continue };
+        let parent = b.parent.and_then(|p| data.body_placements.get(p.0));
+        let (placement, subspace) = joint_step(b, parent, q);
+        if let (Some(x), Some(s)) = (data.body_placements.get_mut(i), data.motion_subspaces.get_mut(i)) {
+            *x = placement;
+            *s = subspace;
+        }
+    }
+    Ok(())
+}
+
+/// The placement step of one body (every kinematics pass shares it): from the parent's world
+/// placement (`None`: the world), `⁰X_i = ⁰X_p · X_J(placement) · X(q_i)` with the joint value
+/// `q_i` through the drive map, and the world motion subspace `S_i = (a; p_i × a)` (revolute,
+/// world axis `a` through the body origin `p_i`) or `(0; a)` (prismatic). The placement products
+/// are written out on 3×3 arrays (no generic matrix iteration).
+#[inline(always)]
+fn joint_step<T: RealField + Copy, const N: usize>(
+    body: &Body<T>,
+    parent: Option<&Placement<T>>,
+    q: &SVector<T, N>,
+) -> (Placement<T>, Motion<T>) {
+    let joint_frame = match parent {
+        Some(parent_placement) => compose(parent_placement, &body.joint_placement),
+        None => body.joint_placement,
+    };
+    let value = body.drive.evaluate(q, true);
+    let a = body.joint.axis().into_inner();
+    let r = columns(&joint_frame);
+    let axis = mul3(&r, &[a.x, a.y, a.z]);
+    let t = joint_frame.translation.vector;
+    match body.joint {
+        JointKind::Revolute { .. } => {
+            let rotated = rotate(&r, &[a.x, a.y, a.z], value);
+            let [a0, a1, a2] = axis;
+            let lin = [t.y * a2 - t.z * a1, t.z * a0 - t.x * a2, t.x * a1 - t.y * a0];
+            (from_columns(rotated, [t.x, t.y, t.z]), Vector6::new(a0, a1, a2, lin[0], lin[1], lin[2]))
+        }
+        JointKind::Prismatic { .. } => {
+            let [a0, a1, a2] = axis;
+            let z = T::zero();
+            (from_columns(r, [t.x + a0 * value, t.y + a1 * value, t.z + a2 * value]), Vector6::new(z, z, z, a0, a1, a2))
+        }
+    }
+}
+
+/// `X p` for a placement `X = (R, t)` and a point `p`: `R p + t` (the translation of
+/// `X · (1, p)`, the same operations as [`compose`]).
+#[inline]
+pub(super) fn transform_point<T: RealField + Copy>(x: &Placement<T>, p: &Vector3<T>) -> Vector3<T> {
+    let ta = x.translation.vector;
+    let [a, b, c] = mul3(&columns(x), &[p.x, p.y, p.z]);
+    Vector3::new(a + ta.x, b + ta.y, c + ta.z)
 }
 
 /// Columns of a 3×3 matrix (nalgebra's storage order).
@@ -137,11 +227,42 @@ fn mul33<T: RealField + Copy>(a: &Columns<T>, b: &Columns<T>) -> Columns<T> {
 /// `a · b` for placements: `(R_a R_b, R_a t_b + t_a)`.
 #[inline]
 fn compose<T: RealField + Copy>(a: &Placement<T>, b: &Placement<T>) -> Placement<T> {
-    let ra = columns(a);
-    let tb = b.translation.vector;
-    let ta = a.translation.vector;
-    let [x, y, z] = mul3(&ra, &[tb.x, tb.y, tb.z]);
-    from_columns(mul33(&ra, &columns(b)), [x + ta.x, y + ta.y, z + ta.z])
+    let t = transform_point(a, &b.translation.vector);
+    from_columns(mul33(&columns(a), &columns(b)), [t.x, t.y, t.z])
+}
+
+/// `R · Rot(a, angle)` for `R` given by columns and the unit axis `a`. About a coordinate axis
+/// the product touches two columns of `R` (e.g. about `z`: `(c r₀ + s r₁, c r₁ − s r₀, r₂)`);
+/// about any other axis it is the product with [`axis_angle`].
+#[inline(always)]
+fn rotate<T: RealField + Copy>(r: &Columns<T>, a: &[T; 3], angle: T) -> Columns<T> {
+    let (z, o) = (T::zero(), T::one());
+    let [r0, r1, r2] = *r;
+    let turn = |x: &[T; 3], y: &[T; 3], s: T, c: T| -> ([T; 3], [T; 3]) {
+        // (c x + s y, c y − s x): the plane of `x`, `y` turned by the angle.
+        (
+            [c * x[0] + s * y[0], c * x[1] + s * y[1], c * x[2] + s * y[2]],
+            [c * y[0] - s * x[0], c * y[1] - s * x[1], c * y[2] - s * x[2]],
+        )
+    };
+    match *a {
+        [x, y, w] if x == z && y == z && w == o => {
+            let (s, c) = angle.sin_cos();
+            let (n0, n1) = turn(&r0, &r1, s, c);
+            [n0, n1, r2]
+        }
+        [x, y, w] if x == o && y == z && w == z => {
+            let (s, c) = angle.sin_cos();
+            let (n1, n2) = turn(&r1, &r2, s, c);
+            [r0, n1, n2]
+        }
+        [x, y, w] if x == z && y == o && w == z => {
+            let (s, c) = angle.sin_cos();
+            let (n2, n0) = turn(&r2, &r0, s, c);
+            [n0, r1, n2]
+        }
+        _ => mul33(r, &axis_angle(a, angle)),
+    }
 }
 
 /// Rotation by `angle` about the unit axis `a` (Rodrigues): `cos θ 1 + sin θ [a]× + (1 − cos θ) a aᵀ`,

@@ -2,6 +2,7 @@
 
 use nalgebra::{RealField, SMatrix, Vector3};
 
+use super::forward_kinematics::transform_point;
 use super::DynamicsError;
 use crate::model::{BodyId, Data, FrameId, Model};
 
@@ -51,6 +52,11 @@ pub fn point_jacobian<T: RealField + Copy, const N: usize, const B: usize, const
 /// Jacobian of the origin of frame `frame`, world-aligned, linear rows first, 6×N
 /// (Pinocchio's `LOCAL_WORLD_ALIGNED` frame Jacobian). A world-fixed frame has `J = 0`.
 ///
+/// Precondition: the placements and subspaces of the frame's support, from
+/// [`super::forward_kinematics`], [`super::placement_kinematics`] or
+/// [`super::support_kinematics`] on the frame's body (the frame origin is computed from the
+/// body placement). Writes only `jacobian`. Cost O(depth).
+///
 /// ```
 /// # use kernel::model::{Data, Inertia, JointDrive, JointKind, ModelBuilder, Placement};
 /// # use kernel::dynamics::{forward_kinematics, frame_jacobian};
@@ -76,9 +82,14 @@ pub fn frame_jacobian<T: RealField + Copy, const N: usize, const B: usize, const
     jacobian: &mut SMatrix<T, 6, N>,
 ) -> Result<(), DynamicsError> {
     let f = model.frame(frame).ok_or(DynamicsError::UnknownFrame)?;
-    let origin = data.frame_placements.get(frame.0).ok_or(DynamicsError::UnknownFrame)?.translation.vector;
     match f.parent {
-        Some(body) => point_jacobian(model, data, body, &origin, jacobian),
+        Some(body) => {
+            // The frame origin `⁰X_body · p_frame` (what `forward_kinematics` stores in
+            // `frame_placements`), from the body placement alone.
+            let parent = data.body_placements.get(body.0).ok_or(DynamicsError::UnknownBody)?;
+            let origin = transform_point(parent, &f.placement.translation.vector);
+            point_jacobian(model, data, body, &origin, jacobian)
+        }
         None => {
             jacobian.as_mut_slice().fill(T::zero());
             Ok(())

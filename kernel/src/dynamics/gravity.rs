@@ -8,7 +8,8 @@ use crate::model::{Data, Model};
 /// Generalized gravity `g(q) = ∂V_g/∂q` ((2.1)): RNEA with `q̇ = 0`, `q̈ = 0`, i.e. every body
 /// carries `f_i = I_i (0; −g)` and the joints project the subtree sums.
 ///
-/// Precondition: [`super::forward_kinematics`] at `q` (velocities are not used). Writes
+/// Precondition: [`super::forward_kinematics`] or [`super::placement_kinematics`] at `q`
+/// (velocities are not used). Writes
 /// `body_forces`, `tau` and `gravity_torque` (returned). Cost O(B).
 pub fn gravity<'d, T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
     model: &Model<T, N, B, F>,

@@ -1,12 +1,16 @@
 //! Rigid-body dynamics of the kinematic tree (Sec. 2.1 of the thesis; Featherstone's
 //! algorithms), one algorithm per file.
 //!
-//! Call [`forward_kinematics`] once per state; the other algorithms read the kinematics it
-//! stored in [`crate::model::Data`] and write their own outputs there:
+//! Call [`forward_kinematics`] once per state (or, when only positions are needed,
+//! [`placement_kinematics`] for CRBA, gravity and Jacobians, [`support_kinematics`] for the
+//! Jacobians of one body); the other algorithms read the kinematics it stored in
+//! [`crate::model::Data`] and write their own outputs there:
 //!
 //! | algorithm | computes | cost |
 //! | --- | --- | --- |
 //! | [`forward_kinematics`] | placements, motion subspaces, body velocities and drifts | O(B) |
+//! | [`placement_kinematics`] | placements, motion subspaces, world inertias (for CRBA, gravity, Jacobians) | O(B) |
+//! | [`support_kinematics`] | placements and motion subspaces of one support path (for its Jacobians) | O(depth) |
 //! | [`frame_jacobian`], [`point_jacobian`] | 6×N Jacobian, world-aligned, linear rows first | O(depth) |
 //! | [`frame_drift`], [`point_drift`] | `J̇(q, q̇) q̇` | O(1) |
 //! | [`rnea`] | `M q̈ + C q̇ + g` | O(B) |
@@ -38,7 +42,7 @@ pub use crba::crba;
 pub use energy::{kinetic_energy, potential_energy};
 pub use error::DynamicsError;
 pub use forward_dynamics::{forward_dynamics, mass_matrix_cholesky};
-pub use forward_kinematics::forward_kinematics;
+pub use forward_kinematics::{forward_kinematics, placement_kinematics, support_kinematics};
 pub use frame_drift::{frame_drift, point_drift};
 pub use frame_jacobian::{frame_jacobian, point_jacobian};
 pub use gravity::gravity;
@@ -68,6 +72,49 @@ fn add_coupled<T: RealField + Copy, const N: usize>(m: &mut [T], row: &[DriveTer
                 *entry += r.coefficient * scaled;
             }
         }
+    }
+}
+
+/// The single drive term of every body (`None` for a coupled joint with several terms), looked
+/// up once per algorithm so that the ancestor walks of [`crba`] and [`coriolis_matrix`] read one
+/// local entry per body instead of the drive's term list.
+#[inline(always)]
+fn single_terms<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
+    model: &crate::model::Model<T, N, B, F>,
+) -> [Option<DriveTerm<T>>; B] {
+    let mut out = [None; B];
+    for (slot, body) in out.iter_mut().zip(model.bodies()) {
+        if let [term] = body.drive.terms() {
+            *slot = Some(*term);
+        }
+    }
+    out
+}
+
+/// `m[a][b] += ab` and `m[b][a] += ba` for the tree entries of bodies `a` and `b` (single drive
+/// terms `single_a`, `single_b` from [`single_terms`], or their full drive rows `terms_a`,
+/// `terms_b` when either is coupled), mapped to coordinates as in [`add_coupled`].
+#[inline(always)]
+#[allow(clippy::too_many_arguments, reason = "two bodies' drive views and two values, all inlined")]
+fn add_coupled_pair<T: RealField + Copy, const N: usize>(
+    m: &mut [T],
+    single_a: Option<DriveTerm<T>>,
+    terms_a: &[DriveTerm<T>],
+    single_b: Option<DriveTerm<T>>,
+    terms_b: &[DriveTerm<T>],
+    ab: T,
+    ba: T,
+) {
+    if let (Some(ta), Some(tb)) = (single_a, single_b) {
+        if let Some(entry) = m.get_mut(tb.coordinate * N + ta.coordinate) {
+            *entry += ta.coefficient * tb.coefficient * ab;
+        }
+        if let Some(entry) = m.get_mut(ta.coordinate * N + tb.coordinate) {
+            *entry += tb.coefficient * ta.coefficient * ba;
+        }
+    } else {
+        add_coupled::<T, N>(m, terms_a, terms_b, ab);
+        add_coupled::<T, N>(m, terms_b, terms_a, ba);
     }
 }
 
@@ -247,7 +294,72 @@ mod reference_tests {
         Ok(())
     }
 
+    /// `M`, `g` and both frame Jacobians after the position-only passes on fresh workspaces
+    /// (`placement_kinematics` for all of them, then `support_kinematics` of each frame's body
+    /// alone for its Jacobian), cast to f64.
+    fn positions_only<T: RealField + Copy>(model: &Model<T, N, B, F>, q: &SVector<f64, N>) -> std::vec::Vec<f64> {
+        let q = q.map(|e| nalgebra::convert::<f64, T>(e));
+        let mut out = std::vec::Vec::new();
+        let mut push = |x: &[T]| out.extend(x.iter().map(|e| nalgebra::try_convert::<T, f64>(*e).unwrap()));
+        let mut data = Data::new(model);
+        placement_kinematics(model, &mut data, &q).unwrap();
+        push(crba(model, &mut data).as_slice());
+        push(gravity(model, &mut data).as_slice());
+        for k in 0..2 {
+            let mut j = SMatrix::<T, 6, N>::zeros();
+            frame_jacobian(model, &data, crate::model::FrameId(k), &mut j).unwrap();
+            push(j.as_slice());
+            let mut support = Data::new(model);
+            let body = model.frames()[k].parent.unwrap();
+            support_kinematics(model, &mut support, &q, body).unwrap();
+            let mut j = SMatrix::<T, 6, N>::from_element(T::one());
+            frame_jacobian(model, &support, crate::model::FrameId(k), &mut j).unwrap();
+            push(j.as_slice());
+        }
+        out
+    }
+
+    /// The reference values in the order of [`positions_only`].
+    fn reference_positions_only(model: &Model<f64, N, B, F>, q: &SVector<f64, N>) -> std::vec::Vec<f64> {
+        let zero = SVector::zeros();
+        let r = reference_outputs(model, q, &zero, &zero);
+        let mut out = std::vec::Vec::new();
+        out.extend_from_slice(r.m.as_slice());
+        out.extend_from_slice(r.g.as_slice());
+        for j in &r.jacobians {
+            out.extend_from_slice(j.as_slice());
+            out.extend_from_slice(j.as_slice());
+        }
+        out
+    }
+
     proptest! {
+        /// The position-only passes give the reference `M`, `g` and frame Jacobians: f64 to
+        /// rounding, f32 within single-precision rounding.
+        #[test]
+        fn position_kinematics_equal_reference(seed in any::<u64>()) {
+            let (m64, m32) = (branched::<f64>(), branched::<f32>());
+            let q = state(seed, 2.0);
+            let reference = reference_positions_only(&m64, &q);
+            let scale = 1.0 + reference.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            let d64 = diff(&positions_only(&m64, &q), &reference);
+            prop_assert!(d64 <= 1e-12 * scale, "f64: difference {d64:e}");
+            let d32 = diff(&positions_only(&m32, &q), &reference);
+            prop_assert!(d32 <= 2e-5 * scale, "f32: difference {d32:e}");
+        }
+
+        /// An unknown body is an error of `support_kinematics`, a non-finite `q` of both passes.
+        #[test]
+        fn position_kinematics_reject_bad_input(seed in any::<u64>()) {
+            let model = branched::<f64>();
+            let mut data = Data::new(&model);
+            let mut q = state(seed, 2.0);
+            prop_assert_eq!(support_kinematics(&model, &mut data, &q, BodyId(B)), Err(DynamicsError::UnknownBody));
+            q[0] = f64::NAN;
+            prop_assert!(placement_kinematics(&model, &mut data, &q).is_err());
+            prop_assert!(support_kinematics(&model, &mut data, &q, BodyId(0)).is_err());
+        }
+
         /// f64: the fast FK, CRBA, Coriolis matrix (and `B^c`), gravity, RNEA and frame
         /// Jacobians equal the reference to rounding.
         #[test]
