@@ -7,6 +7,8 @@
 #   4. a QEMU smoke run of that image on Cortex-M7 (mps2-an500) and Cortex-M4F (mps2-an386)
 #   5. the link-time panic check: Controller::step linked with an undefined panic handler
 #   6. formatting (`cargo fmt --check`) and rustdoc with warnings as errors
+#   7. processor in the loop: the runtime image under QEMU (Cortex-M7) controls the simulated
+#      robot for 300 cycles, and refuses injected bad link frames with the safe output
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # Incremental caches double the size of the debug target and a CI build is never incremental.
@@ -67,3 +69,6 @@ RUSTDOCFLAGS="-D warnings" cargo doc --locked --workspace --no-deps
 
 step "workspace tests"
 cargo test --locked --workspace
+
+step "processor in the loop (runtime image on QEMU Cortex-M7: 300 cycles, link-fault injection)"
+cargo test --locked -p host-sim --test pil_rig --test pil_link_faults -- --ignored --test-threads 1

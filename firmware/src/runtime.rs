@@ -1,8 +1,8 @@
 //! The board runtime: sensor frames from the link in, `Controller::step`, actuator frames out.
 //!
 //! Board-independent: [`Runtime::period`] is called once per control period (1 kHz tick) with
-//! the link's port. It takes every frame the port has: a sensor frame is stepped and answered
-//! with an actuator frame; a planner command is applied. A frame the link refuses (corrupted,
+//! the link's port. It takes frames until the period's sensor frame: a sensor frame is stepped
+//! and answered with an actuator frame; a planner command is applied. A frame the link refuses (corrupted,
 //! truncated, oversized, replayed, wrong joint count), or no sensor frame for `watchdog_ticks`
 //! periods, is a [`LinkFault`]: the controller is stepped with the last valid sensor frame
 //! again, which it refuses as `StaleFrame` and answers with its safe output (Hold, then Brake),
@@ -69,19 +69,29 @@ impl Runtime {
         }
     }
 
-    /// One control period: handles every frame `port` has ready, the watchdog and the
-    /// statistics. `missed` periods went by unhandled since the last call (a deadline miss each).
-    pub fn period<P>(&mut self, port: &mut P, controller: &mut Controller, missed: u32) -> PeriodReport
+    /// One control period: takes frames from `port` until a sensor frame has been stepped or
+    /// `period_over()` (a UART without DMA delivers the frame byte by byte during the period),
+    /// then the watchdog and the statistics. `missed` periods went by unhandled since the last
+    /// call (a deadline miss each).
+    pub fn period<P, O>(
+        &mut self,
+        port: &mut P,
+        controller: &mut Controller,
+        missed: u32,
+        period_over: O,
+    ) -> PeriodReport
     where
         P: embedded_io::Read + embedded_io::ReadReady + embedded_io::Write,
+        O: Fn() -> bool,
     {
         let mut report = PeriodReport::default();
         self.stats.deadline_misses = self.stats.deadline_misses.saturating_add(missed);
-        while let Some(result) = self.reader.poll(port) {
-            match result {
-                Ok(received) => self.on_frame(port, controller, received, &mut report),
-                Err(LinkError::Io(_) | LinkError::Closed) => break,
-                Err(e) => self.on_link_fault(port, controller, link_fault(&e), &mut report),
+        while report.steps == 0 && !period_over() {
+            match self.reader.poll(port) {
+                None => {}
+                Some(Ok(received)) => self.on_frame(port, controller, received, &mut report),
+                Some(Err(LinkError::Io(_) | LinkError::Closed)) => break,
+                Some(Err(e)) => self.on_link_fault(port, controller, link_fault(&e), &mut report),
             }
         }
         if report.steps == 0 && self.last_valid.is_some() {

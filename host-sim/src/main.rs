@@ -22,6 +22,9 @@ enum Command {
         /// Output directory (created if missing).
         #[arg(long, default_value = "out")]
         out: PathBuf,
+        /// Run the whole-body controller on the firmware image under QEMU (processor in the loop).
+        #[arg(long, value_enum)]
+        pil: Option<host_sim::pil::Target>,
     },
     /// List the scenarios with a one-line description each.
     List,
@@ -42,7 +45,9 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Run { scenario, out } => host_sim::scenario::run(&scenario, &out),
+        Command::Run { scenario, out, pil } => {
+            pil.map_or(Ok(()), host_sim::pil::select).and_then(|()| host_sim::scenario::run(&scenario, &out))
+        }
         Command::List => {
             for (name, description) in host_sim::scenario::list() {
                 println!("{name:24} {description}");

@@ -75,7 +75,7 @@ fn main() -> ! {
         let missed = now.wrapping_sub(seen).saturating_sub(1);
         seen = now;
         let stopwatch = Stopwatch::start();
-        let report = runtime.period(&mut port, controller, missed);
+        let report = runtime.period(&mut port, controller, missed, || board::ticks() != now);
         if report.steps > 0 {
             runtime.record_cost(stopwatch.elapsed());
         }
