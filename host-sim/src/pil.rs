@@ -17,6 +17,7 @@ use std::io::BufReader;
 use std::net::{TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command as Process, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
@@ -77,6 +78,8 @@ impl Target {
 }
 
 static SELECTED: OnceLock<Target> = OnceLock::new();
+/// Whether a firmware was started in this process.
+static STARTED: AtomicBool = AtomicBool::new(false);
 
 /// Selects the firmware target for every whole-body rig of this process (once).
 pub fn select(target: Target) -> Result<(), String> {
@@ -86,6 +89,12 @@ pub fn select(target: Target) -> Result<(), String> {
 /// The selected firmware target, if any.
 pub fn selected() -> Option<Target> {
     SELECTED.get().copied()
+}
+
+/// Whether a [`Firmware`] was started in this process (a scenario without the whole-body rig
+/// never starts one, and ignores the selection).
+pub fn started() -> bool {
+    STARTED.load(Ordering::Relaxed)
 }
 
 /// The `firmware/` project beside this crate.
@@ -148,6 +157,7 @@ impl Firmware {
             .map_err(|e| format!("qemu-system-arm: {e}"))?;
         let mut firmware = Self::connect(target, qemu, &listener, timeout)?;
         firmware.qemu_alive()?;
+        STARTED.store(true, Ordering::Relaxed);
         eprintln!("pil: {} on QEMU {} connected (log: {})", target.label(), target.machine(), log_path.display());
         Ok(firmware)
     }
