@@ -47,14 +47,17 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Run { scenario, out, pil } => match pil {
             None => host_sim::scenario::run(&scenario, &out),
-            Some(target) => host_sim::pil::select(target)
-                .and_then(|()| host_sim::scenario::run(&scenario, &out))
-                .and_then(|()| match host_sim::pil::started() {
-                    true => Ok(()),
-                    false => Err(format!(
-                        "--pil: {scenario} does not run the whole-body rig; its controller ran on the host"
-                    )),
-                }),
+            Some(target) => {
+                host_sim::pil::select(target).and_then(|()| host_sim::scenario::run(&scenario, &out)).and_then(|()| {
+                    if host_sim::pil::started() {
+                        Ok(())
+                    } else {
+                        Err(format!(
+                            "--pil: {scenario} does not run the whole-body rig; its controller ran on the host"
+                        ))
+                    }
+                })
+            }
         },
         Command::List => {
             for (name, description) in host_sim::scenario::list() {
