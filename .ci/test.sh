@@ -7,7 +7,9 @@
 #   4. a QEMU smoke run of that image on Cortex-M7 (mps2-an500) and Cortex-M4F (mps2-an386)
 #   5. the link-time panic check: Controller::step linked with an undefined panic handler
 #   6. formatting (`cargo fmt --check`) and rustdoc with warnings as errors
-#   7. coverage-guided fuzzing (cargo fuzz): every target for 20 s from the committed seeds
+#   7. processor in the loop: the runtime image under QEMU (Cortex-M7) controls the simulated
+#      robot for 300 cycles, and refuses injected bad link frames with the safe output
+#   8. coverage-guided fuzzing (cargo fuzz): every target for 20 s from the committed seeds
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # Incremental caches double the size of the debug target and a CI build is never incremental.
@@ -68,6 +70,9 @@ RUSTDOCFLAGS="-D warnings" cargo doc --locked --workspace --no-deps
 
 step "workspace tests"
 cargo test --locked --workspace
+
+step "processor in the loop (runtime image on QEMU Cortex-M7: 300 cycles, link-fault injection)"
+cargo test --locked -p host-sim --test pil_rig --test pil_link_faults -- --ignored --test-threads 1
 
 # The sanitizer build of the fuzz targets needs ~1.3 GB: on a small disk, free the workspace's
 # target first (a developer's machine with room keeps it).

@@ -14,6 +14,7 @@
 //! - [`output`]: the scenario output convention (CSV, summary JSON, SVG plots).
 //! - [`scenario`]: the registry of named scenarios.
 //! - [`wbc`]: the simulated Justin under the kernel's whole-body controller.
+//! - [`pil`]: processor-in-the-loop: the firmware image under QEMU as the rig's controller.
 //!
 //! Errors at this level are reported as one-line messages; nothing here panics on bad input.
 
@@ -22,6 +23,7 @@ pub mod controllers;
 pub mod dynamics_cli;
 pub mod mobile_controller;
 pub mod output;
+pub mod pil;
 pub mod plant;
 pub mod scenario;
 pub mod sim;

@@ -22,6 +22,9 @@ enum Command {
         /// Output directory (created if missing).
         #[arg(long, default_value = "out")]
         out: PathBuf,
+        /// Run the whole-body controller on the firmware image under QEMU (processor in the loop).
+        #[arg(long, value_enum)]
+        pil: Option<host_sim::pil::Target>,
     },
     /// List the scenarios with a one-line description each.
     List,
@@ -42,7 +45,20 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Run { scenario, out } => host_sim::scenario::run(&scenario, &out),
+        Command::Run { scenario, out, pil } => match pil {
+            None => host_sim::scenario::run(&scenario, &out),
+            Some(target) => {
+                host_sim::pil::select(target).and_then(|()| host_sim::scenario::run(&scenario, &out)).and_then(|()| {
+                    if host_sim::pil::started() {
+                        Ok(())
+                    } else {
+                        Err(format!(
+                            "--pil: {scenario} does not run the whole-body rig; its controller ran on the host"
+                        ))
+                    }
+                })
+            }
+        },
         Command::List => {
             for (name, description) in host_sim::scenario::list() {
                 println!("{name:24} {description}");

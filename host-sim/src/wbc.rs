@@ -12,11 +12,13 @@ use fixtures::justin::{self, collision, whole_body};
 use hal::{JointTorqueInterface, PlatformVelocityInterface};
 use kernel::controller::config::{ControllerConfig, Hand, TaskKind, TaskSpec, MAX_LEVELS};
 use kernel::controller::faults::SafeOutput;
-use kernel::controller::SensorFrame;
+use kernel::controller::messages::Command;
+use kernel::controller::{ActuatorFrame, SensorFrame};
 use kernel::tasks::collision::SweptSphere;
 use nalgebra::SVector;
 
-use crate::output::TimeSeries;
+use crate::output::{Summary, TimeSeries};
+use crate::pil::Firmware;
 use crate::sim::{CycleInfo, JointStops, SimConfig, SimError, Simulator, CONTROL_PERIOD_S};
 
 /// Collision volumes: the robot's 28 plus up to four environment volumes (table, wall, …).
@@ -45,7 +47,19 @@ pub struct Rig {
     pub faulty_cycles: u64,
     /// Smallest collision distance seen (m) over all pairs.
     pub min_distance_m: f64,
+    /// The firmware under QEMU, when a PIL target is selected ([`crate::pil::select`]): its
+    /// output drives the robot; `controller` runs alongside on the same frames for the
+    /// telemetry and the comparison.
+    pub firmware: Option<Firmware>,
+    /// Largest joint-torque difference |τ_firmware − τ_host| (Nm) over the first
+    /// [`COMPARISON_S`], on the same frames.
+    pub firmware_torque_difference: f64,
+    /// The output applied in the last cycle.
+    output: ActuatorFrame<f64, { justin::UPPER_DOF }>,
 }
+
+/// The span over which the firmware's torques are compared with the host controller's (s).
+pub const COMPARISON_S: f64 = 0.5;
 
 /// Builds the rig: the robot at `q0` at rest, the collision model with `environment` volumes
 /// (world frame), the controller with `config` and `hierarchy`.
@@ -67,7 +81,40 @@ pub fn rig(
         .map_err(|e| format!("simulator: {e}"))?;
     sim.set_state(*q0, SVector::zeros()).map_err(|e| format!("initial state: {e}"))?;
     sim.set_joint_stops(Some(JointStops::JUSTIN)).map_err(|e| format!("joint stops: {e}"))?;
-    Ok(Rig { sim, controller, faulty_cycles: 0, min_distance_m: f64::INFINITY })
+    let firmware = match crate::pil::selected() {
+        Some(target) => Some(firmware_for(target, environment, &config, hierarchy)?),
+        None => None,
+    };
+    let output = *controller.output();
+    Ok(Rig {
+        sim,
+        controller,
+        faulty_cycles: 0,
+        min_distance_m: f64::INFINITY,
+        firmware,
+        firmware_torque_difference: 0.0,
+        output,
+    })
+}
+
+/// Starts the firmware, if the rig is the one the image is built with: no environment volumes,
+/// [`whole_body::controller_config`], the Fig. 6.3 hierarchy for the right hand.
+fn firmware_for(
+    target: crate::pil::Target,
+    environment: &[SweptSphere<f64>],
+    config: &ControllerConfig<f64, { justin::N }>,
+    hierarchy: &[TaskSpec],
+) -> Result<Firmware, String> {
+    let image_config = whole_body::controller_config::<f64>().map_err(|e| format!("config: {e}"))?;
+    if !environment.is_empty()
+        || *config != image_config
+        || hierarchy != whole_body::fig_6_3_hierarchy(Hand::Right).as_slice()
+    {
+        return Err("--pil: the firmware image runs controller_config and the Fig. 6.3 hierarchy for the right \
+                    hand without environment volumes; this scenario's rig differs"
+            .into());
+    }
+    Firmware::start(target)
 }
 
 /// The default rig of Ch. 6: Justin at its home pose, the configuration of
@@ -160,15 +207,27 @@ pub fn columns() -> Vec<String> {
 }
 
 impl Rig {
-    /// One control cycle: sense, step, actuate. Returns the output mode.
-    pub fn cycle(&mut self, info: &CycleInfo) -> Result<SafeOutput, SimError> {
-        let mut joints = JointTorqueInterface::read(&mut self.sim)?;
-        let mut platform = PlatformVelocityInterface::read(&mut self.sim)?;
+    /// One control cycle: sense, step (the firmware's output when it is attached), actuate.
+    /// Returns the output mode.
+    pub fn cycle(&mut self, info: &CycleInfo) -> Result<SafeOutput, String> {
+        let sim_error = |e: SimError| e.to_string();
+        let mut joints = JointTorqueInterface::read(&mut self.sim).map_err(sim_error)?;
+        let mut platform = PlatformVelocityInterface::read(&mut self.sim).map_err(sim_error)?;
         joints.cycle = info.cycle + 1;
         platform.cycle = info.cycle + 1;
-        let output = *self.controller.step(&SensorFrame { joints, platform });
-        self.sim.write_torque(&output.torque)?;
-        self.sim.write_velocity(&output.platform)?;
+        let frame = SensorFrame { joints, platform };
+        let host = *self.controller.step(&frame);
+        let output = match self.firmware.as_mut() {
+            Some(firmware) => firmware.step(&frame)?,
+            None => host,
+        };
+        if info.time_s < COMPARISON_S {
+            let difference = output.torque.iter().zip(host.torque.iter()).map(|(a, b)| (a - b).abs());
+            self.firmware_torque_difference = difference.fold(self.firmware_torque_difference, f64::max);
+        }
+        self.output = output;
+        self.sim.write_torque(&output.torque).map_err(sim_error)?;
+        self.sim.write_velocity(&output.platform).map_err(sim_error)?;
         if output.mode != SafeOutput::Normal {
             self.faulty_cycles += 1;
         }
@@ -181,7 +240,7 @@ impl Rig {
     /// The row of [`columns`] for the cycle just run.
     pub fn record(&mut self, info: &CycleInfo) -> Result<Vec<f64>, SimError> {
         let t = self.controller.telemetry();
-        let output = self.controller.output();
+        let output = &self.output;
         let mut row = vec![info.time_s];
         row.extend(self.sim.q().iter());
         row.extend(self.sim.v().iter());
@@ -220,6 +279,30 @@ impl Rig {
         let left = self.sim.frame_placement(justin::LEFT_TCP)?.translation.vector;
         row.extend(right.iter().chain(left.iter()));
         Ok(row)
+    }
+
+    /// Applies a planner command to the controller (and to the firmware, when attached).
+    pub fn apply(&mut self, command: &Command<f64>) -> Result<(), String> {
+        self.controller.apply(command).map_err(|e| e.to_string())?;
+        self.firmware.as_mut().map_or(Ok(()), |firmware| firmware.apply(command))
+    }
+
+    /// Records which controller ran (`"host f64"` or the firmware's label) and, with the
+    /// firmware, the torque difference to the host controller and the firmware's statistics.
+    pub fn describe_controller(&self, summary: &mut Summary) {
+        let Some(firmware) = &self.firmware else {
+            summary.value("controller", "host f64");
+            return;
+        };
+        summary.value("controller", firmware.target().label());
+        summary.metric("firmware_torque_difference_first_0_5_s_nm", self.firmware_torque_difference);
+        if let Some(stats) = firmware.stats {
+            summary
+                .value("firmware_cycles", stats.cycles)
+                .value("firmware_deadline_misses", stats.deadline_misses)
+                .value("firmware_worst_cycle_clock_cycles", stats.worst_cycle_cost)
+                .value("firmware_link_faults", stats.link_faults);
+        }
     }
 
     /// Runs `duration_s` of simulated time: per control cycle [`Rig::cycle`], [`Rig::record`]

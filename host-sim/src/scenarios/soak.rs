@@ -256,8 +256,7 @@ pub fn run(duration: f64, seed: u64, progress: Progress) -> Result<(SoakMetrics,
             let q = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw) * home_rotation;
             let pose = Pose { position: [position.x, position.y, position.z], orientation: [q.w, q.i, q.j, q.k] };
             let duration_s = rng.uniform(GOAL_DURATION_S);
-            rig.controller
-                .apply(&Command::TcpGoal { hand: Hand::Right, pose, duration_s })
+            rig.apply(&Command::TcpGoal { hand: Hand::Right, pose, duration_s })
                 .map_err(|e| format!("goal at {t:.3} s: {e}"))?;
             m.goals += 1;
             next_goal = t + rng.uniform(GOAL_INTERVAL_S);

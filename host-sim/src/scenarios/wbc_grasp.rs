@@ -110,7 +110,7 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         for (at, target) in [(REACH_AT_S, object), (RETURN_AT_S, begin)] {
             if near(at) {
                 let command = Command::TcpGoal { hand: Hand::Left, pose: pose_of(&target), duration_s: REACH_S };
-                rig.controller.apply(&command).map_err(|e| format!("goal: {e}"))?;
+                rig.apply(&command).map_err(|e| format!("goal: {e}"))?;
             }
         }
         Ok(())

@@ -105,6 +105,7 @@ pub fn common_claims(summary: &mut Summary, rig: &Rig, series: &TimeSeries) -> R
     let faults = rig.faulty_cycles;
     let finite = series.rows().iter().all(|r| r.iter().all(|x| x.is_finite() || x.is_nan()));
     summary.value("faulty_cycles", faults).metric("min_collision_distance_m", rig.min_distance_m);
+    rig.describe_controller(summary);
     summary.claim(
         &format!("no self-collision: smallest pair distance {:.1} mm > 0", rig.min_distance_m * 1e3),
         rig.min_distance_m > 0.0,
@@ -129,7 +130,7 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
             target.translation.vector.x += STEP_M;
             goal = Some(target.translation.vector);
             let command = Command::TcpGoal { hand: Hand::Right, pose: pose_of(&target), duration_s: 0.0 };
-            rig.controller.apply(&command).map_err(|e| format!("step goal: {e}"))?;
+            rig.apply(&command).map_err(|e| format!("step goal: {e}"))?;
         }
         Ok(())
     })?;

@@ -61,7 +61,7 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
                 let mut goal = begin;
                 goal.translation.vector.x += offset;
                 let command = Command::TcpGoal { hand: Hand::Right, pose: pose_of(&goal), duration_s: SEGMENT_S };
-                rig.controller.apply(&command).map_err(|e| format!("goal: {e}"))?;
+                rig.apply(&command).map_err(|e| format!("goal: {e}"))?;
             }
         }
         desired.push(rig.controller.tcp_target(Hand::Right).pose.translation.vector);

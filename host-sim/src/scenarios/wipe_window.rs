@@ -326,12 +326,10 @@ pub fn run_tool(
     let series = rig.run(duration_s, |rig: &mut Rig, info| {
         if info.cycle == 0 {
             for hand in task.hands {
-                rig.controller
-                    .apply(&Command::SetCartesian { hand: *hand, parameters })
+                rig.apply(&Command::SetCartesian { hand: *hand, parameters })
                     .map_err(|e| format!("SetCartesian: {e}"))?;
             }
-            rig.controller
-                .apply(&Command::SetHierarchy(task.hierarchy.iter().chain(extra_tasks.iter()).copied().collect()))
+            rig.apply(&Command::SetHierarchy(task.hierarchy.iter().chain(extra_tasks.iter()).copied().collect()))
                 .map_err(|e| format!("SetHierarchy: {e}"))?;
         }
         let mut sample = ToolSample {
@@ -363,7 +361,7 @@ pub fn run_tool(
             };
             sample.estimate.push(forces(&applied));
             sample.correction.push(forces(&corrections));
-            rig.controller.apply(&reference.command(info.time_s)).map_err(|e| format!("TcpSample: {e}"))?;
+            rig.apply(&reference.command(info.time_s)).map_err(|e| format!("TcpSample: {e}"))?;
         }
         samples.push(sample);
         if first_fault.is_none() {

@@ -1,0 +1,84 @@
+//! The control image: Justin's whole-body controller (`f32`, `controller_config`, Fig. 6.3
+//! hierarchy for the right hand) at 1 kHz on the SysTick tick, sensor and actuator frames on
+//! UART0 (`firmware::runtime`). Faults, mode changes and once per second the statistics are
+//! logged over semihosting. Runs until the board is reset (QEMU: killed).
+#![no_std]
+#![no_main]
+
+use core::mem::MaybeUninit;
+
+use cortex_m_rt::entry;
+use cortex_m_semihosting::{debug, hprintln};
+use firmware::board::{self, Stopwatch};
+use firmware::runtime::{Controller, PeriodReport, Runtime};
+use fixtures::justin::{self, whole_body};
+use kernel::controller::config::Hand;
+use panic_semihosting as _;
+
+/// Periods without a sensor frame before the runtime holds: generous, because under QEMU the
+/// host (simulating the robot in lockstep) shares the machine with the emulated core.
+const WATCHDOG_PERIODS: u32 = 500;
+
+// The controller (68 KB in f32) lives in `.bss`, not on the stack.
+static mut CONTROLLER: MaybeUninit<Controller> = MaybeUninit::uninit();
+
+fn new_controller() -> Option<Controller> {
+    let model = justin::model::<f32>().ok()?;
+    let collision = justin::collision::collision_model(&model).ok()?;
+    let config = whole_body::controller_config::<f32>().ok()?;
+    Controller::try_new(model, collision, config, &whole_body::fig_6_3_hierarchy(Hand::Right)).ok()
+}
+
+/// Builds the controller into `slot`; not inlined, so its by-value temporaries leave the stack.
+#[inline(never)]
+fn init(slot: &mut MaybeUninit<Controller>) -> Option<&mut Controller> {
+    Some(slot.write(new_controller()?))
+}
+
+fn log(report: &PeriodReport) {
+    if let Some(fault) = report.link_fault {
+        hprintln!("link fault {:?}", fault);
+    }
+    if let Some(mode) = report.mode_change {
+        hprintln!("output mode {:?}", mode);
+    }
+    if report.rejected_commands > 0 {
+        hprintln!("{} planner command(s) rejected", report.rejected_commands);
+    }
+    if let Some(stats) = report.stats {
+        hprintln!(
+            "cycles {} deadline misses {} worst cycle {} clock cycles link faults {}",
+            stats.cycles,
+            stats.deadline_misses,
+            stats.worst_cycle_cost,
+            stats.link_faults
+        );
+    }
+}
+
+#[entry]
+fn main() -> ! {
+    // SAFETY: the only reference to CONTROLLER, taken once before the loop.
+    let Some(controller) = init(unsafe { &mut *core::ptr::addr_of_mut!(CONTROLLER) }) else {
+        hprintln!("controller construction failed");
+        debug::exit(debug::EXIT_FAILURE);
+        loop {}
+    };
+    let Some(peripherals) = cortex_m::Peripherals::take() else { loop {} };
+    let mut port = board::uart0();
+    let mut runtime = Runtime::new(WATCHDOG_PERIODS);
+    let _systick = board::start_ticks(peripherals.SYST);
+    hprintln!("runtime: {} Hz, UART0 at {:#x}", board::TICK_HZ, board::UART0_BASE);
+    let mut seen = board::ticks();
+    loop {
+        let now = board::wait_for_tick(seen);
+        let missed = now.wrapping_sub(seen).saturating_sub(1);
+        seen = now;
+        let stopwatch = Stopwatch::start();
+        let report = runtime.period(&mut port, controller, missed, || board::ticks() != now);
+        if report.steps > 0 {
+            runtime.record_cost(stopwatch.elapsed());
+        }
+        log(&report);
+    }
+}

@@ -1,0 +1,14 @@
+//! The board runtime of the whole-body controller: the Justin controller (`f32`) stepped at
+//! 1 kHz, its sensor and actuator frames on a serial link (`link` crate).
+//!
+//! - [`runtime`]: board-independent — frames from any `embedded-io` port, the controller step,
+//!   link faults and safe output, statistics.
+//! - [`uart`]: the CMSDK APB UART of the MPS2 boards behind `embedded-io`.
+//! - [`board`]: the QEMU MPS2 boards: UART0 and the SysTick control tick.
+//!
+//! The images are thin binaries in `src/bin/` (`runtime.rs` is the control loop).
+#![no_std]
+
+pub mod board;
+pub mod runtime;
+pub mod uart;
