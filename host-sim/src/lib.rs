@@ -12,6 +12,7 @@
 //! - [`controllers`]: controllers run in the loop by scenarios.
 //! - [`output`]: the scenario output convention (CSV, summary JSON, SVG plots).
 //! - [`scenario`]: the registry of named scenarios.
+//! - [`replay`]: `replay.html`, the 3-D replay of a run of the Justin robot.
 //! - [`wbc`]: the simulated Justin under the kernel's whole-body controller.
 //!
 //! Errors at this level are reported as one-line messages; nothing here panics on bad input.
@@ -21,6 +22,7 @@ pub mod controllers;
 pub mod dynamics_cli;
 pub mod mobile_controller;
 pub mod output;
+pub mod replay;
 pub mod scenario;
 pub mod sim;
 pub mod urdf;

@@ -1,10 +1,10 @@
-//! The scenario output convention (DESIGN.md, "Scenario outputs").
+//! The scenario output convention; every column and its unit is listed in `docs/OUTPUT.md`.
 //!
 //! Every scenario writes into its output directory:
 //! - `timeseries.csv`: a header row, `t` (s) first, then `q.<joint>`, `dq.<joint>`,
 //!   `tau.<joint>` per joint, task errors `e<level>.<axis>` (signed `x − x_des` in the task's
 //!   units), storage functions `S<level>` and activations `a.<row>` where defined, then the
-//!   scenario's own signals ([`TimeSeries`]);
+//!   scenario's own signals ([`TimeSeries`]); an undefined value is an empty cell;
 //! - `summary.json`: a flat JSON object of named metrics (snake_case with a unit suffix),
 //!   `"scenario"`, `"passed_claims"` and `"failed_claims"` ([`Summary`]);
 //! - `*.svg`: plots ([`plot`]), drawn with `plotters`' SVG backend (text as SVG `<text>`, no
@@ -55,21 +55,30 @@ impl TimeSeries {
         Some(self.rows.iter().filter_map(|r| r.get(index).copied()).collect())
     }
 
-    /// Writes the table as CSV (header row, then one line per sample; shortest round-trip
-    /// decimal representation, `NaN`/`inf` spelled as Rust prints them).
-    pub fn write_csv(&self, path: &Path) -> Result<(), String> {
+    /// Writes the table as CSV: the header row, then every `every`-th sample (the first
+    /// included; `every` = 0 counts as 1), each value in its shortest round-trip decimal
+    /// representation and an undefined (non-finite) value as an empty cell.
+    pub fn write_csv(&self, path: &Path, every: u64) -> Result<(), String> {
+        fs::write(path, self.csv(every)).map_err(|e| format!("cannot write {}: {e}", path.display()))
+    }
+
+    /// The CSV text of [`TimeSeries::write_csv`].
+    pub fn csv(&self, every: u64) -> String {
+        let every = usize::try_from(every).unwrap_or(usize::MAX).max(1);
         let mut text = self.columns.join(",");
         text.push('\n');
-        for row in &self.rows {
+        for row in self.rows.iter().step_by(every) {
             for (i, x) in row.iter().enumerate() {
                 if i > 0 {
                     text.push(',');
                 }
-                let _ = write!(text, "{x}");
+                if x.is_finite() {
+                    let _ = write!(text, "{x}");
+                }
             }
             text.push('\n');
         }
-        fs::write(path, text).map_err(|e| format!("cannot write {}: {e}", path.display()))
+        text
     }
 }
 
@@ -334,4 +343,22 @@ fn ranges(panel: &Panel) -> (std::ops::Range<f64>, std::ops::Range<f64>) {
 /// Creates `dir` (and parents) if needed.
 pub fn create_dir(dir: &Path) -> Result<(), String> {
     fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, reason = "tests")]
+    use super::*;
+
+    #[test]
+    fn an_undefined_value_is_an_empty_cell_and_every_nth_row_is_written() {
+        let mut series = TimeSeries::new(vec!["t".into(), "a".into(), "b".into()]);
+        for k in 0..5_u32 {
+            let t = f64::from(k) * 1e-3;
+            series.push(vec![t, f64::NAN, if k == 2 { f64::NEG_INFINITY } else { 1.5 }]).unwrap();
+        }
+        assert_eq!(series.csv(1), "t,a,b\n0,,1.5\n0.001,,1.5\n0.002,,\n0.003,,1.5\n0.004,,1.5\n");
+        assert_eq!(series.csv(2), "t,a,b\n0,,1.5\n0.002,,\n0.004,,1.5\n");
+        assert_eq!(series.csv(0), series.csv(1));
+    }
 }
