@@ -7,6 +7,7 @@
 #   4. a QEMU smoke run of that image on Cortex-M7 (mps2-an500) and Cortex-M4F (mps2-an386)
 #   5. the link-time panic check: Controller::step linked with an undefined panic handler
 #   6. formatting (`cargo fmt --check`) and rustdoc with warnings as errors
+#   7. the replay page in a real browser: headless Chromium draws replay.html of wbc_phri
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # Incremental caches double the size of the debug target and a CI build is never incremental.
@@ -67,3 +68,14 @@ RUSTDOCFLAGS="-D warnings" cargo doc --locked --workspace --no-deps
 
 step "workspace tests"
 cargo test --locked --workspace
+
+step "replay.html in headless Chromium (replay/README.md)"
+if ! command -v chromium >/dev/null || ! command -v npm >/dev/null; then
+    export DEBIAN_FRONTEND=noninteractive
+    apt-get update -qq && apt-get install -y -qq --no-install-recommends chromium nodejs npm >/dev/null
+fi
+(cd replay && npm ci --no-audit --no-fund && npm run build)
+# The committed bundle is the one the lock file's packages build.
+git diff --exit-code -- replay/dist/replay.js
+cargo run --locked -p host-sim -- run wbc_phri --out out/replay-ci
+(cd replay && npm test -- ../out/replay-ci/replay.html 0 1.2 ../out/replay-ci/screenshots)

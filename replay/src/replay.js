@@ -121,20 +121,55 @@ grid.rotation.x = Math.PI / 2;
 scene.add(grid);
 
 // ---- paths, goals, forces ----
+// A path through the points given as coordinate arrays (null: undefined, skipped): a tube of
+// 6 mm radius, or a thin dashed line.
 function pathLine(xs, ys, zs, colour, dashed) {
   const points = [];
   xs.forEach((x, i) => { if (x !== null && ys[i] !== null && zs[i] !== null) points.push(new THREE.Vector3(x, ys[i], zs[i])); });
-  const material = dashed
-    ? new THREE.LineDashedMaterial({ color: colour, dashSize: 0.03, gapSize: 0.02 })
-    : new THREE.LineBasicMaterial({ color: colour });
-  const line = new THREE.Line(new THREE.BufferGeometry().setFromPoints(points), material);
-  if (dashed) line.computeLineDistances();
-  scene.add(line);
-  return line;
+  if (points.length < 2) return;
+  if (dashed) {
+    const line = new THREE.Line(new THREE.BufferGeometry().setFromPoints(points),
+      new THREE.LineDashedMaterial({ color: colour, dashSize: 0.03, gapSize: 0.02 }));
+    line.computeLineDistances();
+    scene.add(line);
+    return;
+  }
+  const curve = new THREE.CatmullRomCurve3(points);
+  scene.add(new THREE.Mesh(new THREE.TubeGeometry(curve, Math.min(2000, 4 * points.length), 0.006, 8),
+    new THREE.MeshStandardMaterial({ color: colour, roughness: 0.5 })));
+}
+
+// An arrow of a shaft and a cone along +y, scaled to its length by `setArrow`.
+function forceArrow(colour) {
+  const material = new THREE.MeshStandardMaterial({ color: colour, roughness: 0.4 });
+  const shaft = new THREE.Mesh(new THREE.CylinderGeometry(0.012, 0.012, 1, 12), material);
+  const head = new THREE.Mesh(new THREE.ConeGeometry(0.035, 0.09, 16), material);
+  const arrow = new THREE.Group();
+  arrow.add(shaft, head);
+  arrow.userData = { shaft, head };
+  arrow.visible = false;
+  scene.add(arrow);
+  return arrow;
+}
+
+// Places `arrow` so that it ends at `tip` and points along `force`, 1 cm per N.
+function setArrow(arrow, tip, force) {
+  const length = force.length() * 0.01;
+  const direction = force.clone().normalize();
+  const { shaft, head } = arrow.userData;
+  const shaftLength = Math.max(length - 0.09, 0.001);
+  shaft.scale.set(1, shaftLength, 1);
+  shaft.position.set(0, shaftLength / 2, 0);
+  head.position.set(0, shaftLength + 0.045, 0);
+  arrow.position.copy(tip).addScaledVector(direction, -length);
+  arrow.quaternion.setFromUnitVectors(new THREE.Vector3(0, 1, 0), direction);
 }
 
 const legend = [];
 const hands = [];
+// The service tasks press on surfaces (columns contact.<surface>.force); the replay draws a patch of
+// the surface where and while a hand presses on it.
+const hasSurfaces = Object.keys(data.signals).some((n) => /^contact\..*\.force$/.test(n));
 for (const [hand, level, colour] of [['right', 0, 0xc2410c], ['left', 1, 0x1d4ed8]]) {
   const p = ['x', 'y', 'z'].map((a) => signal(`${hand}_tcp.${a}`));
   if (!p[0]) continue;
@@ -147,17 +182,20 @@ for (const [hand, level, colour] of [['right', 0, 0xc2410c], ['left', 1, 0x1d4ed
   scene.add(goalMarker);
   goalMarker.visible = Boolean(goal);
   const f = ['x', 'y', 'z'].map((a) => signal(`force.${hand}.${a}`));
-  const arrow = new THREE.ArrowHelper(new THREE.Vector3(1, 0, 0), new THREE.Vector3(), 0.1, 0xd61f69, 0.08, 0.05);
-  arrow.visible = false;
-  scene.add(arrow);
-  hands.push({ p, goal, goalMarker, f, arrow });
+  const arrow = forceArrow(0xd61f69);
+  // The touched surface, drawn where and while the hand presses on it (normal along the force).
+  const surface = new THREE.Mesh(new THREE.CircleGeometry(0.08, 32), materials.environment);
+  surface.visible = false;
+  scene.add(surface);
+  hands.push({ p, goal, goalMarker, f, arrow, surface });
   legend.push([colour, `${hand} hand path (solid) and its goal (dashed, wire ball)`]);
 }
 legend.push([0xd61f69, 'force on a hand (push or contact), 1 cm per N']);
+if (hasSurfaces) legend.push([PART_COLOURS.environment, 'contact surface, drawn where a hand presses on it']);
 const bx = signal('q.base_x');
 const by = signal('q.base_y');
 if (bx && by) {
-  pathLine(bx, by, bx.map(() => 0.005), 0x2f855a, false);
+  pathLine(bx, by, bx.map(() => 0.01), 0x2f855a, false);
   legend.push([0x2f855a, 'platform centre path']);
 }
 for (const [part, colour] of Object.entries(PART_COLOURS)) legend.push([colour, PART_NAMES[part]]);
@@ -260,12 +298,12 @@ function show(i) {
     if (h.goal && h.goal[0][i] !== null) h.goalMarker.position.set(h.goal[0][i], h.goal[1][i], h.goal[2][i]);
     const force = h.f[0] ? new THREE.Vector3(h.f[0][i] ?? 0, h.f[1][i] ?? 0, h.f[2][i] ?? 0) : new THREE.Vector3();
     h.arrow.visible = force.length() > 0.5;
-    if (h.arrow.visible) {
-      const tip = new THREE.Vector3(h.p[0][i], h.p[1][i], h.p[2][i]);
-      const length = force.length() * 0.01;
-      h.arrow.position.copy(tip).addScaledVector(force.clone().normalize(), -length);
-      h.arrow.setDirection(force.clone().normalize());
-      h.arrow.setLength(length, Math.min(0.08, 0.4 * length), Math.min(0.05, 0.25 * length));
+    const tip = new THREE.Vector3(h.p[0][i], h.p[1][i], h.p[2][i]);
+    if (h.arrow.visible) setArrow(h.arrow, tip, force);
+    h.surface.visible = hasSurfaces && h.arrow.visible;
+    if (h.surface.visible) {
+      h.surface.position.copy(tip);
+      h.surface.quaternion.setFromUnitVectors(new THREE.Vector3(0, 0, 1), force.clone().normalize());
     }
   }
   rows.forEach(([, value, scale], r) => {

@@ -55,7 +55,7 @@ mkdirSync(shots, { recursive: true });
 const browser = await chromium.launch({ executablePath: '/usr/bin/chromium', args: BROWSER_FLAGS });
 let failed = false;
 try {
-  const page = await browser.newPage({ viewport: { width: 1280, height: 760 } });
+  const page = await browser.newPage({ viewport: { width: 1000, height: 600 } });
   const errors = [];
   page.on('pageerror', (e) => errors.push(e.message));
   await page.goto(`${pathToFileURL(resolve(page_file)).href}#t=${t1}`);
