@@ -246,7 +246,22 @@ fn draw(root: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>, figure: &Fig
     Ok(())
 }
 
-fn draw_panel(area: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>, panel: &Panel, x_label: &str) -> DrawResult {
+/// A tick label: at most four significant decimals, trailing zeros dropped, never `-0`.
+fn tick_label(value: f64) -> String {
+    let text = format!("{value:.4}");
+    let text = text.trim_end_matches('0').trim_end_matches('.');
+    if text == "-0" {
+        "0".to_string()
+    } else {
+        text.to_string()
+    }
+}
+
+fn draw_panel<'a>(
+    area: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
+    panel: &'a Panel,
+    x_label: &str,
+) -> DrawResult {
     let (x_range, y_range) = ranges(panel);
     let mut chart = ChartBuilder::on(area)
         .caption(&panel.title, ("sans-serif", 18))
@@ -261,7 +276,19 @@ fn draw_panel(area: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>, panel:
         .label_style(("sans-serif", 13))
         .axis_desc_style(("sans-serif", 15))
         .light_line_style(RGBColor(235, 235, 235))
+        .x_label_formatter(&|x| tick_label(*x))
+        .y_label_formatter(&|y| tick_label(*y))
         .draw()?;
+    // One legend entry per label: a repeated label (a second band bound, repeated windows)
+    // is drawn but not listed again.
+    let mut listed: Vec<&str> = Vec::new();
+    let mut first_listing = |label: &'a str| {
+        let new = !label.is_empty() && !listed.contains(&label);
+        if new {
+            listed.push(label);
+        }
+        new
+    };
 
     for span in &panel.spans {
         let shade = RGBColor(255, 200, 120);
@@ -270,21 +297,22 @@ fn draw_panel(area: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>, panel:
                 [(span.from, y_range.start), (span.to, y_range.end)],
                 shade.mix(0.35).filled(),
             )))?;
-            // An empty label keeps the span out of the legend (e.g. repeated windows).
-            if !span.label.is_empty() {
+            if first_listing(&span.label) {
                 drawn
                     .label(&span.label)
                     .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 18, y + 5)], shade.mix(0.6).filled()));
             }
         } else {
             let marker = RGBColor(90, 90, 90);
-            chart
-                .draw_series(std::iter::once(PathElement::new(
-                    vec![(span.from, y_range.start), (span.from, y_range.end)],
-                    marker.stroke_width(1),
-                )))?
-                .label(&span.label)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], marker.stroke_width(1)));
+            let drawn = chart.draw_series(std::iter::once(PathElement::new(
+                vec![(span.from, y_range.start), (span.from, y_range.end)],
+                marker.stroke_width(1),
+            )))?;
+            if first_listing(&span.label) {
+                drawn
+                    .label(&span.label)
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], marker.stroke_width(1)));
+            }
         }
     }
 
@@ -303,8 +331,15 @@ fn draw_panel(area: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>, panel:
             chart.draw_series(LineSeries::new(points, style))?
         };
         // An empty label keeps the line out of the legend (e.g. the second bound of a band).
-        if !line.label.is_empty() {
-            drawn.label(&line.label).legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], style));
+        if first_listing(&line.label) {
+            // The legend sample is two segments: touching for a solid line, two 7 px dashes
+            // with a gap for a dashed one.
+            let [(a0, a1), (b0, b1)] = if line.dashed { [(0, 7), (11, 18)] } else { [(0, 9), (9, 18)] };
+            drawn.label(&line.label).legend(move |(x, y)| {
+                EmptyElement::at((x, y))
+                    + PathElement::new(vec![(a0, 0), (a1, 0)], style)
+                    + PathElement::new(vec![(b0, 0), (b1, 0)], style)
+            });
         }
     }
     chart
@@ -360,5 +395,14 @@ mod tests {
         assert_eq!(series.csv(1), "t,a,b\n0,,1.5\n0.001,,1.5\n0.002,,\n0.003,,1.5\n0.004,,1.5\n");
         assert_eq!(series.csv(2), "t,a,b\n0,,1.5\n0.002,,\n0.004,,1.5\n");
         assert_eq!(series.csv(0), series.csv(1));
+    }
+
+    #[test]
+    fn tick_labels_have_no_negative_zero_and_no_trailing_zeros() {
+        assert_eq!(tick_label(-0.0), "0");
+        assert_eq!(tick_label(-0.00001), "0");
+        assert_eq!(tick_label(0.25), "0.25");
+        assert_eq!(tick_label(-1.5), "-1.5");
+        assert_eq!(tick_label(200.0), "200");
     }
 }
