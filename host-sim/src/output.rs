@@ -344,12 +344,39 @@ fn draw_panel<'a>(
     }
     chart
         .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
+        .position(legend_corner(panel, &x_range, &y_range, listed.len()))
         .background_style(WHITE.mix(0.85))
         .border_style(RGBColor(180, 180, 180))
         .label_font(("sans-serif", 13))
         .draw()?;
     Ok(())
+}
+
+/// The corner of the panel whose legend box (about 40 % of the width, 8 % of the height per
+/// entry) covers the fewest data points; upper right on a tie.
+fn legend_corner(
+    panel: &Panel,
+    x: &std::ops::Range<f64>,
+    y: &std::ops::Range<f64>,
+    entries: usize,
+) -> SeriesLabelPosition {
+    #[allow(clippy::cast_precision_loss, reason = "a few legend entries")]
+    let height = (0.08 * entries as f64).min(0.8) * (y.end - y.start);
+    let width = 0.4 * (x.end - x.start);
+    let corners = [
+        (SeriesLabelPosition::UpperRight, x.end - width..x.end, y.end - height..y.end),
+        (SeriesLabelPosition::UpperLeft, x.start..x.start + width, y.end - height..y.end),
+        (SeriesLabelPosition::LowerRight, x.end - width..x.end, y.start..y.start + height),
+        (SeriesLabelPosition::LowerLeft, x.start..x.start + width, y.start..y.start + height),
+    ];
+    let covered = |xs: &std::ops::Range<f64>, ys: &std::ops::Range<f64>| {
+        panel.lines.iter().flat_map(|l| l.points.iter()).filter(|(px, py)| xs.contains(px) && ys.contains(py)).count()
+    };
+    corners
+        .into_iter()
+        .map(|(corner, xs, ys)| (covered(&xs, &ys), corner))
+        .min_by_key(|(count, _)| *count)
+        .map_or(SeriesLabelPosition::UpperRight, |(_, corner)| corner)
 }
 
 /// Data ranges of a panel with a 5 % margin in y; degenerate ranges are widened.
