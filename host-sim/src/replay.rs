@@ -1,6 +1,6 @@
 //! `replay.html`: a self-contained page that replays a run of the simulated Justin in 3-D.
 //!
-//! For every scenario whose time series has the Justin joint columns `q.<joint>`, [`write`]
+//! For every scenario whose time series has the Justin joint columns `q.<joint>`, [`write()`]
 //! computes the world placement of every body at a reduced rate ([`REPLAY_RATE_HZ`]) by the
 //! kernel's forward kinematics, and writes one HTML file holding
 //! - the scene: the swept-sphere collision volumes in their body frames (the robot's geometry)
