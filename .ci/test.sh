@@ -9,7 +9,8 @@
 #   6. formatting (`cargo fmt --check`) and rustdoc with warnings as errors
 #   7. processor in the loop: the runtime image under QEMU (Cortex-M7) controls the simulated
 #      robot for 300 cycles, and refuses injected bad link frames with the safe output
-#   8. coverage-guided fuzzing (cargo fuzz): every target for 20 s from the committed seeds
+#   8. the replay page in a real browser: headless Chromium draws replay.html of wbc_phri
+#   9. coverage-guided fuzzing (cargo fuzz): every target for 20 s from the committed seeds
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # Incremental caches double the size of the debug target and a CI build is never incremental.
@@ -73,6 +74,17 @@ cargo test --locked --workspace
 
 step "processor in the loop (runtime image on QEMU Cortex-M7: 300 cycles, link-fault injection)"
 cargo test --locked -p host-sim --test pil_rig --test pil_link_faults -- --ignored --test-threads 1
+
+step "replay.html in headless Chromium (replay/README.md)"
+if ! command -v chromium >/dev/null || ! command -v npm >/dev/null; then
+    export DEBIAN_FRONTEND=noninteractive
+    apt-get update -qq && apt-get install -y -qq --no-install-recommends chromium nodejs npm >/dev/null
+fi
+(cd replay && npm ci --no-audit --no-fund && npm run build)
+# The committed bundle is the one the lock file's packages build.
+git diff --exit-code -- replay/dist/replay.js
+cargo run --locked -p host-sim -- run wbc_phri --out out/replay-ci
+(cd replay && npm test -- ../out/replay-ci/replay.html 0 1.2 ../out/replay-ci/screenshots)
 
 # The sanitizer build of the fuzz targets needs ~1.3 GB: on a small disk, free the workspace's
 # target first (a developer's machine with room keeps it).

@@ -13,6 +13,7 @@
 //! - [`controllers`]: controllers run in the loop by scenarios.
 //! - [`output`]: the scenario output convention (CSV, summary JSON, SVG plots).
 //! - [`scenario`]: the registry of named scenarios.
+//! - [`replay`]: `replay.html`, the 3-D replay of a run of the Justin robot.
 //! - [`wbc`]: the simulated Justin under the kernel's whole-body controller.
 //! - [`pil`]: processor-in-the-loop: the firmware image under QEMU as the rig's controller.
 //!
@@ -25,6 +26,7 @@ pub mod mobile_controller;
 pub mod output;
 pub mod pil;
 pub mod plant;
+pub mod replay;
 pub mod scenario;
 pub mod sim;
 pub mod urdf;

@@ -4,10 +4,15 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use host_sim::scenario::{OutputOptions, DEFAULT_RECORD_EVERY};
 
 /// Simulated Rollin' Justin under whole-body impedance control.
 #[derive(Parser)]
-#[command(version, about)]
+#[command(
+    version,
+    about,
+    after_help = "Environment variables:\n  SOAK_SECONDS  simulated seconds of the `soak` scenario (default 60)"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -15,13 +20,17 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Run a named scenario and write timeseries.csv, summary.json and SVG plots.
+    /// Run a named scenario; write timeseries.csv, summary.json, SVG plots and, for the Justin
+    /// scenarios, replay.html (columns and units: docs/OUTPUT.md).
     Run {
         /// Scenario name (see `list`).
         scenario: String,
-        /// Output directory (created if missing).
-        #[arg(long, default_value = "out")]
-        out: PathBuf,
+        /// Output directory (created if missing) [default: out/<scenario>].
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Write every N-th control cycle into timeseries.csv (1: every cycle, 1 kHz).
+        #[arg(long, value_name = "N", default_value_t = DEFAULT_RECORD_EVERY, value_parser = clap::value_parser!(u64).range(1..))]
+        record_every: u64,
         /// Run the whole-body controller on the firmware image under QEMU (processor in the loop).
         #[arg(long, value_enum)]
         pil: Option<host_sim::pil::Target>,
@@ -45,23 +54,28 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Run { scenario, out, pil } => match pil {
-            None => host_sim::scenario::run(&scenario, &out),
-            Some(target) => {
-                host_sim::pil::select(target).and_then(|()| host_sim::scenario::run(&scenario, &out)).and_then(|()| {
-                    if host_sim::pil::started() {
-                        Ok(())
-                    } else {
-                        Err(format!(
-                            "--pil: {scenario} does not run the whole-body rig; its controller ran on the host"
-                        ))
-                    }
-                })
+        Command::Run { scenario, out, record_every, pil } => {
+            let output = OutputOptions { dir: out, record_every };
+            match pil {
+                None => host_sim::scenario::run(&scenario, &output),
+                Some(target) => host_sim::pil::select(target)
+                    .and_then(|()| host_sim::scenario::run(&scenario, &output))
+                    .and_then(|()| {
+                        if host_sim::pil::started() {
+                            Ok(())
+                        } else {
+                            Err(format!(
+                                "--pil: {scenario} does not run the whole-body rig; its controller ran on the host"
+                            ))
+                        }
+                    }),
             }
-        },
+        }
         Command::List => {
-            for (name, description) in host_sim::scenario::list() {
-                println!("{name:24} {description}");
+            let scenarios = host_sim::scenario::list();
+            let width = scenarios.iter().map(|(name, _)| name.len()).max().unwrap_or(0);
+            for (name, description) in scenarios {
+                println!("{name:width$}  {description}");
             }
             Ok(())
         }

@@ -1,10 +1,10 @@
-//! The scenario output convention (DESIGN.md, "Scenario outputs").
+//! The scenario output convention; every column and its unit is listed in `docs/OUTPUT.md`.
 //!
 //! Every scenario writes into its output directory:
 //! - `timeseries.csv`: a header row, `t` (s) first, then `q.<joint>`, `dq.<joint>`,
 //!   `tau.<joint>` per joint, task errors `e<level>.<axis>` (signed `x − x_des` in the task's
 //!   units), storage functions `S<level>` and activations `a.<row>` where defined, then the
-//!   scenario's own signals ([`TimeSeries`]);
+//!   scenario's own signals ([`TimeSeries`]); an undefined value is an empty cell;
 //! - `summary.json`: a flat JSON object of named metrics (snake_case with a unit suffix),
 //!   `"scenario"`, `"passed_claims"` and `"failed_claims"` ([`Summary`]);
 //! - `*.svg`: plots ([`plot`]), drawn with `plotters`' SVG backend (text as SVG `<text>`, no
@@ -55,21 +55,30 @@ impl TimeSeries {
         Some(self.rows.iter().filter_map(|r| r.get(index).copied()).collect())
     }
 
-    /// Writes the table as CSV (header row, then one line per sample; shortest round-trip
-    /// decimal representation, `NaN`/`inf` spelled as Rust prints them).
-    pub fn write_csv(&self, path: &Path) -> Result<(), String> {
+    /// Writes the table as CSV: the header row, then every `every`-th sample (the first
+    /// included; `every` = 0 counts as 1), each value in its shortest round-trip decimal
+    /// representation and an undefined (non-finite) value as an empty cell.
+    pub fn write_csv(&self, path: &Path, every: u64) -> Result<(), String> {
+        fs::write(path, self.csv(every)).map_err(|e| format!("cannot write {}: {e}", path.display()))
+    }
+
+    /// The CSV text of [`TimeSeries::write_csv`].
+    pub fn csv(&self, every: u64) -> String {
+        let every = usize::try_from(every).unwrap_or(usize::MAX).max(1);
         let mut text = self.columns.join(",");
         text.push('\n');
-        for row in &self.rows {
+        for row in self.rows.iter().step_by(every) {
             for (i, x) in row.iter().enumerate() {
                 if i > 0 {
                     text.push(',');
                 }
-                let _ = write!(text, "{x}");
+                if x.is_finite() {
+                    let _ = write!(text, "{x}");
+                }
             }
             text.push('\n');
         }
-        fs::write(path, text).map_err(|e| format!("cannot write {}: {e}", path.display()))
+        text
     }
 }
 
@@ -237,7 +246,22 @@ fn draw(root: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>, figure: &Fig
     Ok(())
 }
 
-fn draw_panel(area: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>, panel: &Panel, x_label: &str) -> DrawResult {
+/// A tick label: at most four significant decimals, trailing zeros dropped, never `-0`.
+fn tick_label(value: f64) -> String {
+    let text = format!("{value:.4}");
+    let text = text.trim_end_matches('0').trim_end_matches('.');
+    if text == "-0" {
+        "0".to_string()
+    } else {
+        text.to_string()
+    }
+}
+
+fn draw_panel<'a>(
+    area: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
+    panel: &'a Panel,
+    x_label: &str,
+) -> DrawResult {
     let (x_range, y_range) = ranges(panel);
     let mut chart = ChartBuilder::on(area)
         .caption(&panel.title, ("sans-serif", 18))
@@ -252,7 +276,19 @@ fn draw_panel(area: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>, panel:
         .label_style(("sans-serif", 13))
         .axis_desc_style(("sans-serif", 15))
         .light_line_style(RGBColor(235, 235, 235))
+        .x_label_formatter(&|x| tick_label(*x))
+        .y_label_formatter(&|y| tick_label(*y))
         .draw()?;
+    // One legend entry per label: a repeated label (a second band bound, repeated windows)
+    // is drawn but not listed again.
+    let mut listed: Vec<&str> = Vec::new();
+    let mut first_listing = |label: &'a str| {
+        let new = !label.is_empty() && !listed.contains(&label);
+        if new {
+            listed.push(label);
+        }
+        new
+    };
 
     for span in &panel.spans {
         let shade = RGBColor(255, 200, 120);
@@ -261,21 +297,22 @@ fn draw_panel(area: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>, panel:
                 [(span.from, y_range.start), (span.to, y_range.end)],
                 shade.mix(0.35).filled(),
             )))?;
-            // An empty label keeps the span out of the legend (e.g. repeated windows).
-            if !span.label.is_empty() {
+            if first_listing(&span.label) {
                 drawn
                     .label(&span.label)
                     .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 18, y + 5)], shade.mix(0.6).filled()));
             }
         } else {
             let marker = RGBColor(90, 90, 90);
-            chart
-                .draw_series(std::iter::once(PathElement::new(
-                    vec![(span.from, y_range.start), (span.from, y_range.end)],
-                    marker.stroke_width(1),
-                )))?
-                .label(&span.label)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], marker.stroke_width(1)));
+            let drawn = chart.draw_series(std::iter::once(PathElement::new(
+                vec![(span.from, y_range.start), (span.from, y_range.end)],
+                marker.stroke_width(1),
+            )))?;
+            if first_listing(&span.label) {
+                drawn
+                    .label(&span.label)
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], marker.stroke_width(1)));
+            }
         }
     }
 
@@ -294,18 +331,52 @@ fn draw_panel(area: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>, panel:
             chart.draw_series(LineSeries::new(points, style))?
         };
         // An empty label keeps the line out of the legend (e.g. the second bound of a band).
-        if !line.label.is_empty() {
-            drawn.label(&line.label).legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], style));
+        if first_listing(&line.label) {
+            // The legend sample is two segments: touching for a solid line, two 7 px dashes
+            // with a gap for a dashed one.
+            let [(a0, a1), (b0, b1)] = if line.dashed { [(0, 7), (11, 18)] } else { [(0, 9), (9, 18)] };
+            drawn.label(&line.label).legend(move |(x, y)| {
+                EmptyElement::at((x, y))
+                    + PathElement::new(vec![(a0, 0), (a1, 0)], style)
+                    + PathElement::new(vec![(b0, 0), (b1, 0)], style)
+            });
         }
     }
     chart
         .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
+        .position(legend_corner(panel, &x_range, &y_range, listed.len()))
         .background_style(WHITE.mix(0.85))
         .border_style(RGBColor(180, 180, 180))
         .label_font(("sans-serif", 13))
         .draw()?;
     Ok(())
+}
+
+/// The corner of the panel whose legend box (about 40 % of the width, 8 % of the height per
+/// entry) covers the fewest data points; upper right on a tie.
+fn legend_corner(
+    panel: &Panel,
+    x: &std::ops::Range<f64>,
+    y: &std::ops::Range<f64>,
+    entries: usize,
+) -> SeriesLabelPosition {
+    #[allow(clippy::cast_precision_loss, reason = "a few legend entries")]
+    let height = (0.08 * entries as f64).min(0.8) * (y.end - y.start);
+    let width = 0.4 * (x.end - x.start);
+    let corners = [
+        (SeriesLabelPosition::UpperRight, x.end - width..x.end, y.end - height..y.end),
+        (SeriesLabelPosition::UpperLeft, x.start..x.start + width, y.end - height..y.end),
+        (SeriesLabelPosition::LowerRight, x.end - width..x.end, y.start..y.start + height),
+        (SeriesLabelPosition::LowerLeft, x.start..x.start + width, y.start..y.start + height),
+    ];
+    let covered = |xs: &std::ops::Range<f64>, ys: &std::ops::Range<f64>| {
+        panel.lines.iter().flat_map(|l| l.points.iter()).filter(|(px, py)| xs.contains(px) && ys.contains(py)).count()
+    };
+    corners
+        .into_iter()
+        .map(|(corner, xs, ys)| (covered(&xs, &ys), corner))
+        .min_by_key(|(count, _)| *count)
+        .map_or(SeriesLabelPosition::UpperRight, |(_, corner)| corner)
 }
 
 /// Data ranges of a panel with a 5 % margin in y; degenerate ranges are widened.
@@ -334,4 +405,31 @@ fn ranges(panel: &Panel) -> (std::ops::Range<f64>, std::ops::Range<f64>) {
 /// Creates `dir` (and parents) if needed.
 pub fn create_dir(dir: &Path) -> Result<(), String> {
     fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, reason = "tests")]
+    use super::*;
+
+    #[test]
+    fn an_undefined_value_is_an_empty_cell_and_every_nth_row_is_written() {
+        let mut series = TimeSeries::new(vec!["t".into(), "a".into(), "b".into()]);
+        for k in 0..5_u32 {
+            let t = f64::from(k) * 1e-3;
+            series.push(vec![t, f64::NAN, if k == 2 { f64::NEG_INFINITY } else { 1.5 }]).unwrap();
+        }
+        assert_eq!(series.csv(1), "t,a,b\n0,,1.5\n0.001,,1.5\n0.002,,\n0.003,,1.5\n0.004,,1.5\n");
+        assert_eq!(series.csv(2), "t,a,b\n0,,1.5\n0.002,,\n0.004,,1.5\n");
+        assert_eq!(series.csv(0), series.csv(1));
+    }
+
+    #[test]
+    fn tick_labels_have_no_negative_zero_and_no_trailing_zeros() {
+        assert_eq!(tick_label(-0.0), "0");
+        assert_eq!(tick_label(-0.00001), "0");
+        assert_eq!(tick_label(0.25), "0.25");
+        assert_eq!(tick_label(-1.5), "-1.5");
+        assert_eq!(tick_label(200.0), "200");
+    }
 }

@@ -75,7 +75,7 @@ use crate::plant::{PlantModel, RealisticJoints};
 /// Default physics step (s): 1/6000 s, twice the rate of Rollin' Justin's 3 kHz torque loop.
 pub const DEFAULT_PHYSICS_STEP_S: f64 = 1.0 / 6000.0;
 
-/// Control period of the main loop (s): 1 kHz (DESIGN.md, "control rates").
+/// Control period of the main loop (s): 1 kHz.
 pub const CONTROL_PERIOD_S: f64 = 1e-3;
 
 /// Number of planar base coordinates `(x, y, θ)` of a mobile robot.

@@ -4,9 +4,10 @@
 //! Per control cycle ([`Rig::cycle`]): read the joint and platform samples through the `hal`
 //! traits, number the frame with the control-cycle counter (the simulator counts physics
 //! steps), call the controller's `step`, write the torques and the platform command back, and
-//! record one row in the scenario convention of DESIGN.md (`t`, `q.*`, `dq.*`, `tau.*`, the TCP
-//! errors `e0.*` (right) and `e1.*` (left), the storage `S<level>` per level, the activation
-//! `a.<task>` per hierarchy entry, then the controller's platform commands and diagnostics).
+//! record one row in the scenario convention of docs/OUTPUT.md (`t`, `q.*`, `dq.*`, `tau.*`, the
+//! TCP errors `e0.*` (right) and `e1.*` (left), the storage `S<level>` per level, the activation
+//! `a.<task>` per hierarchy entry, the controller's platform commands and diagnostics, the TCP
+//! positions and the external forces on the TCPs).
 
 use fixtures::justin::{self, collision, whole_body};
 use hal::{JointTorqueInterface, PlatformVelocityInterface};
@@ -199,6 +200,12 @@ pub fn columns() -> Vec<String> {
             "left_tcp.x",
             "left_tcp.y",
             "left_tcp.z",
+            "force.right.x",
+            "force.right.y",
+            "force.right.z",
+            "force.left.x",
+            "force.left.y",
+            "force.left.z",
         ]
         .iter()
         .map(|s| s.to_string()),
@@ -278,6 +285,9 @@ impl Rig {
         let right = self.sim.frame_placement(justin::RIGHT_TCP)?.translation.vector;
         let left = self.sim.frame_placement(justin::LEFT_TCP)?.translation.vector;
         row.extend(right.iter().chain(left.iter()));
+        for frame in [justin::RIGHT_TCP, justin::LEFT_TCP] {
+            row.extend(self.external_force(frame, info.time_s)?.iter());
+        }
         Ok(row)
     }
 
@@ -303,6 +313,19 @@ impl Rig {
                 .value("firmware_worst_cycle_clock_cycles", stats.worst_cycle_cost)
                 .value("firmware_link_faults", stats.link_faults);
         }
+    }
+
+    /// The force the environment applies to `frame` at time `t_s` (N, world frame): the pushes
+    /// acting on it plus the contact forces of the surfaces it touches.
+    fn external_force(&mut self, frame: kernel::FrameId, t_s: f64) -> Result<nalgebra::Vector3<f64>, SimError> {
+        let mut force = self.sim.push_force(frame, t_s);
+        for index in 0..self.sim.surfaces().len() {
+            let touches = self.sim.surfaces().get(index).is_some_and(|s| s.frame == frame);
+            if let Some(contact) = self.sim.surface_force(index)?.filter(|_| touches) {
+                force += contact.force_world;
+            }
+        }
+        Ok(force)
     }
 
     /// Runs `duration_s` of simulated time: per control cycle [`Rig::cycle`], [`Rig::record`]

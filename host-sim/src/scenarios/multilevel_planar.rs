@@ -48,7 +48,7 @@ use crate::sim::{run_loop, SimConfig, SimError, Simulator};
 
 /// Coordinates of the planar arm.
 pub const N: usize = 4;
-/// Control period (s) of the 1 kHz main loop of DESIGN.md.
+/// Control period (s) of the 1 kHz main loop.
 pub const CONTROL_PERIOD_S: f64 = 1e-3;
 /// Control period (s) of the thesis simulations: the physics step (6 kHz). The thesis' plant
 /// and controller are continuous-time; the zero-order hold of a 1 kHz loop delays the torque by

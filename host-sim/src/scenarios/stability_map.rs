@@ -19,7 +19,7 @@
 //! neutral), so "stable" means `max Re λ ≤` [`STABLE_TOLERANCE`].
 //!
 //! Grid: `m_adm ∈ (0, 1.5]` kg × `d_adm ∈ (0, 1]` kg/s, the axes of Fig. 5.3, in steps of
-//! [`GRID_STEP`]. Outputs: `timeseries.csv` and `stability_map.csv` (the grid, no time column:
+//! [`GRID_STEP`]. Outputs: `stability_map_grid.csv` (the grid, no time column, written by the runner:
 //! `m_adm,d_adm,max_real_eig_uncompensated,max_real_eig_compensated`), `stability_map.svg`
 //! (the two region maps, drawn by [`write_files`]) and `max_real_eigenvalue.svg`.
 //!
@@ -55,8 +55,8 @@ pub const GRID_STEP: f64 = 0.01;
 /// A pole counts as stable if its real part is at most this (1/s): the double zero pole of the
 /// rank-one spring comes out at rounding level.
 pub const STABLE_TOLERANCE: f64 = 1e-9;
-/// File name of the grid CSV.
-pub const CSV_FILE: &str = "stability_map.csv";
+/// File name of the grid CSV: one row per (m_adm, d_adm) cell.
+pub const CSV_FILE: &str = "stability_map_grid.csv";
 /// File name of the region map.
 pub const MAP_FILE: &str = "stability_map.svg";
 
@@ -273,10 +273,9 @@ fn eigenvalue_figure(points: &[GridPoint]) -> Figure {
     }
 }
 
-/// Writes the grid as [`CSV_FILE`] and the region map [`MAP_FILE`] into `out`; the runner calls
-/// this after writing the [`Outcome`]. Returns the file names.
+/// Writes the region map [`MAP_FILE`] into `out` (the runner writes the grid as [`CSV_FILE`]);
+/// the runner calls this after writing the [`Outcome`]. Returns the file names.
 pub fn write_files(out: &Path, outcome: &Outcome) -> Result<Vec<&'static str>, String> {
-    outcome.series.write_csv(&out.join(CSV_FILE))?;
     let m = outcome.series.column("m_adm").unwrap_or_default();
     let d = outcome.series.column("d_adm").unwrap_or_default();
     let off = outcome.series.column("max_real_eig_uncompensated").unwrap_or_default();
@@ -285,7 +284,7 @@ pub fn write_files(out: &Path, outcome: &Outcome) -> Result<Vec<&'static str>, S
     let root = SVGBackend::new(&path, (1200, 560)).into_drawing_area();
     draw_maps(&root, &m, &d, [&on, &off]).map_err(|e| format!("plot {}: {e}", path.display()))?;
     root.present().map_err(|e| format!("plot {}: {e}", path.display()))?;
-    Ok(vec![CSV_FILE, MAP_FILE])
+    Ok(vec![MAP_FILE])
 }
 
 type DrawResult = Result<(), Box<dyn std::error::Error>>;

@@ -11,10 +11,10 @@
 //! (`q_t3 ≥ 0`).
 //!
 //! Outputs: `summary.json` (areas and excluded fractions per case, the claims),
-//! `timeseries.csv` (a static map, so no time column: one row per reachable point of a 1 cm
+//! `torso_workspace_grid.csv` (a static map, so no time column: one row per reachable point of a 1 cm
 //! sub-grid and case, `case` first), `excluded_fraction.svg` (excluded share of the
 //! kinematic workspace over the load). The region map of the four cases, the figure to look at
-//! first, is drawn by [`write_files`] (2×2 panels with equal axes, `torso_workspace.svg`):
+//! first, is drawn by [`write_files`] (2×2 panels with equal axes, `torso_workspace_region_map.svg`):
 //! the runner's line plots cannot fill regions.
 //!
 //! Claims (Sec. 3.3.3):
@@ -486,7 +486,9 @@ type Area<'a> = DrawingArea<SVGBackend<'a>, plotters::coord::Shift>;
 type DrawResult = Result<(), Box<dyn std::error::Error>>;
 
 /// File name of the region map written by [`write_files`].
-pub const REGION_MAP_FILE: &str = "torso_workspace.svg";
+pub const REGION_MAP_FILE: &str = "torso_workspace_region_map.svg";
+/// The sampled grid (every cell's joint angles and class), written by the runner.
+pub const GRID_FILE: &str = "torso_workspace_grid.csv";
 
 /// Samples the four cases and writes the region map [`REGION_MAP_FILE`] into `out`; returns
 /// the file names written. `output::plot` draws only line figures, so the runner has to call

@@ -1,0 +1,369 @@
+// The replay page: draws the run that host-sim embedded as JSON (element #replay-data) with
+// three.js. World frame: x forward, y left, z up (m), as in the simulator.
+import * as THREE from 'three';
+import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
+
+const data = JSON.parse(document.getElementById('replay-data').textContent);
+const times = data.t;
+const duration = times[times.length - 1] - times[0];
+const signal = (name) => data.signals[name];
+
+const PART_COLOURS = {
+  base: 0x4a5568, torso: 0xc9ced6, head: 0xe2e6ea, right_arm: 0xe07b39, left_arm: 0x3b82c4,
+  environment: 0xb08b5a,
+};
+const PART_NAMES = {
+  base: 'mobile platform', torso: 'torso', head: 'head', right_arm: 'right arm', left_arm: 'left arm',
+  environment: 'environment (table, wall, …)',
+};
+
+// ---- renderer, camera, lights, floor ----
+const view = document.getElementById('view');
+const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+renderer.setPixelRatio(window.devicePixelRatio);
+view.prepend(renderer.domElement);
+const scene = new THREE.Scene();
+scene.background = new THREE.Color(0xeef1f5);
+const camera = new THREE.PerspectiveCamera(40, 1, 0.05, 100);
+camera.up.set(0, 0, 1);
+const controls = new OrbitControls(camera, renderer.domElement);
+scene.add(new THREE.HemisphereLight(0xffffff, 0x8a8f99, 1.6));
+const sun = new THREE.DirectionalLight(0xffffff, 1.8);
+sun.position.set(3, -4, 6);
+scene.add(sun);
+const fill = new THREE.DirectionalLight(0xffffff, 0.6);
+fill.position.set(-4, 3, 2);
+scene.add(fill);
+
+// ---- swept-sphere volumes ----
+const v3 = (p) => new THREE.Vector3(p[0], p[1], p[2]);
+
+function sphereMesh(centre, radius, material) {
+  const mesh = new THREE.Mesh(new THREE.SphereGeometry(radius, 24, 16), material);
+  mesh.position.copy(centre);
+  return mesh;
+}
+
+function cylinderMesh(a, b, radius, material) {
+  const axis = new THREE.Vector3().subVectors(b, a);
+  const mesh = new THREE.Mesh(new THREE.CylinderGeometry(radius, radius, axis.length(), 24, 1, true), material);
+  mesh.position.addVectors(a, b).multiplyScalar(0.5);
+  mesh.quaternion.setFromUnitVectors(new THREE.Vector3(0, 1, 0), axis.normalize());
+  return mesh;
+}
+
+// A triangle swept by a sphere: the prism of the triangle thickened by ±radius, cylinders on its
+// edges and spheres on its corners.
+function prismMesh([a, b, c], radius, material) {
+  const n = new THREE.Vector3().crossVectors(new THREE.Vector3().subVectors(b, a), new THREE.Vector3().subVectors(c, a));
+  n.normalize().multiplyScalar(radius);
+  const top = [a, b, c].map((p) => p.clone().add(n));
+  const bottom = [a, b, c].map((p) => p.clone().sub(n));
+  const faces = [[top[0], top[1], top[2]], [bottom[0], bottom[2], bottom[1]]];
+  for (let i = 0; i < 3; i += 1) {
+    const j = (i + 1) % 3;
+    faces.push([top[i], bottom[i], bottom[j]], [top[i], bottom[j], top[j]]);
+  }
+  const geometry = new THREE.BufferGeometry().setFromPoints(faces.flat());
+  geometry.computeVertexNormals();
+  return new THREE.Mesh(geometry, material);
+}
+
+function volumeObject(volume, material) {
+  const points = volume.points.map(v3);
+  const group = new THREE.Group();
+  points.forEach((p) => group.add(sphereMesh(p, volume.radius, material)));
+  for (let i = 0; points.length > 1 && i < points.length; i += 1) {
+    const j = (i + 1) % points.length;
+    if (points.length === 2 && i === 1) break;
+    group.add(cylinderMesh(points[i], points[j], volume.radius, material));
+  }
+  if (points.length === 3) group.add(prismMesh(points, volume.radius, material));
+  return group;
+}
+
+const materials = {};
+for (const [part, colour] of Object.entries(PART_COLOURS)) {
+  const environment = part === 'environment';
+  materials[part] = new THREE.MeshStandardMaterial({
+    color: colour, roughness: 0.6, metalness: 0.05, side: THREE.DoubleSide,
+    transparent: environment, opacity: environment ? 0.55 : 1,
+  });
+}
+
+const bodies = data.parents.map(() => {
+  const group = new THREE.Group();
+  scene.add(group);
+  return group;
+});
+for (const volume of data.volumes) {
+  if (volume.part === 'floor') continue; // drawn as the floor grid
+  const object = volumeObject(volume, materials[volume.part] ?? materials.environment);
+  object.userData.robotVolume = volume.body >= 0;
+  if (volume.body < 0) scene.add(object);
+  else bodies[volume.body].add(object);
+}
+
+// The links: a line from each body's origin to its parent's, and a dot at every joint.
+const skeletonPositions = new Float32Array(data.parents.length * 6);
+const skeletonGeometry = new THREE.BufferGeometry();
+skeletonGeometry.setAttribute('position', new THREE.BufferAttribute(skeletonPositions, 3));
+scene.add(new THREE.LineSegments(skeletonGeometry, new THREE.LineBasicMaterial({ color: 0x1f2933 })));
+const jointMaterial = new THREE.MeshStandardMaterial({ color: 0x1f2933 });
+bodies.forEach((body) => body.add(new THREE.Mesh(new THREE.SphereGeometry(0.025, 12, 8), jointMaterial)));
+
+// Floor: a light plane with a 0.5 m grid.
+const floor = new THREE.Mesh(new THREE.PlaneGeometry(40, 40), new THREE.MeshStandardMaterial({ color: 0xf7f8fa, roughness: 1 }));
+floor.position.z = -0.002;
+scene.add(floor);
+const grid = new THREE.GridHelper(20, 40, 0xc3cad3, 0xd5dae1);
+grid.rotation.x = Math.PI / 2;
+scene.add(grid);
+
+// ---- paths, goals, forces ----
+// A path through the points given as coordinate arrays (null: undefined, skipped): a tube of
+// 6 mm radius, or a thin dashed line.
+function pathLine(xs, ys, zs, colour, dashed) {
+  const points = [];
+  xs.forEach((x, i) => { if (x !== null && ys[i] !== null && zs[i] !== null) points.push(new THREE.Vector3(x, ys[i], zs[i])); });
+  if (points.length < 2) return;
+  if (dashed) {
+    const line = new THREE.Line(new THREE.BufferGeometry().setFromPoints(points),
+      new THREE.LineDashedMaterial({ color: colour, dashSize: 0.03, gapSize: 0.02 }));
+    line.computeLineDistances();
+    scene.add(line);
+    return;
+  }
+  const curve = new THREE.CatmullRomCurve3(points);
+  scene.add(new THREE.Mesh(new THREE.TubeGeometry(curve, Math.min(2000, 4 * points.length), 0.006, 8),
+    new THREE.MeshStandardMaterial({ color: colour, roughness: 0.5 })));
+}
+
+// An arrow of a shaft and a cone along +y, scaled to its length by `setArrow`.
+function forceArrow(colour) {
+  const material = new THREE.MeshStandardMaterial({ color: colour, roughness: 0.4 });
+  const shaft = new THREE.Mesh(new THREE.CylinderGeometry(0.012, 0.012, 1, 12), material);
+  const head = new THREE.Mesh(new THREE.ConeGeometry(0.035, 0.09, 16), material);
+  const arrow = new THREE.Group();
+  arrow.add(shaft, head);
+  arrow.userData = { shaft, head };
+  arrow.visible = false;
+  scene.add(arrow);
+  return arrow;
+}
+
+// Places `arrow` so that it ends at `tip` and points along `force`, 1 cm per N.
+function setArrow(arrow, tip, force) {
+  const length = force.length() * 0.01;
+  const direction = force.clone().normalize();
+  const { shaft, head } = arrow.userData;
+  const shaftLength = Math.max(length - 0.09, 0.001);
+  shaft.scale.set(1, shaftLength, 1);
+  shaft.position.set(0, shaftLength / 2, 0);
+  head.position.set(0, shaftLength + 0.045, 0);
+  arrow.position.copy(tip).addScaledVector(direction, -length);
+  arrow.quaternion.setFromUnitVectors(new THREE.Vector3(0, 1, 0), direction);
+}
+
+const legend = [];
+const hands = [];
+// The service tasks press on surfaces (columns contact.<surface>.force); the replay draws a patch of
+// the surface where and while a hand presses on it.
+const hasSurfaces = Object.keys(data.signals).some((n) => /^contact\..*\.force$/.test(n));
+for (const [hand, level, colour] of [['right', 0, 0xc2410c], ['left', 1, 0x1d4ed8]]) {
+  const p = ['x', 'y', 'z'].map((a) => signal(`${hand}_tcp.${a}`));
+  if (!p[0]) continue;
+  const e = ['x', 'y', 'z'].map((a) => signal(`e${level}.${a}`));
+  const goal = e[0] ? p.map((c, k) => c.map((x, i) => (x === null || e[k][i] === null ? null : x - e[k][i]))) : null;
+  pathLine(...p, colour, false);
+  if (goal) pathLine(...goal, colour, true);
+  const goalMarker = new THREE.Mesh(new THREE.SphereGeometry(0.04, 16, 12),
+    new THREE.MeshBasicMaterial({ color: colour, wireframe: true }));
+  scene.add(goalMarker);
+  goalMarker.visible = Boolean(goal);
+  const f = ['x', 'y', 'z'].map((a) => signal(`force.${hand}.${a}`));
+  const arrow = forceArrow(0xd61f69);
+  // The touched surface, drawn where and while the hand presses on it (normal along the force).
+  const surface = new THREE.Mesh(new THREE.CircleGeometry(0.08, 32), materials.environment);
+  surface.visible = false;
+  scene.add(surface);
+  hands.push({ p, goal, goalMarker, f, arrow, surface });
+  legend.push([colour, `${hand} hand path (solid) and its goal (dashed, wire ball)`]);
+}
+legend.push([0xd61f69, 'force on a hand (push or contact), 1 cm per N']);
+if (hasSurfaces) legend.push([PART_COLOURS.environment, 'contact surface, drawn where a hand presses on it']);
+const bx = signal('q.base_x');
+const by = signal('q.base_y');
+if (bx && by) {
+  pathLine(bx, by, bx.map(() => 0.01), 0x2f855a, false);
+  legend.push([0x2f855a, 'platform centre path']);
+}
+for (const [part, colour] of Object.entries(PART_COLOURS)) legend.push([colour, PART_NAMES[part]]);
+
+// ---- camera framing: everything that moves and the environment, seen from the front left ----
+const box = new THREE.Box3();
+scene.updateMatrixWorld(true);
+for (const volume of data.volumes) {
+  if (volume.body < 0 && volume.part !== 'floor') volume.points.forEach((p) => box.expandByPoint(v3(p)));
+}
+hands.forEach((h) => h.p[0].forEach((x, i) => { if (x !== null) box.expandByPoint(new THREE.Vector3(x, h.p[1][i], h.p[2][i])); }));
+if (bx) bx.forEach((x, i) => box.expandByPoint(new THREE.Vector3(x, by[i], 0)));
+box.expandByPoint(new THREE.Vector3(box.min.x - 0.5, box.min.y, 1.6));
+const centre = box.getCenter(new THREE.Vector3());
+centre.z = 0.7;
+const size = box.getSize(new THREE.Vector3()).length();
+controls.target.copy(centre);
+// Look from the side of the hand that travels further, slightly from the front and above.
+const travel = (h) => h.p[0].reduce((sum, x, i) => (i === 0 || x === null || h.p[0][i - 1] === null ? sum
+  : sum + Math.hypot(x - h.p[0][i - 1], h.p[1][i] - h.p[1][i - 1], h.p[2][i] - h.p[2][i - 1])), 0);
+const leftMovesMore = hands.length === 2 && travel(hands[1]) > travel(hands[0]);
+const side = leftMovesMore ? 1 : -1;
+camera.position.copy(centre).add(new THREE.Vector3(0.6, side, 0.55).normalize().multiplyScalar(size * 1.1 + 1.8));
+
+// ---- side panel ----
+document.title = `${data.scenario} replay`;
+document.getElementById('title').textContent = data.scenario;
+const claims = document.getElementById('claims');
+for (const [list, css, mark] of [[data.passed_claims, 'pass', '✔'], [data.failed_claims, 'fail', '✘']]) {
+  for (const claim of list) {
+    const item = document.createElement('li');
+    item.className = css;
+    item.textContent = `${mark} ${claim}`;
+    claims.append(item);
+  }
+}
+document.getElementById('legend').innerHTML = legend
+  .map(([c, text]) => `<div><span class="key" style="background:#${c.toString(16).padStart(6, '0')}"></span>${text}</div>`)
+  .join('');
+
+const norm = (names, i) => {
+  const values = names.map((n) => signal(n)?.[i]);
+  return values.some((v) => v === undefined || v === null) ? null : Math.hypot(...values);
+};
+// Levels whose storage is not zero throughout (levels the hierarchy uses).
+const levels = Object.keys(data.signals).filter((n) => /^S\d+$/.test(n) && signal(n).some((v) => v !== 0));
+const MODES = ['Normal', 'Hold', 'Brake'];
+const rows = [
+  ['right TCP error (mm)', (i) => norm(['e0.x', 'e0.y', 'e0.z'], i), 1e3],
+  ['left TCP error (mm)', (i) => norm(['e1.x', 'e1.y', 'e1.z'], i), 1e3],
+  ...levels.map((n) => [`storage of level ${n.slice(1)} (J)`, (i) => signal(n)[i], 1]),
+  ['smallest collision distance (mm)', (i) => signal('min_distance')?.[i] ?? null, 1e3],
+  ['force on the right hand (N)', (i) => norm(['force.right.x', 'force.right.y', 'force.right.z'], i), 1],
+  ['force on the left hand (N)', (i) => norm(['force.left.x', 'force.left.y', 'force.left.z'], i), 1],
+  ['contact detected', (i) => (signal('contact') ? (signal('contact')[i] ? 'yes' : 'no') : null), 1],
+  ['output mode', (i) => (signal('mode') ? MODES[signal('mode')[i]] ?? '?' : null), 1],
+].filter(([, value]) => value(0) !== null && value(0) !== undefined);
+const table = document.getElementById('signals');
+const cells = rows.map(([label]) => {
+  const row = table.insertRow();
+  row.insertCell().textContent = label;
+  return row.insertCell();
+});
+
+// ---- playback ----
+const slider = document.getElementById('slider');
+const timeLabel = document.getElementById('time');
+const playButton = document.getElementById('play');
+const speed = document.getElementById('speed');
+const volumesToggle = document.getElementById('volumes');
+let time = times[0];
+let playing = true;
+
+const frameAt = (t) => {
+  let lo = 0;
+  let hi = times.length - 1;
+  while (lo < hi) {
+    const mid = (lo + hi + 1) >> 1;
+    if (times[mid] <= t) lo = mid; else hi = mid - 1;
+  }
+  return lo;
+};
+
+function show(i) {
+  const placements = data.bodies[i];
+  bodies.forEach((body, b) => {
+    const k = 7 * b;
+    body.position.set(placements[k], placements[k + 1], placements[k + 2]);
+    body.quaternion.set(placements[k + 3], placements[k + 4], placements[k + 5], placements[k + 6]);
+  });
+  data.parents.forEach((parent, b) => {
+    const from = parent < 0 ? b : parent;
+    for (let a = 0; a < 3; a += 1) {
+      skeletonPositions[6 * b + a] = placements[7 * from + a];
+      skeletonPositions[6 * b + 3 + a] = placements[7 * b + a];
+    }
+  });
+  skeletonGeometry.attributes.position.needsUpdate = true;
+  for (const h of hands) {
+    if (h.goal && h.goal[0][i] !== null) h.goalMarker.position.set(h.goal[0][i], h.goal[1][i], h.goal[2][i]);
+    const force = h.f[0] ? new THREE.Vector3(h.f[0][i] ?? 0, h.f[1][i] ?? 0, h.f[2][i] ?? 0) : new THREE.Vector3();
+    h.arrow.visible = force.length() > 0.5;
+    const tip = new THREE.Vector3(h.p[0][i], h.p[1][i], h.p[2][i]);
+    if (h.arrow.visible) setArrow(h.arrow, tip, force);
+    h.surface.visible = hasSurfaces && h.arrow.visible;
+    if (h.surface.visible) {
+      h.surface.position.copy(tip);
+      h.surface.quaternion.setFromUnitVectors(new THREE.Vector3(0, 0, 1), force.clone().normalize());
+    }
+  }
+  rows.forEach(([, value, scale], r) => {
+    const v = value(i);
+    cells[r].textContent = typeof v === 'number' ? (v * scale).toFixed(scale === 1 ? 2 : 1) : (v ?? '–');
+  });
+}
+
+function seek(t) {
+  time = Math.min(Math.max(t, times[0]), times[times.length - 1]);
+  slider.value = duration > 0 ? (time - times[0]) / duration : 0;
+  timeLabel.textContent = `${time.toFixed(2)} / ${times[times.length - 1].toFixed(2)} s`;
+  show(frameAt(time));
+}
+
+function setPlaying(on) {
+  playing = on;
+  playButton.textContent = on ? 'Pause' : 'Play';
+  if (!on) history.replaceState(null, '', `#t=${time.toFixed(2)}`);
+}
+
+function timeFromHash() {
+  const match = /t=([0-9.]+)/.exec(location.hash);
+  return match ? Number(match[1]) : null;
+}
+
+playButton.addEventListener('click', () => {
+  if (!playing && time >= times[times.length - 1]) seek(times[0]);
+  setPlaying(!playing);
+});
+slider.addEventListener('input', () => { setPlaying(false); seek(times[0] + Number(slider.value) * duration); });
+volumesToggle.addEventListener('change', () => {
+  bodies.forEach((body) => body.children.forEach((c) => { if (c.userData.robotVolume) c.visible = volumesToggle.checked; }));
+});
+window.addEventListener('hashchange', () => {
+  const t = timeFromHash();
+  if (t !== null) { setPlaying(false); seek(t); }
+});
+
+function resize() {
+  const { clientWidth: w, clientHeight: h } = view;
+  renderer.setSize(w, h);
+  camera.aspect = w / h;
+  camera.updateProjectionMatrix();
+}
+window.addEventListener('resize', resize);
+resize();
+
+const start = timeFromHash();
+if (start !== null) { seek(start); setPlaying(false); } else seek(times[0]);
+
+let last = performance.now();
+renderer.setAnimationLoop((now) => {
+  const dt = (now - last) / 1000;
+  last = now;
+  if (playing) {
+    seek(time + dt * Number(speed.value));
+    if (time >= times[times.length - 1]) setPlaying(false);
+  }
+  controls.update();
+  renderer.render(scene, camera);
+  window.replayShownTime = time;
+});
