@@ -1,5 +1,6 @@
 //! The firmware image under QEMU (Cortex-M7) refuses every kind of bad link input with a typed
-//! link fault and the controller's safe output, recovers on the next valid frame, and a
+//! link fault and the controller's safe output, recovers after the controller's recovery wait
+//! (`valid_cycles` valid frames, [`kernel::controller::recovery`]), and a
 //! firmware that stops answering is a timeout on the host. Needs `qemu-system-arm` and builds
 //! the image: run by `.ci/test.sh` (`--ignored`).
 #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
@@ -64,12 +65,13 @@ fn bad_link_input_gives_a_typed_fault_and_the_safe_output() {
     assert_safe(&firmware.next_actuator().unwrap(), 1, LinkFault::Truncated);
 
     // Replayed: a valid frame sent twice; the first copy is stepped (and, as the two refused
-    // frames' sequence numbers never arrived, reported after a gap).
+    // frames' sequence numbers never arrived, reported after a gap). It is a valid frame of the
+    // recovery wait: still the hold.
     let valid = wire(&mut firmware, &mut rig, 2);
     firmware.send_bytes(&valid).unwrap();
     firmware.send_bytes(&valid).unwrap();
     let first = firmware.next_actuator().unwrap();
-    assert_eq!((first.cycle, first.link_fault, first.mode), (2, Some(LinkFault::Missing), OutputMode::Normal));
+    assert_eq!((first.cycle, first.link_fault, first.mode), (2, Some(LinkFault::Missing), OutputMode::Hold));
     assert_safe(&firmware.next_actuator().unwrap(), 2, LinkFault::Replayed);
 
     // Missing in the sequence: a frame encoded and never sent; the next one is stepped and the
@@ -85,14 +87,19 @@ fn bad_link_input_gives_a_typed_fault_and_the_safe_output() {
     assert_safe(&firmware.next_actuator().unwrap(), 3, LinkFault::Missing);
     assert!(silent.elapsed().as_secs_f64() > 0.3, "watchdog after {:?}", silent.elapsed());
 
-    // The next valid frame is controlled again.
-    assert_eq!(firmware.step(&frame(&mut rig, 4)).unwrap().mode, SafeOutput::Normal);
+    // Valid frames: the hold lasts for the recovery wait, then the robot is controlled again.
+    let wait = u64::from(rig.controller.config().recovery.valid_cycles);
+    let modes: Vec<SafeOutput> =
+        (4..4 + wait).map(|cycle| firmware.step(&frame(&mut rig, cycle)).unwrap().mode).collect();
+    assert!(modes.iter().all(|m| *m == SafeOutput::Hold), "{modes:?}");
+    assert_eq!(firmware.step(&frame(&mut rig, 4 + wait)).unwrap().mode, SafeOutput::Normal);
+    let next = 5 + wait;
 
     // A firmware that stops answering: a timeout, not a hang.
     let stopped = std::process::Command::new("kill").args(["-STOP", &firmware.qemu_id().to_string()]).status();
     assert!(stopped.unwrap().success());
     let waiting = Instant::now();
-    let error = firmware.step(&frame(&mut rig, 5)).unwrap_err();
+    let error = firmware.step(&frame(&mut rig, next)).unwrap_err();
     assert!(error.starts_with("timeout"), "{error}");
     assert!((2.5..6.0).contains(&waiting.elapsed().as_secs_f64()), "{:?}", waiting.elapsed());
 }
