@@ -159,6 +159,11 @@ pub type Frame = SensorFrame<S, U>;
 /// (one valid cycle, no blend) so that the frames after the fault frame output the whole-body
 /// torque and their checksums compare the full computation (a waiting or blending cycle runs
 /// the same computation, so its cost is the same).
+///
+/// Always inlined into the caller's `init`, so that the controller is built in place there: a
+/// separate frame returning it by value made LTO keep up to three copies on the stack (270 KB
+/// in f32, more than the RAM above the statics in f64).
+#[inline(always)]
 pub fn new_controller() -> Option<JustinController> {
     let model = justin::model::<S>().ok()?;
     let collision = justin::collision::collision_model(&model).ok()?;

@@ -22,6 +22,9 @@ const WATCHDOG_PERIODS: u32 = 500;
 // The controller (68 KB in f32) lives in `.bss`, not on the stack.
 static mut CONTROLLER: MaybeUninit<Controller> = MaybeUninit::uninit();
 
+/// Inlined into [`init`], so that the controller is built in place there: a separate frame
+/// returning it by value can cost several copies of it on the stack.
+#[inline(always)]
 fn new_controller() -> Option<Controller> {
     let model = justin::model::<f32>().ok()?;
     let collision = justin::collision::collision_model(&model).ok()?;
