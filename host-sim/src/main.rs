@@ -11,7 +11,7 @@ use host_sim::scenario::{OutputOptions, DEFAULT_RECORD_EVERY};
 #[command(
     version,
     about,
-    after_help = "Environment variables:\n  SOAK_SECONDS  simulated seconds of the `soak` scenario (default 60)"
+    after_help = "Environment variables:\n  SOAK_SECONDS  simulated seconds of the `soak` scenario (default 60)\n  SOAK_SEED     seed of the `soak` scenario's goals and pushes (decimal or 0x hexadecimal)\n  PIL_TIMEOUT_S seconds host-sim waits for the firmware under --pil (default 10)"
 )]
 struct Cli {
     #[command(subcommand)]
