@@ -336,7 +336,7 @@ pub struct ControllerConfig<T: RealField, const N: usize> {
     pub observer: ObserverParameters<T>,
     /// Contact-force limiter on the observer's estimate ([`super::force_limit`]).
     pub force_limit: super::force_limit::ForceLimitParameters<T>,
-    /// The joint speed barrier ([`super::speed_barrier`]).
+    /// The joint speed barrier ([`mod@super::speed_barrier`]).
     pub speed_barrier: super::speed_barrier::SpeedBarrierParameters<T>,
     /// The return from the safe output ([`super::recovery`]).
     pub recovery: super::recovery::RecoveryParameters<T>,

@@ -320,7 +320,7 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
     /// moves every limited axis' rigid-contact force onto its bound (with the damping rule of
     /// the module docs). Zero without an enabled limit or if a solve fails.
     /// Cost: one substitution with `factor` per limited row plus one for `τ`
-    /// ([`Self::reflected_dense`], [`Self::reflected_tree`]), one 12 × 12 Cholesky.
+    /// (`reflected_dense`, `reflected_tree`), one 12 × 12 Cholesky.
     pub fn limit_command<'m>(
         &self,
         regularisation: T,

@@ -11,7 +11,7 @@ use crate::model::{Body, BodyId, Data, JointKind, Model, WorldInertia};
 /// Forward kinematics at state `(q, q̇)`.
 ///
 /// For each body `i` with parent `p` (world placements `⁰X`), the placement pass
-/// [`joint_step`]: `⁰X_i = ⁰X_p · X_J(placement) · X(q_i)`, motion subspace `S_i = (a; p_i × a)`
+/// `joint_step`: `⁰X_i = ⁰X_p · X_J(placement) · X(q_i)`, motion subspace `S_i = (a; p_i × a)`
 /// for a revolute joint with world axis `a` through the body origin `p_i`, `S_i = (0; a)` for a
 /// prismatic one; then velocity `v_i = v_p + S_i q̇_i`, subspace rate `Ṡ_i = v_i × S_i`, drift
 /// `ζ_i = ζ_p + Ṡ_i q̇_i`, world spatial inertia `I_i` (Featherstone (2.63), as a 6×6 matrix and
@@ -76,7 +76,7 @@ pub fn forward_kinematics<T: RealField + Copy, const N: usize, const B: usize, c
 }
 
 /// Position kinematics at `q` for the joint-space inertia matrix and gravity: the placement
-/// pass of [`forward_kinematics`] ([`joint_step`]: placements `⁰X_i` and motion subspaces
+/// pass of [`forward_kinematics`] (`joint_step`: placements `⁰X_i` and motion subspaces
 /// `S_i` of every body) and the world inertias `I_i` in ten-parameter form (Featherstone
 /// (2.63)); no velocities, drifts, 6×6 inertias or frame placements (Pinocchio's `crba(q)`
 /// computes the same before its backward pass).
@@ -107,7 +107,7 @@ pub fn placement_kinematics<T: RealField + Copy, const N: usize, const B: usize,
 }
 
 /// Position kinematics at `q` along one support path: the placement pass of
-/// [`forward_kinematics`] ([`joint_step`]) for `body` and its ancestors only, root first
+/// [`forward_kinematics`] (`joint_step`) for `body` and its ancestors only, root first
 /// (Pinocchio's `computeFrameJacobian(q)` walks the same joints).
 ///
 /// Writes `q` and the `body_placements` and `motion_subspaces` of the support of `body`:
