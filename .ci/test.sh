@@ -5,7 +5,7 @@
 #   3. the firmware image for thumbv7em-none-eabihf, linked WITHOUT a global allocator:
 #      the link fails if anything in the kernel's dependency graph pulls in `alloc`
 #   4. a QEMU smoke run of that image on Cortex-M7 (mps2-an500) and Cortex-M4F (mps2-an386)
-#   5. the link-time panic check: Controller::step linked with an undefined panic handler
+#   5. the link-time panic check: Controller::step and apply_bytes linked with an undefined panic handler
 #   6. formatting (`cargo fmt --check`) and rustdoc with warnings as errors
 #   7. processor in the loop: the runtime image under QEMU (Cortex-M7) controls the simulated
 #      robot for 300 cycles, and refuses injected bad link frames with the safe output

@@ -1,9 +1,11 @@
-//! Panic-freedom check of `Controller::step` (issue 8): this image is only linked, never run.
+//! Panic-freedom check of `Controller::step` and `Controller::apply_bytes` (issues 8 and 16):
+//! this image is only linked, never run.
 //!
 //! `main` calls `wcet_step` (the full `Controller::step` of the Justin controller, f32 or f64
 //! with `wcet-f64`) on a controller and a frame the optimiser cannot see (`black_box`ed
-//! pointers), so the image contains `step` and everything it can reach, and nothing else of
-//! the kernel. The panic handler calls a function that does not exist: if any panic path
+//! pointers), and `apply_bytes` (command decoding and `Controller::apply`) on bytes it cannot
+//! see, so the image contains both and everything they can reach, and nothing else of the
+//! kernel. The panic handler calls a function that does not exist: if any panic path
 //! survives optimisation, the link fails with `undefined symbol: step_has_a_panic_path`.
 //! With the `panic-check-report` feature the handler is an ordinary loop instead, so that
 //! `wcet/panic_check.sh` can list the call sites of the remaining panic functions.
@@ -23,16 +25,24 @@ use stages::*;
 
 static mut CONTROLLER: MaybeUninit<JustinController> = MaybeUninit::uninit();
 static mut FRAME: MaybeUninit<Frame> = MaybeUninit::uninit();
+static mut COMMAND: [u8; 256] = [0; 256];
 
 #[entry]
 fn main() -> ! {
     // Never executed (the check only links); the pointers are opaque to the optimiser.
     let controller = core::hint::black_box(core::ptr::addr_of_mut!(CONTROLLER)).cast::<JustinController>();
     let frame = core::hint::black_box(core::ptr::addr_of!(FRAME)).cast::<Frame>();
+    let bytes = core::hint::black_box(core::ptr::addr_of!(COMMAND));
+    let length = core::hint::black_box(256_usize);
     loop {
         // SAFETY: not run; see the module docs.
         let sum = unsafe { wcet_step(&mut *controller, &*frame) };
         core::hint::black_box(sum);
+        // SAFETY: as above.
+        let command = unsafe { (*bytes).get(..length).unwrap_or(&[]) };
+        // SAFETY: as above.
+        let applied = unsafe { (*controller).apply_bytes(command) };
+        core::hint::black_box(applied.is_ok());
     }
 }
 
