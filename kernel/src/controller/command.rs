@@ -164,13 +164,8 @@ impl<
                 finite(&[p.damping_ratio], "damping_ratio")?;
                 let task = cartesian_task(&self.settings.config, *hand, p)
                     .map_err(|_| CommandError::OutOfRange { field: "cartesian parameters" })?;
-                if let (Some(slot), Some(config)) = (
-                    self.settings.tasks.cartesian.get_mut(hand.index()),
-                    self.settings.config.cartesian.get_mut(hand.index()),
-                ) {
-                    *slot = task;
-                    *config = *p;
-                }
+                *hand.of_mut(&mut self.settings.tasks.cartesian) = task;
+                *hand.of_mut(&mut self.settings.config.cartesian) = *p;
                 Ok(())
             }
             Command::SetCollisionField { field, parameters } => {
@@ -199,9 +194,7 @@ impl<
                 let goal = placement(pose)?;
                 let duration = duration(*duration_s)?;
                 let start = self.started_target(*hand)?;
-                if let Some(slot) = self.state.hands.get_mut(hand.index()) {
-                    *slot = PoseTrajectory::towards(start.pose, goal, duration);
-                }
+                *hand.of_mut(&mut self.state.hands) = PoseTrajectory::towards(start.pose, goal, duration);
                 Ok(())
             }
             Command::TcpSample { hand, pose, linear_velocity, angular_velocity } => {
@@ -214,9 +207,7 @@ impl<
                     linear_velocity: Vector3::from(*linear_velocity),
                     angular_velocity: Vector3::from(*angular_velocity),
                 };
-                if let Some(slot) = self.state.hands.get_mut(hand.index()) {
-                    *slot = PoseTrajectory::streamed(target);
-                }
+                *hand.of_mut(&mut self.state.hands) = PoseTrajectory::streamed(target);
                 Ok(())
             }
             Command::JointGoal { group, values, duration_s } => {
@@ -253,7 +244,7 @@ impl<
         if !self.state.started {
             return Err(CommandError::NotStarted);
         }
-        self.state.hands.get(hand.index()).map(PoseTrajectory::sample).ok_or(CommandError::UnknownTask)
+        Ok(hand.of(&self.state.hands).sample())
     }
 }
 

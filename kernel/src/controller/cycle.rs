@@ -185,10 +185,10 @@ impl<
     fn limit_contact_forces(&mut self, dt: T) -> Result<(), Fault> {
         let hands = Hand::BOTH.map(|hand| {
             let running = self.state.hierarchy.contains(TaskKind::CartesianImpedance(hand));
-            let parameters = self.settings.config.cartesian.get(hand.index())?;
+            let parameters = hand.of(&self.settings.config.cartesian);
             let (lower, upper) = (Vector6::from(parameters.force_lower), Vector6::from(parameters.force_upper));
             let limited = lower.iter().chain(upper.iter()).any(|x| x.is_finite());
-            let axes = *self.state.hands.get(hand.index())?.sample().pose.rotation.matrix();
+            let axes = *hand.of(&self.state.hands).sample().pose.rotation.matrix();
             (running && limited).then_some(HandLimits { axes, lower, upper })
         });
         let residual = *self.state.observer.residual();

@@ -109,6 +109,159 @@ use crate::tasks::collision::{CollisionData, CollisionModel};
 /// Its parts: the settings (models, configuration, validated task objects; changed only by
 /// [`Controller::apply`]), the state one cycle leaves for the next, and the workspace each
 /// cycle computes in.
+///
+/// # Example
+/// A platform `(x, y, θ)` carrying two one-joint arms, each with a TCP and a collision sphere;
+/// the hierarchy is the strong collision field over the upper-body joint impedance. The first
+/// valid frame sets the targets at the measured state, so the arms at rest get exactly the
+/// gravity compensation (5.14).
+/// ```
+/// use hal::{JointSample, PlatformSample, LEGS};
+/// use kernel::controller::config::*;
+/// use kernel::controller::faults::SafeOutput;
+/// use kernel::controller::force_limit::ForceLimitParameters;
+/// use kernel::controller::recovery::RecoveryParameters;
+/// use kernel::controller::speed_barrier::SpeedBarrierParameters;
+/// use kernel::controller::{Controller, SensorFrame};
+/// use kernel::hierarchy::{Recursion, Shaping};
+/// use kernel::model::{Inertia, JointDrive, JointKind, ModelBuilder, Placement};
+/// use kernel::platform::admittance::AdmittanceConfig;
+/// use kernel::platform::avoidance::AvoidanceConfig;
+/// use kernel::platform::coupling_compensation::CompensationSwitch;
+/// use kernel::platform::icr::IcrRepulsionConfig;
+/// use kernel::platform::legs::{LegAdmittanceConfig, ReturnGains};
+/// use kernel::platform::{PlatformAxis, PlatformLayout};
+/// use kernel::tasks::cartesian_impedance::AxisMask;
+/// use kernel::tasks::collision::{CollisionModelBuilder, SweptSphere};
+/// use nalgebra::{SVector, Translation3, UnitQuaternion, Unit, Vector3, Vector6};
+///
+/// // The robot: N = 5 coordinates (x, y, θ, right arm, left arm), B = 5 bodies, F = 2 TCPs.
+/// let mut b = ModelBuilder::<f64, 5, 5, 2>::new(Vector3::new(0.0, 0.0, -9.81));
+/// let at = |x: f64, y: f64, z: f64| {
+///     Placement::from_parts(Translation3::new(x, y, z), UnitQuaternion::identity().into())
+/// };
+/// let slide = |axis: Vector3<f64>| JointKind::Prismatic { axis: Unit::new_normalize(axis) };
+/// let turn = |axis: Vector3<f64>| JointKind::Revolute { axis: Unit::new_normalize(axis) };
+/// let base_x = b.add_body(None, at(0.0, 0.0, 0.0), slide(Vector3::x()), JointDrive::actuated(0),
+///     Inertia::point_mass(10.0, Vector3::zeros())).unwrap();
+/// let base_y = b.add_body(Some(base_x), at(0.0, 0.0, 0.0), slide(Vector3::y()), JointDrive::actuated(1),
+///     Inertia::point_mass(10.0, Vector3::zeros())).unwrap();
+/// let base = b.add_body(Some(base_y), at(0.0, 0.0, 0.0), turn(Vector3::z()), JointDrive::actuated(2),
+///     Inertia::point_mass(40.0, Vector3::new(0.1, 0.0, 0.3))).unwrap();
+/// let mut arm = |y: f64, coordinate: usize| {
+///     // A horizontal 0.5 m arm about y, its 2 kg at 0.3 m from the shoulder.
+///     let body = b.add_body(Some(base), at(0.0, y, 1.0), turn(Vector3::y()), JointDrive::actuated(coordinate),
+///         Inertia::point_mass(2.0, Vector3::new(0.3, 0.0, 0.0))).unwrap();
+///     (body, b.add_frame(Some(body), at(0.5, 0.0, 0.0)).unwrap())
+/// };
+/// let (right_arm, right_tcp) = arm(-0.2, 3);
+/// let (left_arm, left_tcp) = arm(0.2, 4);
+/// let model = b.try_build().unwrap();
+/// let mut c = CollisionModelBuilder::<f64, 2, 1>::new();
+/// c.add_volume(Some(right_arm), SweptSphere::sphere(Vector3::new(0.5, 0.0, 0.0), 0.05)).unwrap();
+/// c.add_volume(Some(left_arm), SweptSphere::sphere(Vector3::new(0.5, 0.0, 0.0), 0.05)).unwrap();
+/// let collision = c.try_build(&model, &[]).unwrap();
+///
+/// // The configuration: every gain and limit of the controller.
+/// let cartesian = CartesianParameters {
+///     translational_stiffness: [500.0; 3],
+///     rotational_stiffness: [20.0; 3],
+///     damping_ratio: 0.7,
+///     force_lower: [f64::NEG_INFINITY; 6],
+///     force_upper: [f64::INFINITY; 6],
+/// };
+/// let field = CollisionFieldParameters {
+///     max_force: 20.0, influence_distance: 0.1, damping_ratio: 0.7, activation_full: 0.0, activation_zero: 0.1,
+/// };
+/// let avoidance = AvoidanceConfig {
+///     repulsion: IcrRepulsionConfig {
+///         leg_directions: [45.0_f64, 135.0, 225.0, 315.0].map(f64::to_radians),
+///         max_extension: 0.12, extension_ratio: 0.4, max_force: 0.8, min_yaw_rate: 1e-3,
+///     },
+///     legs: LegAdmittanceConfig {
+///         mass: 0.2, damping: 1.0, cubic_stiffness: 1e3, nominal_length: 0.4, min_length: 0.3, max_length: 0.5,
+///     },
+///     return_gains: ReturnGains::critically_damped(2.0, 0.05),
+///     icr_avoidance: false,
+///     leg_motion: false,
+/// };
+/// let config = ControllerConfig {
+///     period_s: 1e-3,
+///     layout: RobotLayout {
+///         tcp: [right_tcp, left_tcp],
+///         platform: PlatformLayout::try_new::<5>([0, 1, 2].map(PlatformAxis::Admitted)).unwrap(),
+///         torso: [false; 5],
+///         arms: [[false, false, false, true, false], [false, false, false, false, true]],
+///     },
+///     recursion: Recursion::Augmented,
+///     consistency: Consistency::Dynamic,
+///     shaping: Shaping::Continuous { singular_full: 0.05, singular_start: 0.15 },
+///     transition_s: 1.0,
+///     cartesian: [cartesian; 2],
+///     cartesian_fallback_damping: Vector6::repeat(10.0),
+///     collision: [field; 2],
+///     singularity: SingularityParameters {
+///         rows: AxisMask::new([false, false, true, false, false, false]), // one row per one-joint arm
+///         threshold: 0.025, full_activation: 0.01, stiffness: 100.0, damping: 1.0,
+///     },
+///     end_stops: EndStopParameters { margin: 0.1, stiffness: 10.0, damping: 1.0 },
+///     torso_workspace: None,
+///     joint_stiffness: SVector::repeat(50.0),
+///     joint_damping: SVector::repeat(5.0),
+///     safe_damping: SVector::repeat(5.0),
+///     platform: PlatformParameters {
+///         admittance: AdmittanceConfig {
+///             mass: Vector3::new(50.0, 50.0, 10.0),
+///             damping: Vector3::new(200.0, 200.0, 40.0),
+///             force_limit: Vector3::new(100.0, 100.0, 40.0),
+///             free_axes: [true; 3],
+///         },
+///         avoidance,
+///         compensation: CompensationSwitch::ON,
+///         force_deadband: [0.0; 3],
+///     },
+///     output_limits: OutputLimits {
+///         torque_rate: SVector::repeat(1e4),
+///         base_velocity: Vector3::repeat(1.0),
+///         base_acceleration: Vector3::repeat(2.0),
+///         leg_rate: 0.2,
+///     },
+///     input_limits: InputLimits {
+///         position_tolerance: 0.05, velocity_factor: 1.5, max_cycle_gap: 5, brake_after_cycles: 100,
+///     },
+///     observer: ObserverParameters { gain: 50.0, contact_threshold: 5.0 },
+///     force_limit: ForceLimitParameters {
+///         enabled: false, margin: 0.05, gain: 3.0, max_correction: 10.0, regularisation: 1e-4,
+///     },
+///     speed_barrier: SpeedBarrierParameters {
+///         onset: 0.5, full: 0.9, braking_time_s: 0.002, max_torque_fraction: 0.25,
+///     },
+///     recovery: RecoveryParameters { valid_cycles: 10, margin: 0.2, blend_s: 0.1 },
+/// };
+/// let hierarchy = [
+///     TaskSpec { kind: TaskKind::CollisionAvoidance(Field::Strong), level: 0 },
+///     TaskSpec { kind: TaskKind::JointImpedance(JointGroup::UpperBody), level: 1 },
+/// ];
+/// let mut controller = Controller::<f64, 5, 5, 2, 2, 2, 1>::try_new(model, collision, config, &hierarchy).unwrap();
+///
+/// // One cycle with the arms horizontal and everything at rest.
+/// let frame = SensorFrame {
+///     joints: JointSample { position: [0.0; 2], velocity: [0.0; 2], torque: [0.0; 2], cycle: 1 },
+///     platform: PlatformSample { pose: [0.0; 3], velocity: [0.0; 3], leg_lengths: [0.4; LEGS], cycle: 1 },
+/// };
+/// let output = *controller.step(&frame);
+/// assert_eq!(output.mode, SafeOutput::Normal);
+/// assert_eq!(controller.telemetry().fault, None);
+/// // The hands are 0.4 m apart: no collision row; the joint springs are at their targets.
+/// assert_eq!(controller.telemetry().collision_rows, 0);
+/// let gravity = controller.data().gravity_torque;
+/// for (torque, g) in output.torque.iter().zip(gravity.iter().skip(3)) {
+///     // 2 kg at 0.3 m: 5.9 Nm holds each arm up.
+///     assert!((g.abs() - 2.0 * 9.81 * 0.3).abs() < 1e-9);
+///     assert!((torque - g).abs() < 1e-9);
+/// }
+/// assert_eq!(output.platform.velocity, [0.0; 3]);
+/// ```
 #[derive(Clone, Debug)]
 pub struct Controller<
     T: RealField,

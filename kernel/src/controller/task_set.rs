@@ -47,7 +47,7 @@ pub(super) fn cartesian_task<T: RealField + Copy, const N: usize>(
     hand: Hand,
     parameters: &CartesianParameters<T>,
 ) -> Result<CartesianImpedance<T>, TaskError> {
-    let frame = config.layout.tcp.get(hand.index()).copied().ok_or(TaskError::InvalidParameter { name: "tcp" })?;
+    let frame = *hand.of(&config.layout.tcp);
     CartesianImpedance::try_new(CartesianImpedanceConfig {
         frame,
         axes: AxisMask::ALL,
@@ -105,8 +105,7 @@ impl<T: RealField + Copy, const N: usize> TaskSet<T, N> {
         ];
         let s = &config.singularity;
         let arm = |hand: Hand| {
-            let frame =
-                config.layout.tcp.get(hand.index()).copied().ok_or(TaskError::InvalidParameter { name: "tcp" })?;
+            let frame = *hand.of(&config.layout.tcp);
             Manipulability::try_new(ManipulabilityConfig {
                 frame,
                 rows: s.rows,
@@ -206,10 +205,7 @@ pub(super) fn evaluate<
 ) -> Result<(), Fault> {
     match kind {
         TaskKind::CartesianImpedance(hand) => {
-            let (Some(task), Some(trajectory)) = (cx.tasks.cartesian.get(hand.index()), cx.hands.get(hand.index()))
-            else {
-                return Ok(());
-            };
+            let (task, trajectory) = (hand.of(&cx.tasks.cartesian), hand.of(cx.hands));
             // (5.11): no Cartesian damping on the platform coordinates.
             let velocity = data.v;
             for (i, x) in data.v.iter_mut().enumerate() {
@@ -220,15 +216,9 @@ pub(super) fn evaluate<
             let report = cartesian_impedance_factored(cx.model, data, cx.mass, task, &trajectory.sample(), rows);
             data.v = velocity;
             let report = report.map_err(Fault::Task)?;
-            if let (Some(e), Some(s), Some(d)) = (
-                telemetry.tcp_error.get_mut(hand.index()),
-                telemetry.tcp_force_limited.get_mut(hand.index()),
-                scratch.cartesian_damping.get_mut(hand.index()),
-            ) {
-                *e = report.error;
-                *s = report.saturated;
-                *d = report.damping_force;
-            }
+            *hand.of_mut(&mut telemetry.tcp_error) = report.error;
+            *hand.of_mut(&mut telemetry.tcp_force_limited) = report.saturated;
+            *hand.of_mut(&mut scratch.cartesian_damping) = report.damping_force;
         }
         TaskKind::CollisionAvoidance(field) => {
             let Some(parameters) = cx.tasks.collision.get(field.index()) else { return Ok(()) };
@@ -257,11 +247,9 @@ pub(super) fn evaluate<
             telemetry.collision_rows += report.rows;
         }
         TaskKind::SingularityAvoidance(hand) => {
-            let Some(task) = cx.tasks.singularity.get(hand.index()) else { return Ok(()) };
+            let task = hand.of(&cx.tasks.singularity);
             let report = manipulability_avoidance(cx.model, data, task, rows).map_err(Fault::Task)?;
-            if let Some(m) = telemetry.manipulability.get_mut(hand.index()) {
-                *m = report.manipulability;
-            }
+            *hand.of_mut(&mut telemetry.manipulability) = report.manipulability;
         }
         TaskKind::EndStops => end_stops(&cx.tasks.end_stops, &data.q, &data.v, rows).map_err(Fault::Task)?,
         TaskKind::TorsoWorkspace => {
