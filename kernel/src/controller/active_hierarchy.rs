@@ -143,3 +143,70 @@ impl<T: RealField + Copy> ActiveHierarchy<T> {
         Ok(())
     }
 }
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, reason = "test code: failures should panic")]
+mod tests {
+    use super::*;
+    use crate::controller::config::Field;
+    use crate::controller::layout::{Hand, JointGroup};
+
+    const CARTESIAN: TaskKind = TaskKind::CartesianImpedance(Hand::Right);
+    const COLLISION: TaskKind = TaskKind::CollisionAvoidance(Field::Strong);
+    const DAMPING: TaskKind = TaskKind::JointDamping(JointGroup::UpperBody);
+
+    fn spec(kind: TaskKind, level: u8) -> TaskSpec {
+        TaskSpec { kind, level }
+    }
+
+    fn levels(h: &ActiveHierarchy<f64>) -> std::vec::Vec<(TaskKind, Option<u8>, Option<u8>)> {
+        h.entries().iter().map(|a| (a.kind, a.from, a.to)).collect()
+    }
+
+    #[test]
+    fn a_new_hierarchy_moves_fades_in_and_out_then_rests() {
+        let mut h = ActiveHierarchy::<f64>::initial(&[spec(CARTESIAN, 0), spec(DAMPING, 1)]).unwrap();
+        assert!(!h.in_transition());
+        h.replace(&[spec(CARTESIAN, 0), spec(COLLISION, 0), spec(DAMPING, 2)], |_| true).unwrap();
+        assert_eq!(
+            levels(&h),
+            [(CARTESIAN, Some(0), Some(0)), (COLLISION, None, Some(0)), (DAMPING, Some(1), Some(2))]
+        );
+        assert!(h.in_transition());
+        assert_eq!(h.replace(&[spec(CARTESIAN, 0)], |_| true), Err(CommandError::TransitionInProgress));
+        h.advance(0.5);
+        assert!(h.in_transition());
+        h.advance(0.5);
+        assert!(!h.in_transition());
+        assert_eq!(
+            h.planned().collect::<std::vec::Vec<_>>(),
+            [spec(CARTESIAN, 0), spec(COLLISION, 0), spec(DAMPING, 2)]
+        );
+        // A dropped task fades out: still an entry, no longer planned, gone once faded.
+        h.replace(&[spec(CARTESIAN, 0), spec(DAMPING, 2)], |_| true).unwrap();
+        assert!(h.contains(COLLISION));
+        assert!(!h.planned().any(|s| s.kind == COLLISION));
+        h.advance(1.0);
+        assert!(!h.contains(COLLISION));
+        assert_eq!(levels(&h), [(CARTESIAN, Some(0), Some(0)), (DAMPING, Some(2), Some(2))]);
+    }
+
+    #[test]
+    fn invalid_hierarchies_are_refused_and_change_nothing() {
+        let mut h = ActiveHierarchy::<f64>::initial(&[spec(CARTESIAN, 0)]).unwrap();
+        let before = levels(&h);
+        let overflow = u8::try_from(MAX_LEVELS).unwrap();
+        assert_eq!(
+            h.replace(&[spec(CARTESIAN, overflow)], |_| true),
+            Err(CommandError::LevelOverflow { level: overflow })
+        );
+        assert_eq!(h.replace(&[spec(DAMPING, 0), spec(DAMPING, 1)], |_| true), Err(CommandError::DuplicateTask));
+        assert_eq!(h.replace(&[spec(DAMPING, 0)], |kind| kind != DAMPING), Err(CommandError::UnknownTask));
+        assert_eq!(levels(&h), before);
+        let too_many = [spec(CARTESIAN, 0); MAX_TASKS + 1];
+        assert_eq!(
+            ActiveHierarchy::<f64>::initial(&too_many).err(),
+            Some(CommandError::OutOfRange { field: "hierarchy length" })
+        );
+    }
+}

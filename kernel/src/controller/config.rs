@@ -1,6 +1,7 @@
 //! The controller's configuration: the robot layout, the task hierarchy as data and every gain,
 //! validated once by [`super::Controller::try_new`] and changed at run time only through
-//! validated planner commands ([`super::messages`]).
+//! validated planner commands ([`super::command`]). [`ControllerConfig::validate`] checks the
+//! controller's own parameters; the task objects check theirs when the controller builds them.
 
 use nalgebra::{RealField, SVector, Vector3, Vector6};
 
