@@ -14,8 +14,7 @@ use fixtures::justin;
 use host_sim::scenario::{torso_workspace as scenario, Progress};
 use kernel::dynamics::{crba, forward_kinematics, mass_matrix_cholesky};
 use kernel::tasks::torso_workspace::{
-    torso_workspace, RepulsionGains, TorqueLimits, TorsoGeometry, TorsoLoad, TorsoWorkspace, TorsoWorkspaceConfig,
-    BOUNDARIES,
+    torso_workspace, RepulsionGains, TorqueLimits, TorsoLoad, TorsoWorkspace, TorsoWorkspaceConfig, BOUNDARIES,
 };
 use kernel::tasks::TaskRows;
 use kernel::Data;
@@ -25,7 +24,7 @@ const N: usize = justin::N;
 
 fn task<T: RealField + Copy>(force: f64, angle_deg: f64) -> TorsoWorkspace<T, N> {
     TorsoWorkspace::try_new(TorsoWorkspaceConfig {
-        geometry: TorsoGeometry::justin(),
+        geometry: justin::torso_geometry(),
         torque_limits: TorqueLimits::symmetric(230.0),
         load: TorsoLoad::from_degrees(force, angle_deg),
         gains: RepulsionGains::thesis_experiment(),
@@ -45,7 +44,7 @@ impl Lcg {
 
 /// Home pose with a random torso inside Table 3.2 (and random yaw q_t1, base pose).
 fn random_state(rng: &mut Lcg) -> SVector<f64, N> {
-    let g = TorsoGeometry::<f64>::justin();
+    let g = justin::torso_geometry::<f64>();
     let mut q = justin::home_configuration::<f64>();
     loop {
         let q2 = g.joint2.min + (g.joint2.max - g.joint2.min) * rng.next();
@@ -127,7 +126,7 @@ fn repulsion_is_the_negative_potential_gradient_on_justin_f32() {
 fn torso_plane_is_that_of_the_robot_model() {
     let model = justin::model::<f64>().unwrap();
     let mut data = Box::new(Data::new(&model));
-    let g = TorsoGeometry::<f64>::justin();
+    let g = justin::torso_geometry::<f64>();
     let mut rng = Lcg(7);
     for _ in 0..50 {
         let q = random_state(&mut rng);

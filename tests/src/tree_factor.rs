@@ -17,7 +17,7 @@ use kernel::tasks::cartesian_impedance::{
 };
 use kernel::tasks::collision::{self_collision_rows, CollisionData, CollisionParameters};
 use kernel::tasks::torso_workspace::{
-    torso_workspace, RepulsionGains, TorqueLimits, TorsoGeometry, TorsoLoad, TorsoWorkspace, TorsoWorkspaceConfig,
+    torso_workspace, RepulsionGains, TorqueLimits, TorsoLoad, TorsoWorkspace, TorsoWorkspaceConfig,
 };
 use kernel::tasks::TaskRows;
 use nalgebra::{convert, try_convert, Cholesky, Matrix3, RealField, SVector, Vector3, Vector6};
@@ -166,7 +166,7 @@ fn justin_consumers_match<T: RealField + Copy>(tolerance: f64) {
         collision_rows += a.len();
         // Torso workspace rows (the 2 × 2 block of M⁻¹), at a torso state near its limits.
         let torso = TorsoWorkspace::<T, { justin::N }>::try_new(TorsoWorkspaceConfig {
-            geometry: TorsoGeometry::justin(),
+            geometry: justin::torso_geometry(),
             torque_limits: TorqueLimits::symmetric(convert(230.0)),
             load: TorsoLoad::from_degrees(convert(rng.uniform(300.0, 900.0)), convert(rng.uniform(0.0, 360.0))),
             gains: RepulsionGains::thesis_experiment(),

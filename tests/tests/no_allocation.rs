@@ -188,8 +188,7 @@ mod torso_workspace_rows {
     use fixtures::justin;
     use kernel::dynamics::{crba, forward_kinematics, mass_matrix_cholesky};
     use kernel::tasks::torso_workspace::{
-        torso_workspace, RepulsionGains, TorqueLimits, TorsoGeometry, TorsoLoad, TorsoWorkspace, TorsoWorkspaceConfig,
-        BOUNDARIES,
+        torso_workspace, RepulsionGains, TorqueLimits, TorsoLoad, TorsoWorkspace, TorsoWorkspaceConfig, BOUNDARIES,
     };
     use kernel::tasks::TaskRows;
     use kernel::Data;
@@ -206,7 +205,7 @@ mod torso_workspace_rows {
         q[5] = convert(1.1);
         let v = SVector::<T, N>::repeat(convert(0.3));
         let mut task = TorsoWorkspace::<T, N>::try_new(TorsoWorkspaceConfig {
-            geometry: TorsoGeometry::justin(),
+            geometry: justin::torso_geometry(),
             torque_limits: TorqueLimits::symmetric(230.0),
             load: TorsoLoad::from_degrees(550.0, 90.0),
             gains: RepulsionGains::thesis_experiment(),

@@ -1,5 +1,5 @@
 //! WCET measurement image: exact per-call instruction counts and stack high-water marks of the
-//! kernel stages that exist today (issue #8; the controller `step` of issue 7 does not exist yet).
+//! kernel stages one by one (issue #8); the whole `Controller::step` is measured by `wcet_step.rs`.
 //!
 //! Stages, each a monomorphic `#[inline(never)]` symbol bracketed by `dbg #2r` / `dbg #2r+1`
 //! markers (NOPs on silicon and in QEMU; the TCG plugin `wcet/wcet_insn.c` counts the

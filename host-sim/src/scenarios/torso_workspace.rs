@@ -2,7 +2,7 @@
 //!
 //! The torso centre point `p_t = (x, z)` moves in the torso's sagittal plane: `x` horizontal
 //! and forward, `z` up along the vertical joint `q_t1`, both relative to the axis of the first
-//! pitch joint `q_t2` ([`TorsoGeometry`], (3.42)). With the Justin-like geometry
+//! pitch joint `q_t2` ([`TorsoGeometry`](kernel::tasks::torso_workspace::TorsoGeometry), (3.42)). With the Justin-like geometry
 //! (`l_t2 = l_t3 = 0.3 m`, the ranges of Table 3.2) and the torque limits ±230 Nm of Fig. 3.16,
 //! the scenario samples the plane on a [`GRID_STEP_M`] grid for the four loads of Fig. 3.16
 //! ([`CASES`]) and classifies every point: out of kinematic reach (Table 3.2 / Table A.1), or
@@ -35,8 +35,8 @@
 use std::path::Path;
 
 use kernel::tasks::torso_workspace::{
-    direction, joint2_lines, Boundary, BoundaryCurve, RepulsionGains, TorqueBand, TorqueLimits, TorsoGeometry,
-    TorsoLoad, TorsoWorkspace, TorsoWorkspaceConfig,
+    direction, joint2_lines, Boundary, BoundaryCurve, RepulsionGains, TorqueBand, TorqueLimits, TorsoLoad,
+    TorsoWorkspace, TorsoWorkspaceConfig,
 };
 use nalgebra::Vector2;
 use plotters::prelude::*;
@@ -143,7 +143,7 @@ pub struct CaseMap {
 /// coordinates `[q_t2, q_t3] = [0, 1]`).
 pub fn task(case: &LoadCase) -> Result<TorsoWorkspace<f64, 2>, String> {
     let config = TorsoWorkspaceConfig {
-        geometry: TorsoGeometry::justin(),
+        geometry: fixtures::justin::torso_geometry(),
         torque_limits: TorqueLimits::symmetric(TORQUE_LIMIT_NM),
         load: TorsoLoad::from_degrees(case.force_n, case.angle_deg),
         gains: RepulsionGains::thesis_experiment(),

@@ -1,51 +1,24 @@
 //! The controller's configuration: the robot layout, the task hierarchy as data and every gain,
 //! validated once by [`super::Controller::try_new`] and changed at run time only through
-//! validated planner commands ([`super::messages`]).
+//! validated planner commands ([`super::command`]). [`ControllerConfig::validate`] checks the
+//! controller's own parameters; the task objects check theirs when the controller builds them.
 
 use nalgebra::{RealField, SVector, Vector3, Vector6};
 
+use super::error::ConfigError;
+use super::force_limit::ForceLimitParameters;
+use super::recovery::RecoveryParameters;
+use super::speed_barrier::SpeedBarrierParameters;
 use crate::hierarchy::{Recursion, Shaping};
-use crate::model::FrameId;
 use crate::platform::admittance::AdmittanceConfig;
 use crate::platform::avoidance::AvoidanceConfig;
 use crate::platform::coupling_compensation::CompensationSwitch;
-use crate::platform::PlatformLayout;
 use crate::tasks::cartesian_impedance::AxisMask;
 use crate::tasks::torso_workspace::TorsoWorkspaceConfig;
 
-/// Most task specifications in a hierarchy.
-pub const MAX_TASKS: usize = 16;
-/// Most priority levels.
-pub const MAX_LEVELS: usize = 8;
-/// Most rows on the stack in one cycle (all tasks, all levels).
-pub const MAX_ROWS: usize = 128;
-/// Most rows one task emits in one cycle (a collision field's closest pairs, the end stops,
-/// a joint impedance of every coordinate).
-pub const MAX_TASK_ROWS: usize = 32;
-
-/// One of the two hands (TCPs, arms).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-#[derive(serde::Serialize, serde::Deserialize)]
-pub enum Hand {
-    /// The right hand.
-    Right,
-    /// The left hand.
-    Left,
-}
-
-impl Hand {
-    /// Both hands, right first.
-    pub const BOTH: [Hand; 2] = [Hand::Right, Hand::Left];
-
-    /// `0` for the right hand, `1` for the left.
-    pub const fn index(self) -> usize {
-        match self {
-            Hand::Right => 0,
-            Hand::Left => 1,
-        }
-    }
-}
+pub use super::capacity::{MAX_LEVELS, MAX_ROWS, MAX_TASKS, MAX_TASK_ROWS};
+pub use super::faults::InputLimits;
+pub use super::layout::{Hand, JointGroup, PerHand, RobotLayout};
 
 /// The two collision-avoidance fields of Fig. 6.3.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -64,43 +37,6 @@ impl Field {
         match self {
             Field::Strong => 0,
             Field::Weak => 1,
-        }
-    }
-}
-
-/// A group of coordinates a joint-space task acts on.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-#[derive(serde::Serialize, serde::Deserialize)]
-pub enum JointGroup {
-    /// The admitted platform coordinates `(x, y, θ)`.
-    Platform,
-    /// The torso.
-    Torso,
-    /// One arm.
-    Arm(Hand),
-    /// Torso and both arms.
-    UpperBody,
-}
-
-impl JointGroup {
-    /// Every group.
-    pub const ALL: [JointGroup; 5] = [
-        JointGroup::Platform,
-        JointGroup::Torso,
-        JointGroup::Arm(Hand::Right),
-        JointGroup::Arm(Hand::Left),
-        JointGroup::UpperBody,
-    ];
-
-    /// The group's position in [`Self::ALL`].
-    pub const fn index(self) -> usize {
-        match self {
-            JointGroup::Platform => 0,
-            JointGroup::Torso => 1,
-            JointGroup::Arm(Hand::Right) => 2,
-            JointGroup::Arm(Hand::Left) => 3,
-            JointGroup::UpperBody => 4,
         }
     }
 }
@@ -150,39 +86,6 @@ pub enum Consistency {
     /// `W` = the closed-loop inertia (Def. 4.2): lower levels cause no task acceleration — the
     /// choice for free motion (Fig. 6.3).
     Dynamic,
-}
-
-/// Which frames and coordinates belong to which part of the robot.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RobotLayout<const N: usize> {
-    /// The TCP frames, right then left.
-    pub tcp: [FrameId; 2],
-    /// The platform coordinates; admitted axes are driven by the admittance.
-    pub platform: PlatformLayout,
-    /// Torso coordinates.
-    pub torso: [bool; N],
-    /// Arm coordinates, right then left.
-    pub arms: [[bool; N]; 2],
-}
-
-impl<const N: usize> RobotLayout<N> {
-    /// The coordinates of `group`.
-    pub fn coordinates(&self, group: JointGroup) -> [bool; N] {
-        let mut mask = [false; N];
-        for (i, m) in mask.iter_mut().enumerate() {
-            let torso = self.torso.get(i).copied().unwrap_or(false);
-            let right = self.arms[0].get(i).copied().unwrap_or(false);
-            let left = self.arms[1].get(i).copied().unwrap_or(false);
-            *m = match group {
-                JointGroup::Platform => self.platform.is_platform(i),
-                JointGroup::Torso => torso,
-                JointGroup::Arm(Hand::Right) => right,
-                JointGroup::Arm(Hand::Left) => left,
-                JointGroup::UpperBody => !self.platform.is_platform(i),
-            };
-        }
-        mask
-    }
 }
 
 /// Parameters of a TCP's Cartesian impedance as the planner sets them (Table 7.1): diagonal
@@ -269,21 +172,6 @@ pub struct OutputLimits<T, const N: usize> {
     pub leg_rate: T,
 }
 
-/// Thresholds of the input validation ([`super::faults`]).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct InputLimits<T> {
-    /// How far a joint position may be beyond its model limit before it is a fault (rad, m),
-    /// `≥ 0` (sensor noise, elastic stops).
-    pub position_tolerance: T,
-    /// A joint velocity beyond `velocity_factor` times its model limit is a fault, `≥ 1`.
-    pub velocity_factor: T,
-    /// A sensor frame whose cycle counter advanced by more than this is a fault (missed
-    /// frames), `≥ 1`.
-    pub max_cycle_gap: u64,
-    /// Consecutive faulty cycles after which the safe output requests the brakes, `≥ 1`.
-    pub brake_after_cycles: u32,
-}
-
 /// The generalized-momentum observer that detects contacts ((2.1) with `Ṁ = C + Cᵀ`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ObserverParameters<T> {
@@ -308,8 +196,8 @@ pub struct ControllerConfig<T: RealField, const N: usize> {
     pub shaping: Shaping<T>,
     /// Duration of a task's move between levels, fade-in or fade-out (s), `> 0`.
     pub transition_s: T,
-    /// Cartesian impedance of each TCP, right then left.
-    pub cartesian: [CartesianParameters<T>; 2],
+    /// Cartesian impedance of each TCP, per [`Hand`].
+    pub cartesian: PerHand<CartesianParameters<T>>,
     /// Task-space damping used when the double diagonalisation is impossible (Ns/m, Nms/rad).
     pub cartesian_fallback_damping: Vector6<T>,
     /// The strong and the weak collision field.
@@ -335,21 +223,61 @@ pub struct ControllerConfig<T: RealField, const N: usize> {
     /// Contact detection.
     pub observer: ObserverParameters<T>,
     /// Contact-force limiter on the observer's estimate ([`super::force_limit`]).
-    pub force_limit: super::force_limit::ForceLimitParameters<T>,
+    pub force_limit: ForceLimitParameters<T>,
     /// The joint speed barrier ([`mod@super::speed_barrier`]).
-    pub speed_barrier: super::speed_barrier::SpeedBarrierParameters<T>,
+    pub speed_barrier: SpeedBarrierParameters<T>,
     /// The return from the safe output ([`super::recovery`]).
-    pub recovery: super::recovery::RecoveryParameters<T>,
+    pub recovery: RecoveryParameters<T>,
 }
 
-#[cfg(test)]
-mod tests {
-    use super::JointGroup;
-
-    #[test]
-    fn group_indices_follow_all() {
-        for (i, group) in JointGroup::ALL.iter().enumerate() {
-            assert_eq!(group.index(), i);
+impl<T: RealField + Copy, const N: usize> ControllerConfig<T, N> {
+    /// Checks every controller parameter once (the tasks' and the platform's own parameters
+    /// are checked when their objects are built): the first one out of range is named in
+    /// [`ConfigError::InvalidParameter`].
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let config = self;
+        let positive = |x: T| x.is_finite() && x > T::zero();
+        let non_negative = |v: &SVector<T, N>| v.iter().all(|x| x.is_finite() && *x >= T::zero());
+        let limits = &config.output_limits;
+        let force_limit = &config.force_limit;
+        let checks: [(bool, &'static str); 15] = [
+            (config.speed_barrier.is_valid(), "speed_barrier"),
+            (config.recovery.is_valid(), "recovery"),
+            (positive(config.period_s), "period_s"),
+            (positive(config.transition_s), "transition_s"),
+            (non_negative(&config.joint_stiffness), "joint_stiffness"),
+            (non_negative(&config.joint_damping), "joint_damping"),
+            (non_negative(&config.safe_damping), "safe_damping"),
+            (limits.torque_rate.iter().all(|x| positive(*x)), "torque_rate"),
+            (limits.base_velocity.iter().chain(limits.base_acceleration.iter()).all(|x| positive(*x)), "base limits"),
+            (positive(limits.leg_rate), "leg_rate"),
+            (
+                config.input_limits.position_tolerance.is_finite()
+                    && config.input_limits.position_tolerance >= T::zero(),
+                "position_tolerance",
+            ),
+            (
+                config.input_limits.velocity_factor.is_finite()
+                    && config.input_limits.velocity_factor >= T::one()
+                    && config.input_limits.max_cycle_gap >= 1
+                    && config.input_limits.brake_after_cycles >= 1,
+                "input limits",
+            ),
+            (positive(config.observer.gain) && positive(config.observer.contact_threshold), "observer"),
+            (config.platform.force_deadband.iter().all(|x| x.is_finite() && *x >= T::zero()), "force_deadband"),
+            (
+                positive(force_limit.gain)
+                    && positive(force_limit.regularisation)
+                    && force_limit.margin >= T::zero()
+                    && force_limit.margin < T::one()
+                    && force_limit.max_correction.is_finite()
+                    && force_limit.max_correction >= T::zero(),
+                "force_limit",
+            ),
+        ];
+        match checks.iter().find(|(ok, _)| !ok) {
+            Some((_, name)) => Err(ConfigError::InvalidParameter { name }),
+            None => Ok(()),
         }
     }
 }

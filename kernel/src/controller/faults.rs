@@ -35,8 +35,8 @@ use crate::model::Model;
 use crate::platform::PlatformError;
 use crate::tasks::TaskError;
 
-use super::config::InputLimits;
-use super::SensorFrame;
+pub use super::frames::SafeOutput;
+use super::frames::SensorFrame;
 
 /// Why a cycle fell back to the safe output.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -103,17 +103,19 @@ impl fmt::Display for Fault {
 
 impl core::error::Error for Fault {}
 
-/// The output the controller wrote in a cycle.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-#[derive(serde::Serialize, serde::Deserialize)]
-pub enum SafeOutput {
-    /// Normal operation: the whole-body control torque.
-    Normal,
-    /// Gravity compensation with joint damping, platform stopping (see the module docs).
-    Hold,
-    /// [`SafeOutput::Hold`] plus a brake request: the fault persisted.
-    Brake,
+/// Thresholds of the input validation ([`validate_frame`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct InputLimits<T> {
+    /// How far a joint position may be beyond its model limit before it is a fault (rad, m),
+    /// `≥ 0` (sensor noise, elastic stops).
+    pub position_tolerance: T,
+    /// A joint velocity beyond `velocity_factor` times its model limit is a fault, `≥ 1`.
+    pub velocity_factor: T,
+    /// A sensor frame whose cycle counter advanced by more than this is a fault (missed
+    /// frames), `≥ 1`.
+    pub max_cycle_gap: u64,
+    /// Consecutive faulty cycles after which the safe output requests the brakes, `≥ 1`.
+    pub brake_after_cycles: u32,
 }
 
 /// Checks a sensor frame against the model limits and the last accepted cycle.

@@ -14,7 +14,7 @@
 
 use nalgebra::{RealField, SVector, Vector3};
 
-use super::config::MAX_LEVELS;
+use super::capacity::MAX_LEVELS;
 use crate::platform::LEGS;
 
 /// What the guards changed in one cycle.

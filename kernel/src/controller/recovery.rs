@@ -19,7 +19,7 @@
 
 use nalgebra::RealField;
 
-use super::config::InputLimits;
+use super::faults::InputLimits;
 use super::faults::{Fault, SafeOutput};
 use crate::math::switching::transition_activation;
 

@@ -87,8 +87,8 @@ impl<T: RealField + Copy> TorqueLimits<T> {
 /// use kernel::tasks::torso_workspace::{load_torque, TorsoGeometry, TorsoLoad};
 /// // Torso leaning forward horizontally (q_t2 = 90°, q_t3 = 0) under 800 N of weight:
 /// // both links are lever arms, τ_t2 = −800·0.6 = −480 Nm, τ_t3 = −800·0.3 = −240 Nm.
-/// let tau = load_torque(&TorsoGeometry::justin(), &TorsoLoad::from_degrees(800.0, 90.0),
-///     core::f64::consts::FRAC_PI_2, 0.0);
+/// let geometry = TorsoGeometry::<f64>::from_degrees([0.3, 0.3], [-90.0, 90.0], [0.0, 135.0], [0.0, 135.0]);
+/// let tau = load_torque(&geometry, &TorsoLoad::from_degrees(800.0, 90.0), core::f64::consts::FRAC_PI_2, 0.0);
 /// assert!((tau.x + 480.0).abs() < 1e-9 && (tau.y + 240.0).abs() < 1e-9);
 /// ```
 #[inline]
@@ -161,10 +161,11 @@ impl<T: RealField + Copy> TorqueBand<T> {
 mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
     use super::*;
+    use crate::tasks::torso_workspace::tests::test_geometry;
 
     #[test]
     fn joint2_lines_are_where_the_joint2_torque_hits_its_limits() {
-        let g = TorsoGeometry::<f64>::justin();
+        let g = test_geometry::<f64>();
         for (force, angle) in [(800.0, 90.0), (800.0, 70.0), (1200.0, 90.0), (550.0, 20.0)] {
             let load = TorsoLoad::from_degrees(force, angle);
             let limits = TorqueLimits::symmetric(230.0);
@@ -188,7 +189,7 @@ mod tests {
     /// Points on the joint-3 circles need exactly the limit torque (Table A.2, (3.49)–(3.52)).
     #[test]
     fn joint3_bands_have_the_limit_torque_on_their_circles() {
-        let g = TorsoGeometry::<f64>::justin();
+        let g = test_geometry::<f64>();
         let load = TorsoLoad::from_degrees(1200.0, 80.0);
         for limit in [-230.0, 230.0] {
             let band = TorqueBand::new(g.link3, &load, limit).unwrap();
@@ -218,7 +219,7 @@ mod tests {
     /// straight τ_t2,min and τ_t2,max boundaries" (Sec. 3.3.3).
     #[test]
     fn circle_centres_lie_on_the_joint2_lines_for_symmetric_limits() {
-        let g = TorsoGeometry::<f64>::justin();
+        let g = test_geometry::<f64>();
         let load = TorsoLoad::from_degrees(800.0, 70.0);
         let limits = TorqueLimits::symmetric(230.0);
         let lines = joint2_lines(&load, &limits.joint2).unwrap();

@@ -128,18 +128,13 @@ impl<T: RealField + Copy> Arc<T> {
 }
 
 impl<T: RealField + Copy> TorsoGeometry<T> {
-    /// The Justin-like torso: `l_t2 = l_t3 = 0.3 m` (DESIGN.md, `fixtures/JUSTIN.md`) and the
-    /// ranges of Table 3.2.
-    pub fn justin() -> Self {
+    /// A torso of links `(l_t2, l_t3)` (m) with the ranges of `q_t2`, `q_t3` and `q_t2 + q_t3`
+    /// (degrees, `[min, max]`), as Table 3.2 gives them. Check it with [`Self::validate`].
+    pub fn from_degrees(links: [f64; 2], joint2: [f64; 2], joint3: [f64; 2], sum: [f64; 2]) -> Self {
         let deg = |d: f64| nalgebra::convert::<f64, T>(d.to_radians());
-        let l: T = nalgebra::convert(0.3);
-        Self {
-            link2: l,
-            link3: l,
-            joint2: Range::new(deg(-90.0), deg(90.0)),
-            joint3: Range::new(deg(0.0), deg(135.0)),
-            sum: Range::new(deg(0.0), deg(135.0)),
-        }
+        let range = |[min, max]: [f64; 2]| Range::new(deg(min), deg(max));
+        let [link2, link3] = links.map(nalgebra::convert::<f64, T>);
+        Self { link2, link3, joint2: range(joint2), joint3: range(joint3), sum: range(sum) }
     }
 
     /// Checks the geometry once: finite positive link lengths; proper ranges; `0 ≤ q_t3 < π`
@@ -177,7 +172,8 @@ impl<T: RealField + Copy> TorsoGeometry<T> {
     ///
     /// ```
     /// use kernel::tasks::torso_workspace::TorsoGeometry;
-    /// let p = TorsoGeometry::<f64>::justin().center(0.0, 0.0);
+    /// let g = TorsoGeometry::<f64>::from_degrees([0.3, 0.3], [-90.0, 90.0], [0.0, 135.0], [0.0, 135.0]);
+    /// let p = g.center(0.0, 0.0);
     /// assert!(p.x.abs() < 1e-15 && (p.y - 0.6).abs() < 1e-15); // upright: 0.6 m above q_t2
     /// ```
     #[inline]
@@ -208,7 +204,7 @@ impl<T: RealField + Copy> TorsoGeometry<T> {
     ///
     /// ```
     /// use kernel::tasks::torso_workspace::TorsoGeometry;
-    /// let g = TorsoGeometry::<f64>::justin();
+    /// let g = TorsoGeometry::<f64>::from_degrees([0.3, 0.3], [-90.0, 90.0], [0.0, 135.0], [0.0, 135.0]);
     /// let [q2, q3] = g.inverse_kinematics(&g.center(-0.3, 0.9)).unwrap();
     /// assert!((q2 + 0.3).abs() < 1e-12 && (q3 - 0.9).abs() < 1e-12);
     /// ```
@@ -313,6 +309,7 @@ pub(super) fn wrap_from<T: RealField + Copy>(x: T, from: T) -> T {
 mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
     use super::*;
+    use crate::tasks::torso_workspace::tests::test_geometry;
     use core::f64::consts::{FRAC_1_SQRT_2, PI, SQRT_2};
 
     fn deg(d: f64) -> f64 {
@@ -321,7 +318,7 @@ mod tests {
 
     #[test]
     fn jacobian_matches_finite_differences_and_ik_inverts_fk() {
-        let g = TorsoGeometry::<f64>::justin();
+        let g = test_geometry::<f64>();
         for (q2, q3) in [(0.3, 0.4), (-1.2, 2.0), (1.5, 0.1), (-0.2, 0.6)] {
             let h = 1e-6;
             let fd = Matrix2::from_columns(&[
@@ -341,7 +338,7 @@ mod tests {
     #[test]
     fn arcs_are_those_of_table_a1() {
         let (l2, l3) = (0.27, 0.33);
-        let g = TorsoGeometry { link2: l2, link3: l3, ..TorsoGeometry::justin() };
+        let g = TorsoGeometry { link2: l2, link3: l3, ..test_geometry() };
         let table: [(JointLine<f64>, [f64; 2], f64); 6] = [
             (JointLine::Joint2(deg(-90.0)), [-l2, 0.0], l3),
             (JointLine::Joint3(deg(135.0)), [0.0, 0.0], (l2 * l2 + l3 * l3 - SQRT_2 * l2 * l3).sqrt()),
@@ -369,7 +366,7 @@ mod tests {
     /// Every point of every arc is on its joint line (equality) and inside the other ranges.
     #[test]
     fn arc_points_satisfy_their_limit_with_equality() {
-        let g = TorsoGeometry::<f64>::justin();
+        let g = test_geometry::<f64>();
         for line in g.arc_lines() {
             let arc = g.arc(line).unwrap();
             assert!(arc.end - arc.start <= PI + 1e-12);
@@ -387,7 +384,7 @@ mod tests {
 
     #[test]
     fn validation_rejects_bad_geometry() {
-        let g = TorsoGeometry::<f64>::justin();
+        let g = test_geometry::<f64>();
         assert_eq!(g.validate(), Ok(()));
         let bad = [
             TorsoGeometry { link2: 0.0, ..g },

@@ -338,7 +338,7 @@ impl<T: RealField + Copy, const N: usize> TorsoWorkspace<T, N> {
     /// ```
     /// use kernel::tasks::torso_workspace::*;
     /// let config = TorsoWorkspaceConfig {
-    ///     geometry: TorsoGeometry::<f64>::justin(),
+    ///     geometry: TorsoGeometry::<f64>::from_degrees([0.3, 0.3], [-90.0, 90.0], [0.0, 135.0], [0.0, 135.0]),
     ///     torque_limits: TorqueLimits::symmetric(230.0),
     ///     load: TorsoLoad::from_degrees(800.0, 90.0),
     ///     gains: RepulsionGains::thesis_experiment(),
@@ -521,7 +521,7 @@ fn governing_side<T: RealField + Copy>(side: &Side<T>, q2: T, q3: T) -> Option<b
 /// use kernel::tasks::{torso_workspace::*, TaskRows};
 /// use nalgebra::{Cholesky, Matrix2, Vector2};
 /// let config = TorsoWorkspaceConfig {
-///     geometry: TorsoGeometry::<f64>::justin(),
+///     geometry: TorsoGeometry::<f64>::from_degrees([0.3, 0.3], [-90.0, 90.0], [0.0, 135.0], [0.0, 135.0]),
 ///     torque_limits: TorqueLimits::symmetric(230.0),
 ///     load: TorsoLoad::from_degrees(550.0, 90.0),
 ///     gains: RepulsionGains::thesis_experiment(), // F_max = 50 N, d₀ = 0.1 m

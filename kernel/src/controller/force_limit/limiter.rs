@@ -1,0 +1,89 @@
+//! The limiter's parameters, its per-cycle inputs and its state (module docs of [`super`]).
+
+use nalgebra::{Matrix3, RealField, SMatrix, SVector, Vector6};
+
+/// Parameters of the contact-force limiter.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ForceLimitParameters<T> {
+    /// `true` enables the command-side limit, the governor and the platform relief (the
+    /// estimate is always reported).
+    pub enabled: bool,
+    /// Share `0 ≤ m < 1` of every finite bound kept free: the limiter holds the force within
+    /// `(1 − m)` times the configured bounds, for what neither the command-side prediction nor
+    /// the lagging estimate sees (surface compliance, friction changes, model error).
+    pub margin: T,
+    /// Governor gain `k_F > 0` (1/s): N of correction per N·s of excess.
+    pub gain: T,
+    /// Largest correction `c_max ≥ 0` per axis (N, Nm).
+    pub max_correction: T,
+    /// Regularisation `μ > 0` of the wrench estimate (m², in the units of `J Jᵀ`) and of the
+    /// reflected inertia of the command-side limit (1/kg, in the units of `J M⁻¹ Jᵀ`).
+    pub regularisation: T,
+}
+
+/// What one hand's limiter needs this cycle: its TCP frame, the orientation of the desired
+/// frame and the task's configured bounds (desired-frame axes).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HandLimits<T> {
+    /// Orientation `A = R_des` of the desired TCP frame (world).
+    pub axes: Matrix3<T>,
+    /// Configured lower bounds (N, Nm), `≤ 0`, may be `−∞`.
+    pub lower: Vector6<T>,
+    /// Configured upper bounds (N, Nm), `≥ 0`, may be `+∞`.
+    pub upper: Vector6<T>,
+}
+
+/// State of the limiter: per hand the estimated applied wrench and the governor corrections;
+/// the cycle's Jacobians and effective bounds for the command-side limit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ForceLimiter<T, const N: usize> {
+    pub(super) applied: [Vector6<T>; 2],
+    pub(super) correction: [Vector6<T>; 2],
+    pub(super) relief: SVector<T, N>,
+    /// `J_u` of both hands, stacked (12 × N, desired-frame axes, platform columns zero).
+    pub(super) stacked: SMatrix<T, 12, N>,
+    /// Effective bounds `(lower, upper)` per hand with an enabled limit, this cycle.
+    pub(super) effective: [Option<(Vector6<T>, Vector6<T>)>; 2],
+}
+
+impl<T: RealField + Copy, const N: usize> Default for ForceLimiter<T, N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
+    /// A limiter at rest (no correction).
+    pub fn new() -> Self {
+        Self {
+            applied: [Vector6::zeros(); 2],
+            correction: [Vector6::zeros(); 2],
+            relief: SVector::zeros(),
+            stacked: SMatrix::zeros(),
+            effective: [None; 2],
+        }
+    }
+
+    /// Forgets every correction and estimate (after a fault).
+    pub fn reset(&mut self) {
+        *self = Self::new();
+    }
+
+    /// Estimated wrench the TCP of hand `index` applies on its environment, `a = −F̂_ext`
+    /// (N, Nm, desired-frame axes).
+    pub fn applied(&self) -> [Vector6<T>; 2] {
+        self.applied
+    }
+
+    /// Governor corrections `c` per hand and axis (N, Nm): positive lowers the upper bound,
+    /// negative raises the lower bound.
+    pub fn correction(&self) -> [Vector6<T>; 2] {
+        self.correction
+    }
+
+    /// Torque to add to the platform rows of `τ` (the estimated reaction along the limited
+    /// axes; zero on the upper body).
+    pub fn platform_relief(&self) -> &SVector<T, N> {
+        &self.relief
+    }
+}

@@ -1,0 +1,124 @@
+//! What the controller keeps between cycles ([`ControllerState`]: targets, the running
+//! hierarchy, the platform loop, the observer and limiter estimates, the last output and
+//! telemetry) and what it only uses within a cycle ([`Workspace`]: the dynamics, the collision
+//! geometry, the stack and the projection).
+
+use nalgebra::{RealField, SVector, Vector3, Vector6};
+
+use super::active_hierarchy::ActiveHierarchy;
+use super::capacity::{MAX_LEVELS, MAX_ROWS, MAX_TASK_ROWS};
+use super::config::ControllerConfig;
+use super::force_limit::ForceLimiter;
+use super::frames::ActuatorFrame;
+use super::layout::PerHand;
+use super::observer::MomentumObserver;
+use super::recovery::Recovery;
+use super::telemetry::Telemetry;
+use super::trajectory::{JointTrajectory, PoseTrajectory};
+use crate::hierarchy::{HierarchyData, Stack};
+use crate::math::Placement;
+use crate::model::{Data, Model};
+use crate::platform::admittance::Admittance;
+use crate::platform::avoidance::PlatformAvoidance;
+use crate::tasks::collision::{CollisionData, CollisionModel};
+use crate::tasks::TaskRows;
+
+/// The controller's state: everything one cycle leaves for the next (see the module docs).
+#[derive(Clone, Debug)]
+pub(super) struct ControllerState<T: RealField, const N: usize, const U: usize> {
+    pub(super) hierarchy: ActiveHierarchy<T>,
+    /// The TCP targets, per [`Hand`](super::layout::Hand).
+    pub(super) hands: PerHand<PoseTrajectory<T>>,
+    pub(super) joint_goal: JointTrajectory<T, N>,
+    pub(super) admittance: Admittance<T>,
+    pub(super) avoidance: PlatformAvoidance<T>,
+    /// The admittance's integrated pose, the reference of the ICR avoidance.
+    pub(super) reference_pose: Vector3<T>,
+    pub(super) observer: MomentumObserver<T, N>,
+    pub(super) force_limiter: ForceLimiter<T, N>,
+    /// `true` once a valid frame set the targets.
+    pub(super) started: bool,
+    pub(super) recovery: Recovery<T>,
+    /// The cycle counter of the last frame, `None` before the first.
+    pub(super) last_cycle: Option<u64>,
+    /// Gravity at the last valid positions, for the safe output.
+    pub(super) hold_gravity: SVector<T, N>,
+    /// The last torque and platform command, for the rate limits.
+    pub(super) previous_torque: SVector<T, N>,
+    pub(super) previous_base_velocity: Vector3<T>,
+    pub(super) telemetry: Telemetry<T, N>,
+    pub(super) output: ActuatorFrame<T, U>,
+}
+
+impl<T: RealField + Copy, const N: usize, const U: usize> ControllerState<T, N, U> {
+    /// The state before the first frame: targets at the origin until the first valid frame sets
+    /// them, the hold output.
+    #[inline(always)]
+    pub(super) fn new(
+        config: &ControllerConfig<T, N>,
+        hierarchy: ActiveHierarchy<T>,
+        admittance: Admittance<T>,
+        avoidance: PlatformAvoidance<T>,
+    ) -> Self {
+        Self {
+            hierarchy,
+            hands: [PoseTrajectory::hold(Placement::identity()); 2],
+            joint_goal: JointTrajectory::hold(SVector::zeros()),
+            admittance,
+            avoidance,
+            reference_pose: Vector3::zeros(),
+            observer: MomentumObserver::new(config.observer.gain),
+            force_limiter: ForceLimiter::new(),
+            started: false,
+            recovery: Recovery::Normal,
+            last_cycle: None,
+            hold_gravity: SVector::zeros(),
+            previous_torque: SVector::zeros(),
+            previous_base_velocity: Vector3::zeros(),
+            telemetry: Telemetry::empty(),
+            output: ActuatorFrame::initial(),
+        }
+    }
+}
+
+/// The controller's workspace: preallocated, recomputed every cycle (see the module docs).
+#[derive(Clone, Debug)]
+pub(super) struct Workspace<
+    T: RealField,
+    const N: usize,
+    const B: usize,
+    const F: usize,
+    const V: usize,
+    const P: usize,
+> {
+    /// The dynamics of the last valid cycle.
+    pub(super) data: Data<T, N, B, F>,
+    /// The collision geometry; `exact_within` follows the collision fields' emit distances.
+    pub(super) collision_data: CollisionData<T, V, P>,
+    pub(super) stack: Stack<T, N, MAX_ROWS>,
+    pub(super) projection: HierarchyData<T, N, MAX_ROWS, MAX_LEVELS>,
+    /// One task's rows.
+    pub(super) rows: TaskRows<T, N, MAX_TASK_ROWS>,
+    /// The Cartesian damping force of each hand this cycle (task axes), outside the force limits.
+    pub(super) cartesian_damping: PerHand<Vector6<T>>,
+}
+
+impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const V: usize, const P: usize>
+    Workspace<T, N, B, F, V, P>
+{
+    /// A workspace for `model` and `collision_model`; the broad phase evaluates the pairs within
+    /// `exact_within` exactly.
+    #[inline(always)]
+    pub(super) fn new(model: &Model<T, N, B, F>, collision_model: &CollisionModel<T, V, P>, exact_within: T) -> Self {
+        let mut collision_data = CollisionData::new(collision_model);
+        collision_data.exact_within = Some(exact_within);
+        Self {
+            data: Data::new(model),
+            collision_data,
+            stack: Stack::new(),
+            projection: HierarchyData::default(),
+            rows: TaskRows::new(),
+            cartesian_damping: [Vector6::zeros(); 2],
+        }
+    }
+}

@@ -1,0 +1,271 @@
+//! The task set: every task kind of the hierarchy ([`TaskKind`]) as a validated task object
+//! built from the configuration ([`TaskSet`]), and the dispatch that evaluates one hierarchy
+//! entry into its rows ([`evaluate`]). A new task kind adds its variant to [`TaskKind`], its
+//! parameters to the configuration, and here its object and its arm of [`evaluate`].
+
+use heapless::Vec;
+use nalgebra::{Matrix3, RealField, SVector, Vector3, Vector6};
+
+use super::capacity::MAX_TASK_ROWS;
+use super::config::{CartesianParameters, CollisionFieldParameters, ControllerConfig, TaskKind};
+use super::error::ConfigError;
+use super::faults::Fault;
+use super::layout::{Hand, JointGroup, PerHand};
+use super::telemetry::Telemetry;
+use super::trajectory::{JointTrajectory, PoseTrajectory};
+use crate::dynamics::TreeFactorization;
+use crate::model::{Data, Model};
+use crate::tasks::cartesian_impedance::{
+    cartesian_impedance_factored, AxisMask, CartesianImpedance, CartesianImpedanceConfig, StiffnessFrame,
+};
+use crate::tasks::collision::{
+    collision_rows_shared, CollisionData, CollisionModel, CollisionParameters, PairRowCache,
+};
+use crate::tasks::end_stops::{end_stops, EndStop, EndStopConfig};
+use crate::tasks::joint_impedance::{joint_impedance, JointImpedance, JointImpedanceConfig, JointTarget};
+use crate::tasks::manipulability::{manipulability_avoidance, Manipulability, ManipulabilityConfig};
+use crate::tasks::torso_workspace::{torso_workspace, TorsoWorkspace};
+use crate::tasks::{TaskError, TaskRows};
+
+/// Validated task objects built from the configuration.
+#[derive(Clone, Debug)]
+pub(super) struct TaskSet<T: RealField, const N: usize> {
+    /// Per [`Hand`].
+    pub(super) cartesian: PerHand<CartesianImpedance<T>>,
+    /// Per [`Field`](super::config::Field).
+    pub(super) collision: [CollisionParameters<T>; 2],
+    /// Per [`Hand`].
+    pub(super) singularity: PerHand<Manipulability<T, N>>,
+    end_stops: Vec<EndStop<T, N>, MAX_TASK_ROWS>,
+    torso: Option<TorsoWorkspace<T, N>>,
+    /// Impedance, then pure damping; each per [`JointGroup`] ([`JointGroup::index`]).
+    joint: [[JointImpedance<T, N>; 5]; 2],
+}
+
+pub(super) fn cartesian_task<T: RealField + Copy, const N: usize>(
+    config: &ControllerConfig<T, N>,
+    hand: Hand,
+    parameters: &CartesianParameters<T>,
+) -> Result<CartesianImpedance<T>, TaskError> {
+    let frame = *hand.of(&config.layout.tcp);
+    CartesianImpedance::try_new(CartesianImpedanceConfig {
+        frame,
+        axes: AxisMask::ALL,
+        stiffness_frame: StiffnessFrame::Desired,
+        translational_stiffness: Matrix3::from_diagonal(&Vector3::from(parameters.translational_stiffness)),
+        rotational_stiffness: Matrix3::from_diagonal(&Vector3::from(parameters.rotational_stiffness)),
+        damping_ratio: parameters.damping_ratio,
+        force_lower: Vector6::from(parameters.force_lower),
+        force_upper: Vector6::from(parameters.force_upper),
+        fallback_damping: config.cartesian_fallback_damping,
+    })
+}
+
+pub(super) fn collision_parameters<T: RealField + Copy>(
+    p: &CollisionFieldParameters<T>,
+) -> Result<CollisionParameters<T>, TaskError> {
+    CollisionParameters::try_new(
+        p.max_force,
+        p.influence_distance,
+        p.damping_ratio,
+        p.activation_full,
+        p.activation_zero,
+    )
+}
+
+impl<T: RealField + Copy, const N: usize> TaskSet<T, N> {
+    /// The distance below which both collision fields need exact pair distances (their larger
+    /// emit distance): the broad phase of the geometry update skips the pairs beyond it.
+    pub(super) fn broad_phase_distance(&self) -> T {
+        self.collision.iter().map(CollisionParameters::emit_distance).fold(T::zero(), |m, d| m.max(d))
+    }
+
+    /// `false` for a task this robot cannot run (the torso workspace without a coupled torso).
+    pub(super) fn supports(&self, kind: TaskKind) -> bool {
+        match kind {
+            TaskKind::TorsoWorkspace => self.torso.is_some(),
+            _ => true,
+        }
+    }
+
+    /// Validates and builds every task object of `config` on `model`.
+    pub(super) fn try_new<const B: usize, const F: usize>(
+        model: &Model<T, N, B, F>,
+        config: &ControllerConfig<T, N>,
+    ) -> Result<Self, ConfigError> {
+        let [right, left] = config.cartesian;
+        let cartesian = [
+            cartesian_task(config, Hand::Right, &right).map_err(ConfigError::Task)?,
+            cartesian_task(config, Hand::Left, &left).map_err(ConfigError::Task)?,
+        ];
+        let [strong, weak] = config.collision;
+        let collision = [
+            collision_parameters(&strong).map_err(ConfigError::Task)?,
+            collision_parameters(&weak).map_err(ConfigError::Task)?,
+        ];
+        let s = &config.singularity;
+        let arm = |hand: Hand| {
+            let frame = *hand.of(&config.layout.tcp);
+            Manipulability::try_new(ManipulabilityConfig {
+                frame,
+                rows: s.rows,
+                coordinates: config.layout.coordinates(JointGroup::Arm(hand)),
+                threshold: s.threshold,
+                full_activation: s.full_activation,
+                stiffness: s.stiffness,
+                damping: s.damping,
+            })
+        };
+        let singularity = [arm(Hand::Right).map_err(ConfigError::Task)?, arm(Hand::Left).map_err(ConfigError::Task)?];
+        let mut stops = Vec::new();
+        let limits = &model.limits;
+        let e = &config.end_stops;
+        for i in (0..N).filter(|i| !config.layout.platform.is_platform(*i)) {
+            let (Some(&lower), Some(&upper)) = (limits.position_lower.get(i), limits.position_upper.get(i)) else {
+                continue;
+            };
+            let span = upper - lower;
+            if !(span.is_finite() && span > e.margin + e.margin) {
+                continue;
+            }
+            let stop = EndStop::try_new(EndStopConfig::coordinate(i, lower, upper, e.margin, e.stiffness, e.damping))
+                .map_err(ConfigError::Task)?;
+            stops
+                .push(stop)
+                .map_err(|_| ConfigError::InvalidParameter { name: "end stops: more than MAX_TASK_ROWS" })?;
+        }
+        let torso = config.torso_workspace.map(TorsoWorkspace::try_new).transpose().map_err(ConfigError::Task)?;
+        let joint_task = |group: JointGroup, stiffness: SVector<T, N>, damping: SVector<T, N>| {
+            JointImpedance::try_new(JointImpedanceConfig {
+                selected: config.layout.coordinates(group),
+                stiffness,
+                damping,
+            })
+            .map_err(ConfigError::Task)
+        };
+        let mut joint = [[joint_task(JointGroup::Platform, SVector::zeros(), SVector::zeros())?; 5]; 2];
+        let [impedance, damping] = &mut joint;
+        for ((group, imp), damp) in JointGroup::ALL.iter().zip(impedance.iter_mut()).zip(damping.iter_mut()) {
+            *imp = joint_task(*group, config.joint_stiffness, config.joint_damping)?;
+            *damp = joint_task(*group, SVector::zeros(), config.safe_damping)?;
+        }
+        Ok(Self { cartesian, collision, singularity, end_stops: stops, torso, joint })
+    }
+}
+
+/// What the task evaluations of one cycle share: the collision geometry and whether it is
+/// current (updated this cycle), the pair rows the collision fields evaluated (the strong
+/// field's pairs are mostly among the weak field's), and the Cartesian damping force of each
+/// hand (task axes) for the command-side force limit ([`super::force_limit`]).
+pub(super) struct Scratch<'a, T: RealField, const N: usize, const V: usize, const P: usize> {
+    pub(super) collision: &'a mut CollisionData<T, V, P>,
+    pub(super) geometry_current: bool,
+    pub(super) pair_rows: PairRowCache<T, N, P, MAX_TASK_ROWS>,
+    pub(super) cartesian_damping: [Vector6<T>; 2],
+}
+
+/// Read-only inputs of a task evaluation.
+pub(super) struct EvaluationContext<
+    'a,
+    T: RealField,
+    const N: usize,
+    const B: usize,
+    const F: usize,
+    const V: usize,
+    const P: usize,
+> {
+    pub(super) model: &'a Model<T, N, B, F>,
+    pub(super) collision_model: &'a CollisionModel<T, V, P>,
+    pub(super) config: &'a ControllerConfig<T, N>,
+    pub(super) tasks: &'a TaskSet<T, N>,
+    pub(super) hands: &'a [PoseTrajectory<T>; 2],
+    pub(super) joint_goal: &'a JointTrajectory<T, N>,
+    /// The tree-sparse factor of the plain `M` (Cartesian damping design), `None` if `M` is not
+    /// positive definite.
+    pub(super) mass: Option<&'a TreeFactorization<T, N>>,
+    /// The tree-sparse factor of the closed-loop inertia (5.17) (collision and torso rows).
+    pub(super) inertia: &'a TreeFactorization<T, N>,
+}
+
+/// Appends the rows of one task to `rows` and records its telemetry.
+pub(super) fn evaluate<
+    T: RealField + Copy,
+    const N: usize,
+    const B: usize,
+    const F: usize,
+    const V: usize,
+    const P: usize,
+>(
+    kind: TaskKind,
+    cx: &EvaluationContext<'_, T, N, B, F, V, P>,
+    data: &mut Data<T, N, B, F>,
+    scratch: &mut Scratch<'_, T, N, V, P>,
+    rows: &mut TaskRows<T, N, MAX_TASK_ROWS>,
+    telemetry: &mut Telemetry<T, N>,
+) -> Result<(), Fault> {
+    match kind {
+        TaskKind::CartesianImpedance(hand) => {
+            let (task, trajectory) = (hand.of(&cx.tasks.cartesian), hand.of(cx.hands));
+            // (5.11): no Cartesian damping on the platform coordinates.
+            let velocity = data.v;
+            for (i, x) in data.v.iter_mut().enumerate() {
+                if cx.config.layout.platform.is_platform(i) {
+                    *x = T::zero();
+                }
+            }
+            let report = cartesian_impedance_factored(cx.model, data, cx.mass, task, &trajectory.sample(), rows);
+            data.v = velocity;
+            let report = report.map_err(Fault::Task)?;
+            *hand.of_mut(&mut telemetry.tcp_error) = report.error;
+            *hand.of_mut(&mut telemetry.tcp_force_limited) = report.saturated;
+            *hand.of_mut(&mut scratch.cartesian_damping) = report.damping_force;
+        }
+        TaskKind::CollisionAvoidance(field) => {
+            let Some(parameters) = cx.tasks.collision.get(field.index()) else { return Ok(()) };
+            // The geometry (volumes in the world, all pair distances) and the pair rows' Jacobians
+            // and reflected masses depend only on this cycle's kinematics and inertia: the first
+            // collision entry of the cycle updates the geometry, the later ones (the other field)
+            // reuse it and the rows already evaluated. Same rows as evaluating each field alone.
+            let (model, data_ref, factor, collision_model) = (cx.model, &*data, cx.inertia, cx.collision_model);
+            if !scratch.geometry_current {
+                collision_model.update(data_ref, scratch.collision);
+                scratch.pair_rows.clear();
+                scratch.geometry_current = true;
+            }
+            let report = collision_rows_shared(
+                collision_model,
+                scratch.collision,
+                model,
+                data_ref,
+                factor,
+                parameters,
+                &mut scratch.pair_rows,
+                rows,
+            );
+            let report = report.map_err(Fault::Task)?;
+            telemetry.min_collision_distance = report.min_distance;
+            telemetry.collision_rows += report.rows;
+        }
+        TaskKind::SingularityAvoidance(hand) => {
+            let task = hand.of(&cx.tasks.singularity);
+            let report = manipulability_avoidance(cx.model, data, task, rows).map_err(Fault::Task)?;
+            *hand.of_mut(&mut telemetry.manipulability) = report.manipulability;
+        }
+        TaskKind::EndStops => end_stops(&cx.tasks.end_stops, &data.q, &data.v, rows).map_err(Fault::Task)?,
+        TaskKind::TorsoWorkspace => {
+            if let Some(task) = &cx.tasks.torso {
+                torso_workspace(task, &data.q, &data.v, cx.inertia, rows).map_err(Fault::Task)?;
+            }
+        }
+        TaskKind::JointImpedance(group) | TaskKind::JointDamping(group) => {
+            let damping_only = matches!(kind, TaskKind::JointDamping(_));
+            let Some(task) = cx.tasks.joint.get(usize::from(damping_only)).and_then(|t| t.get(group.index())) else {
+                return Ok(());
+            };
+            let (position, velocity) = cx.joint_goal.sample();
+            let target = if damping_only { JointTarget::at_rest(data.q) } else { JointTarget { position, velocity } };
+            joint_impedance(task, &data.q, &data.v, &target, rows).map_err(Fault::Task)?;
+        }
+    }
+    Ok(())
+}
