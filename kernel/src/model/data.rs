@@ -2,7 +2,8 @@
 
 use nalgebra::{RealField, SMatrix, SVector};
 
-use super::{Model, WorldInertia};
+use super::description::Model;
+use super::inertia::WorldInertia;
 use crate::math::spatial::{Motion, Placement, SpatialForce, SpatialMatrix};
 
 /// Every buffer the dynamics algorithms write. Create it once per model with [`Data::new`];

@@ -2,7 +2,7 @@
 
 use core::fmt;
 
-/// Why a model description was rejected by [`super::ModelBuilder`].
+/// Why a model description was rejected by [`super::description::ModelBuilder`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum ModelError {
