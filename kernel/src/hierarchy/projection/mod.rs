@@ -133,12 +133,15 @@ pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS
     let mut scratch = Scratch::<T, N>::default();
     // W⁻¹ once for all rows that update the projector: L⁻ᵀL⁻¹ from a Cholesky factor, or given.
     let updates = level_count > 1 || config.diagnose_last_level;
-    let metric_inverse = match config.weighting {
+    let factor_inverse = match config.weighting {
         Weighting::Inertia(factor) | Weighting::Stiffness(factor) if updates => {
             Some(cholesky_inverse::<T, N>(factor.l_dirty().as_slice()))
         }
-        Weighting::InverseInertia(inverse) if updates => Some(*inverse),
         _ => None,
+    };
+    let metric_inverse = match config.weighting {
+        Weighting::InverseInertia(inverse) if updates => Some(inverse),
+        _ => factor_inverse.as_ref(),
     };
     let mut first_slot = 0;
     let mut identity = true;
@@ -205,7 +208,7 @@ pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS
                 };
                 let (activation, ratio, updated) = update_row(
                     config,
-                    metric_inverse.as_ref(),
+                    metric_inverse,
                     working,
                     working_identity,
                     r.row.jacobian.as_slice(),
