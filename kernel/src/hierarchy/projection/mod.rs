@@ -104,8 +104,10 @@ impl<T: RealField + Copy, const N: usize, const R: usize, const L: usize> Defaul
 /// place on the projector's columns. The transmissions of a level's rows are computed against
 /// its input projector before its first update, so no copy of the projector is made, and while
 /// the input projector is still exactly `I` (the first level) the level torque and the
-/// transmissions need no mat-vec at all. A row with a single nonzero entry `b` (a joint row)
-/// transmits the column norm `‖N_in e_b‖`; the `N` column norms are formed once per level.
+/// transmissions need no mat-vec at all. Below it, a row with a single nonzero entry `b` (a
+/// joint row) adds its one product to the task torque and transmits the column norm
+/// `‖N_in e_b‖`; the `N` column norms are formed once per level. A given `W⁻¹`
+/// ([`Weighting::InverseInertia`]) is used in place.
 ///
 /// A row's activation `a` is its task activation times the shaping of its norm ratio `ρ`
 /// ([`Shaping`]); with the continuous shaping, `a → 0` before `s → 0`, so `1/s` is only formed
@@ -151,35 +153,30 @@ pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS
         levels.iter_mut().zip(level_torques.iter_mut()).enumerate().take(level_count)
     {
         let on_level = || stack.rows().iter().filter(move |r| r.level == level);
-        let mut task_torque = SVector::<T, N>::zeros();
-        for r in on_level() {
-            let force = r.row.force;
-            for (t, &j) in task_torque.as_mut_slice().iter_mut().zip(r.row.jacobian.as_slice()) {
-                *t += j * force;
-            }
-        }
         // The input projector is still exactly `I` (the first level, or no projection): then
         // `N τ = τ` and every transmission is 1 without a mat-vec.
-        let identity_input = identity && !matches!(config.weighting, Weighting::AccelerationBased(_));
-        if identity_input {
-            *level_torque = task_torque;
-        } else {
-            apply_projector(&config.weighting, projector, task_torque.as_slice(), level_torque);
-        }
-        for (t, &p) in torque.as_mut_slice().iter_mut().zip(level_torque.as_slice()) {
-            *t += p;
-        }
-        *level_diagnostics = level_result(&task_torque, level_torque);
+        let accelerated = matches!(config.weighting, Weighting::AccelerationBased(_));
+        let identity_input = identity && !accelerated;
 
-        // Diagnostics against the level's input projector, before any row of the level updates it.
-        // A row with one nonzero entry `b` (joint rows `e_bᵀ`) transmits `‖N_in e_b‖`: the
+        // The task torque `τ_i = Σ jᵀ f` and the diagnostics against the level's input
+        // projector, before any row of the level updates it. A row with one nonzero entry `b`
+        // (joint rows `e_bᵀ`) adds its one product to `τ_i` and transmits `‖N_in e_b‖`: the
         // column norms of `N_in` are formed once per level, when the first such row appears.
+        let mut task_torque = SVector::<T, N>::zeros();
         let mut level_rows = 0;
         let mut column_norms: Option<[T; N]> = None;
-        let accelerated = matches!(config.weighting, Weighting::AccelerationBased(_));
         for (slot, r) in rows.iter_mut().skip(first_slot).zip(on_level()) {
             let row = r.row.jacobian.as_slice();
+            let force = r.row.force;
             let single = if identity_input || accelerated { None } else { single_entry(row) };
+            match single.and_then(|b| task_torque.get_mut(b).zip(row.get(b))) {
+                Some((t, &j)) => *t += j * force,
+                None => {
+                    for (t, &j) in task_torque.as_mut_slice().iter_mut().zip(row) {
+                        *t += j * force;
+                    }
+                }
+            }
             let transmission = match single {
                 _ if identity_input => T::one(),
                 Some(b) => column_norms
@@ -193,6 +190,16 @@ pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS
                 RowDiagnostics { level, activation: r.row.activation, projected_norm_ratio: T::zero(), transmission };
             level_rows += 1;
         }
+        if identity_input {
+            *level_torque = task_torque;
+        } else {
+            apply_projector(&config.weighting, projector, task_torque.as_slice(), level_torque);
+        }
+        for (t, &p) in torque.as_mut_slice().iter_mut().zip(level_torque.as_slice()) {
+            *t += p;
+        }
+        *level_diagnostics = level_result(&task_torque, level_torque);
+
         // Nothing lies below the last level: without diagnostics its rows lock nothing (the
         // skipped rows keep their task activation, ρ = 0 and their transmission).
         let last = level + 1 == level_count;

@@ -356,3 +356,37 @@ fn f32_agrees_with_f64() {
     let t32 = project(&cfg32, &stack32, &mut d32).unwrap().cast::<f64>();
     assert!((t64 - t32).amax() < 1e-4 * (1.0 + t64.amax()));
 }
+
+/// Lower levels made of joint rows `α e_bᵀ` (one nonzero entry: their task torque is the one
+/// product `α f` at `b`), zero rows and full rows, below a projecting level: fast against the
+/// reference for every recursion × weighting × shaping, with and without last-level
+/// diagnostics, in f64 and f32.
+#[test]
+fn joint_rows_below_a_projecting_level_equal_the_reference() {
+    let mut rng = reference::TestRng::new(4242);
+    for case in 0..12 {
+        let mass = reference::random_spd::<N>(&mut rng);
+        let stiffness = reference::random_spd::<N>(&mut rng);
+        let mut stack = Stack::<f64, N, 16>::new();
+        for _ in 0..2 {
+            stack.push(0, row(RowSVector::from_fn(|_, _| rng.symmetric()), 10.0 * rng.symmetric())).unwrap();
+        }
+        for level in 1..3 {
+            for b in 0..N {
+                let alpha = 3.0 * rng.symmetric();
+                let j = RowSVector::from_fn(|_, c| if c == (b + case) % N { alpha } else { 0.0 });
+                if stack.push(level, row(j, 10.0 * rng.symmetric())).is_err() {
+                    break;
+                }
+            }
+        }
+        // An empty and a full row on the last level.
+        stack.push(2, row(RowSVector::zeros(), 1.0)).ok();
+        stack.push(2, row(RowSVector::from_fn(|_, _| rng.symmetric()), 2.0)).ok();
+        let worst64 = reference::compare_f64::<N, 16, 16, 4>(&stack, &mass, &stiffness, 1e-9);
+        reference::compare_f32::<N, 16, 16, 4>(&stack, &mass, &stiffness, 4.0, 1e-6);
+        // The stack has joint rows on the projected levels (the path under test).
+        let joint = stack.rows().iter().filter(|r| r.level > 0 && single_entry(r.row.jacobian.as_slice()).is_some());
+        assert!(joint.count() >= N, "case {case}: {worst64}");
+    }
+}
