@@ -31,6 +31,20 @@ pub struct TaskRow<T, const N: usize> {
     pub activation: T,
 }
 
+impl<T: RealField + Copy, const N: usize> TaskRow<T, N> {
+    /// `true` if the Jacobian, the force, the potential and the activation are all finite.
+    ///
+    /// One multiply-add per entry over the Jacobian's contiguous storage instead of a test and a
+    /// branch: `x · 0` is `±0` for a finite `x` and NaN otherwise, and NaN propagates through
+    /// the sum.
+    #[inline]
+    pub fn is_finite(&self) -> bool {
+        let zero = T::zero();
+        let start = self.force * zero + self.potential * zero + self.activation * zero;
+        self.jacobian.as_slice().iter().fold(start, |sum, &x| sum + x * zero) == zero
+    }
+}
+
 /// A fixed-capacity list of task rows (capacity `R`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct TaskRows<T, const N: usize, const R: usize> {
@@ -56,15 +70,11 @@ impl<T: RealField + Copy, const N: usize, const R: usize> TaskRows<T, N, R> {
 
     /// Appends a row; rejects non-finite rows and a full list (the list is unchanged then).
     ///
-    /// The finiteness check runs over the Jacobian's contiguous storage (`as_slice`); inlined,
-    /// so that a row built at the call site is written into the list without an extra copy.
+    /// The finiteness check is [`TaskRow::is_finite`]; inlined, so that a row built at the call
+    /// site is written into the list without an extra copy.
     #[inline]
     pub fn push(&mut self, row: TaskRow<T, N>) -> Result<(), TaskError> {
-        let finite = row.force.is_finite()
-            && row.potential.is_finite()
-            && row.activation.is_finite()
-            && row.jacobian.as_slice().iter().all(|x| x.is_finite());
-        if !finite {
+        if !row.is_finite() {
             return Err(TaskError::NonFinite);
         }
         self.rows.push(row).map_err(|_| TaskError::Capacity { capacity: R })
@@ -83,11 +93,7 @@ impl<T: RealField + Copy, const N: usize, const R: usize> TaskRows<T, N, R> {
             return Err(TaskError::Capacity { capacity: R });
         };
         fill(row);
-        let finite = row.force.is_finite()
-            && row.potential.is_finite()
-            && row.activation.is_finite()
-            && row.jacobian.as_slice().iter().all(|x| x.is_finite());
-        if finite {
+        if row.is_finite() {
             Ok(())
         } else {
             self.rows.pop();
@@ -191,6 +197,69 @@ mod tests {
         rows.clear();
         assert_eq!(rows.push(row([f64::NAN, 0.0], 1.0)), Err(TaskError::NonFinite));
         assert!(rows.is_empty());
+    }
+
+    /// [`TaskRow::is_finite`] (one multiply-add per entry) accepts and rejects exactly the rows
+    /// the plain per-entry `is_finite` test does, in f32 and f64: every special value in every
+    /// position (Jacobian entries and the three scalars), on top of finite rows with extreme
+    /// magnitudes (whose `x · 0` must not overflow into a false rejection).
+    #[test]
+    fn row_finiteness_probe_equals_the_plain_test() {
+        fn check<T: RealField + Copy>(values: &[T]) -> usize {
+            let plain = |r: &TaskRow<T, 3>| {
+                r.force.is_finite()
+                    && r.potential.is_finite()
+                    && r.activation.is_finite()
+                    && r.jacobian.iter().all(|x| x.is_finite())
+            };
+            let mut rejected = 0;
+            for &base in values.iter().filter(|v| v.is_finite()) {
+                for position in 0..6 {
+                    for &value in values {
+                        let mut entries = [base; 6];
+                        entries[position] = value;
+                        let row = TaskRow {
+                            jacobian: nalgebra::RowVector3::new(entries[0], entries[1], entries[2]),
+                            force: entries[3],
+                            potential: entries[4],
+                            activation: entries[5],
+                        };
+                        assert_eq!(row.is_finite(), plain(&row), "value at {position}");
+                        rejected += usize::from(!row.is_finite());
+                    }
+                }
+            }
+            rejected
+        }
+        let f64s = [
+            0.0,
+            -0.0,
+            1.0,
+            -2.5,
+            f64::MAX,
+            f64::MIN,
+            f64::MIN_POSITIVE,
+            1e-310,
+            f64::NAN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        let f32s = [
+            0.0,
+            -0.0,
+            1.0,
+            -2.5,
+            f32::MAX,
+            f32::MIN,
+            f32::MIN_POSITIVE,
+            1e-40,
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+        ];
+        // Not vacuous: the three non-finite values are rejected in each of the six positions.
+        assert_eq!(check(&f64s), 8 * 6 * 3);
+        assert_eq!(check(&f32s), 8 * 6 * 3);
     }
 
     /// `push_with` fills a zero row in place: the same list as `push`; a non-finite row or a
