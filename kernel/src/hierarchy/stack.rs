@@ -3,7 +3,7 @@
 use heapless::Vec;
 use nalgebra::RealField;
 
-use super::HierarchyError;
+use super::error::HierarchyError;
 use crate::tasks::{TaskRow, TaskRows};
 
 /// One task row on a priority level (0 = highest priority).

@@ -2,7 +2,8 @@
 
 use nalgebra::RealField;
 
-use super::{HierarchyError, Stack};
+use super::error::HierarchyError;
+use super::stack::Stack;
 use crate::math::switching::transition_activation;
 use crate::tasks::{TaskRow, TaskRows};
 

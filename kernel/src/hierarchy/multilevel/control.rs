@@ -2,10 +2,12 @@
 
 use nalgebra::{RealField, SVector};
 
-use super::{
-    coriolis_decoupling, decompose, storage_functions, ComplianceStack, Decomposition, DynamicsTerms, LevelStorage,
-    MultilevelConfig, MultilevelError,
-};
+use super::compliance_stack::ComplianceStack;
+use super::config::{DynamicsTerms, MultilevelConfig};
+use super::coriolis_decoupling::coriolis_decoupling;
+use super::decomposition::{decompose, Decomposition};
+use super::error::MultilevelError;
+use super::storage::{storage_functions, LevelStorage};
 
 /// Workspace and outputs of [`multilevel_control`] for `N` coordinates and `L` levels.
 #[derive(Clone, Debug, PartialEq)]

@@ -2,7 +2,8 @@
 
 use nalgebra::{RealField, SMatrix, SVector};
 
-use super::{Decomposition, DynamicsTerms};
+use super::config::DynamicsTerms;
+use super::decomposition::Decomposition;
 
 /// Task-level Coriolis/centrifugal matrix `μ = Λ(J̄ M⁻¹ C − J̄̇) J̄⁻¹` (5.57), evaluated as
 /// `μ = Z (C Zᵀ + M Żᵀ)`: with `q̇ = Zᵀ v` (5.52)–(5.53), `q̈ = Zᵀ v̇ + Żᵀ v`, and

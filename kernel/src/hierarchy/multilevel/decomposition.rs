@@ -3,7 +3,9 @@
 
 use nalgebra::{RealField, RowSVector, SMatrix, SVector};
 
-use super::{ComplianceStack, DynamicsTerms, MultilevelConfig, MultilevelError};
+use super::compliance_stack::ComplianceStack;
+use super::config::{DynamicsTerms, MultilevelConfig};
+use super::error::MultilevelError;
 
 /// One row of the extended Jacobian and of its inverse, with its rates.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -2,7 +2,10 @@
 
 use nalgebra::{RealField, SVector};
 
-use super::{ComplianceStack, Decomposition, DynamicsTerms, MultilevelConfig, MultilevelError};
+use super::compliance_stack::ComplianceStack;
+use super::config::{DynamicsTerms, MultilevelConfig};
+use super::decomposition::Decomposition;
+use super::error::MultilevelError;
 use crate::math::sqrt;
 
 /// Energy bookkeeping of one priority level.

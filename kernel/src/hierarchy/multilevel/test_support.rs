@@ -5,9 +5,10 @@
 
 use nalgebra::{Cholesky, RowSVector, SMatrix, SVector};
 
-use super::{
-    decompose, ComplianceRow, ComplianceStack, Decomposition, DynamicsTerms, MultilevelConfig, MultilevelError,
-};
+use super::compliance_stack::{ComplianceRow, ComplianceStack};
+use super::config::{DynamicsTerms, MultilevelConfig};
+use super::decomposition::{decompose, Decomposition};
+use super::error::MultilevelError;
 use crate::dynamics::{coriolis_matrix, crba, forward_kinematics, frame_jacobian, frame_jacobian_derivative, gravity};
 use crate::math::CholeskyFactor;
 use crate::test_models::{branched, state, N, TCP, WRIST};

@@ -4,7 +4,9 @@ mod kernels;
 
 use nalgebra::{RealField, SMatrix, SVector};
 
-use super::{HierarchyConfig, HierarchyError, Recursion, Shaping, Stack, Weighting};
+use super::config::{HierarchyConfig, Recursion, Shaping, Weighting};
+use super::error::HierarchyError;
+use super::stack::Stack;
 use crate::math::sqrt;
 use kernels::{
     cholesky_inverse, column_norms_of, dot, mat_vec, mat_vec_dot, norm_squared, projected_norm_squared, quadratic_form,
@@ -12,7 +14,7 @@ use kernels::{
 };
 #[cfg(test)]
 use {
-    super::push_transitioning,
+    super::transition::push_transitioning,
     crate::tasks::{TaskRow, TaskRows},
     nalgebra::RowSVector,
 };
