@@ -10,7 +10,7 @@ use core::fmt;
 use heapless::Vec;
 use nalgebra::{RealField, Vector3};
 
-use super::volumes::{proximity, Core, Proximity, SweptSphere};
+use super::volumes::{proximity_framed, Core, Proximity, SweptSphere, TriangleFrame};
 use crate::math::sqrt;
 use crate::model::{BodyId, Data, Model};
 
@@ -164,7 +164,13 @@ impl<T: RealField + Copy, const V: usize, const P: usize> CollisionModel<T, V, P
     /// the exact narrow-phase computation. Every pair closer than `d` is exact. A task that emits
     /// rows below `d` ([`super::CollisionParameters::emit_distance`]) gets the same rows.
     pub fn compute_distances(&self, collision: &mut CollisionData<T, V, P>) {
-        let CollisionData { world_volumes, bounding_spheres, proximities, exact_within } = collision;
+        let CollisionData { world_volumes, bounding_spheres, proximities, exact_within, triangle_frames } = collision;
+        // Each triangle's frame once per call, shared by all its pairs.
+        for (frame, volume) in triangle_frames.iter_mut().zip(world_volumes.iter()) {
+            if let Core::Triangle(_) = volume.core {
+                *frame = TriangleFrame::of(&volume.core);
+            }
+        }
         for (pair, slot) in self.pairs.iter().zip(proximities.iter_mut()) {
             let (Some(a), Some(b)) = (world_volumes.get(pair.first.0), world_volumes.get(pair.second.0)) else {
                 continue;
@@ -182,7 +188,10 @@ impl<T: RealField + Copy, const V: usize, const P: usize> CollisionModel<T, V, P
                     }
                 }
             }
-            *slot = proximity(a, b);
+            let (Some(fa), Some(fb)) = (triangle_frames.get(pair.first.0), triangle_frames.get(pair.second.0)) else {
+                continue;
+            };
+            *slot = proximity_framed(a, fa, b, fb);
         }
     }
 }
@@ -201,6 +210,9 @@ pub struct CollisionData<T: RealField, const V: usize, const P: usize> {
     /// distance ([`CollisionModel::compute_distances`]); `None` (the default) computes every
     /// pair exactly.
     pub exact_within: Option<T>,
+    /// The triangle frame of each world volume with a triangle core (edges, normal, edge
+    /// normals), written by [`CollisionModel::compute_distances`] for its pairs.
+    triangle_frames: [TriangleFrame<T>; V],
 }
 
 impl<T: RealField + Copy, const V: usize, const P: usize> CollisionData<T, V, P> {
@@ -213,6 +225,7 @@ impl<T: RealField + Copy, const V: usize, const P: usize> CollisionData<T, V, P>
             proximities: [Proximity { distance: T::zero(), core_first: origin, core_second: origin, direction: None };
                 P],
             exact_within: None,
+            triangle_frames: [TriangleFrame::placeholder(); V],
         }
     }
 }

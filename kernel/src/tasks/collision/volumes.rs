@@ -171,7 +171,20 @@ pub fn direction_threshold<T: RealField + Copy>() -> T {
 /// assert!((p.direction.unwrap().into_inner() - Vector3::z()).norm() < 1e-15);
 /// ```
 pub fn proximity<T: RealField + Copy>(a: &SweptSphere<T>, b: &SweptSphere<T>) -> Proximity<T> {
-    let (core_first, core_second) = closest_points(&a.core, &b.core);
+    let (fa, fb) = (TriangleFrame::of(&a.core), TriangleFrame::of(&b.core));
+    proximity_framed(a, &fa, b, &fb)
+}
+
+/// [`proximity`] with the triangle frames of both cores given ([`TriangleFrame::of`], computed
+/// once per volume and cycle and shared by all its pairs): the same operations, so the same
+/// result.
+pub(super) fn proximity_framed<T: RealField + Copy>(
+    a: &SweptSphere<T>,
+    fa: &TriangleFrame<T>,
+    b: &SweptSphere<T>,
+    fb: &TriangleFrame<T>,
+) -> Proximity<T> {
+    let (core_first, core_second) = closest_points_framed(&a.core, fa, &b.core, fb);
     let delta = core_second - core_first;
     let core_distance = sqrt(delta.norm_squared());
     let direction =
@@ -182,15 +195,28 @@ pub fn proximity<T: RealField + Copy>(a: &SweptSphere<T>, b: &SweptSphere<T>) ->
 /// Closest points `(on a, on b)` of two cores in the same frame. Cost: bounded per kind, at most six
 /// piercing tests, six vertex projections and nine edge–edge tests (triangle–triangle).
 pub fn closest_points<T: RealField + Copy>(a: &Core<T>, b: &Core<T>) -> (Vector3<T>, Vector3<T>) {
+    closest_points_framed(a, &TriangleFrame::of(a), b, &TriangleFrame::of(b))
+}
+
+/// [`closest_points`] with the cores' triangle frames `fa`, `fb` ([`TriangleFrame::of`]; read
+/// only for a triangle core).
+fn closest_points_framed<T: RealField + Copy>(
+    a: &Core<T>,
+    fa: &TriangleFrame<T>,
+    b: &Core<T>,
+    fb: &TriangleFrame<T>,
+) -> (Vector3<T>, Vector3<T>) {
     let swap = |(x, y): (Vector3<T>, Vector3<T>)| (y, x);
     match (a, b) {
         (Core::Point(p), Core::Point(q)) => (*p, *q),
-        (Core::Point(p), other) => (*p, other.closest_point_to(p)),
-        (other, Core::Point(p)) => (other.closest_point_to(p), *p),
+        (Core::Point(p), Core::Segment([x, y])) => (*p, closest_on_segment(p, x, y)),
+        (Core::Segment([x, y]), Core::Point(p)) => (closest_on_segment(p, x, y), *p),
+        (Core::Point(p), Core::Triangle(_)) => (*p, fb.closest_point(p, fb.height(p))),
+        (Core::Triangle(_), Core::Point(p)) => (fa.closest_point(p, fa.height(p)), *p),
         (Core::Segment([p1, q1]), Core::Segment([p2, q2])) => closest_segment_segment(p1, q1, p2, q2),
-        (Core::Segment([p, q]), Core::Triangle(t)) => closest_segment_triangle(p, q, t),
-        (Core::Triangle(t), Core::Segment([p, q])) => swap(closest_segment_triangle(p, q, t)),
-        (Core::Triangle(s), Core::Triangle(t)) => closest_triangle_triangle(s, t),
+        (Core::Segment([p, q]), Core::Triangle(_)) => closest_segment_framed(p, q, fb),
+        (Core::Triangle(_), Core::Segment([p, q])) => swap(closest_segment_framed(p, q, fa)),
+        (Core::Triangle(_), Core::Triangle(_)) => closest_triangles_framed(fa, fb),
     }
 }
 
@@ -302,8 +328,8 @@ fn triangle_normal<T: RealField + Copy>([a, b, c]: &[Vector3<T>; 3]) -> Option<V
 /// edges `e_k = v_{k+1} − v_k` and `‖e_k‖²`; if it is not degenerate (`planar`), its normal `n`
 /// ([`triangle_normal`]), `‖n‖²` and the in-plane edge normals `n × e_k` that point into the
 /// triangle (zeros and one for a degenerate triangle, which has no plane).
-#[derive(Clone, Copy)]
-struct TriangleFrame<T: RealField> {
+#[derive(Clone, Copy, Debug)]
+pub(super) struct TriangleFrame<T: RealField> {
     vertices: [Vector3<T>; 3],
     edges: [Vector3<T>; 3],
     edge_length2: [T; 3],
@@ -314,6 +340,30 @@ struct TriangleFrame<T: RealField> {
 }
 
 impl<T: RealField + Copy> TriangleFrame<T> {
+    /// The frame of `core` if it is a triangle, else [`Self::placeholder`] (never read: only a
+    /// triangle core's frame is).
+    #[inline]
+    pub(super) fn of(core: &Core<T>) -> Self {
+        match core {
+            Core::Triangle(t) => Self::new(t),
+            _ => Self::placeholder(),
+        }
+    }
+
+    /// The frame of the degenerate triangle at the origin.
+    pub(super) fn placeholder() -> Self {
+        let zero = Vector3::zeros();
+        Self {
+            vertices: [zero; 3],
+            edges: [zero; 3],
+            edge_length2: [T::zero(); 3],
+            planar: false,
+            normal: zero,
+            normal_length2: T::one(),
+            edge_normals: [zero; 3],
+        }
+    }
+
     fn new(t: &[Vector3<T>; 3]) -> Self {
         let [a, b, c] = t;
         let edges = [b - a, c - b, a - c];
@@ -463,12 +513,21 @@ fn closest_on_triangle<T: RealField + Copy>(p: &Vector3<T>, t: &[Vector3<T>; 3])
 /// an end that projects inside; an end outside the triangle is no closer than the segment
 /// against an edge it lies outside of. The edges are skipped when the segment's distance from
 /// the plane is no less than the nearest end's.
+#[cfg(test)]
 fn closest_segment_triangle<T: RealField + Copy>(
     p: &Vector3<T>,
     q: &Vector3<T>,
     t: &[Vector3<T>; 3],
 ) -> (Vector3<T>, Vector3<T>) {
-    let frame = TriangleFrame::new(t);
+    closest_segment_framed(p, q, &TriangleFrame::new(t))
+}
+
+/// [`closest_segment_triangle`] against the triangle of `frame`.
+fn closest_segment_framed<T: RealField + Copy>(
+    p: &Vector3<T>,
+    q: &Vector3<T>,
+    frame: &TriangleFrame<T>,
+) -> (Vector3<T>, Vector3<T>) {
     let (hp, hq) = (frame.height(p), frame.height(q));
     if let Some(x) = frame.piercing(p, q, hp, hq) {
         return (x, x);
@@ -502,11 +561,20 @@ fn closest_segment_triangle<T: RealField + Copy>(
 /// the other triangle, then each edge–edge pair once, if an end of either edge lies outside the
 /// other edge and neither edge's distance from the other triangle's plane rules it out. Each
 /// plane, vertex height, side and projection is computed once.
+#[cfg(test)]
 fn closest_triangle_triangle<T: RealField + Copy>(
     s: &[Vector3<T>; 3],
     t: &[Vector3<T>; 3],
 ) -> (Vector3<T>, Vector3<T>) {
-    let (fs, ft) = (TriangleFrame::new(s), TriangleFrame::new(t));
+    closest_triangles_framed(&TriangleFrame::new(s), &TriangleFrame::new(t))
+}
+
+/// [`closest_triangle_triangle`] of the triangles of the frames `fs` and `ft`.
+fn closest_triangles_framed<T: RealField + Copy>(
+    fs: &TriangleFrame<T>,
+    ft: &TriangleFrame<T>,
+) -> (Vector3<T>, Vector3<T>) {
+    let (s, t) = (&fs.vertices, &ft.vertices);
     let [a, b, c] = s;
     let [d, e, f] = t;
     let [ha, hb, hc] = s.each_ref().map(|v| ft.height(v));
