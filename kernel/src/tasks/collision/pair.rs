@@ -470,9 +470,19 @@ fn projected_jacobian_into<T: RealField + Copy, const N: usize, const B: usize, 
             continue;
         };
         let value = e.x * s.w + e.y * s.a + e.z * s.b + (m.x * s.x + m.y * s.y + m.z * s.z);
-        for term in joint.drive.terms() {
-            if let Some(x) = row.get_mut(term.coordinate) {
-                *x += value * term.coefficient;
+        // Most joints have one drive term: no loop set-up for them.
+        match joint.drive.terms() {
+            [term] => {
+                if let Some(x) = row.get_mut(term.coordinate) {
+                    *x += value * term.coefficient;
+                }
+            }
+            terms => {
+                for term in terms {
+                    if let Some(x) = row.get_mut(term.coordinate) {
+                        *x += value * term.coefficient;
+                    }
+                }
             }
         }
     }
@@ -527,12 +537,65 @@ impl<T: RealField + Copy, const N: usize, const P: usize, const C: usize> PairRo
     }
 }
 
-/// The row of pair `pair` (as [`evaluate_pair`]`(..).row`, equal to rounding) without the
-/// pair's intermediate results: the row Jacobian and the inverse reflected masses from `cache`,
-/// or from [`pair_kinematics`] (then cached), the force law (3.10) of `parameters` and the
-/// damping constant of (3.23) in the closed form `c = 2 ξ √(k / (m_i⁻¹ + m_j⁻¹))` (see
-/// [`pair_damping`]). The proximity must have a direction.
+/// The row of pair `pair` (as [`evaluate_pair`]`(..).row`, equal to rounding) written into
+/// `row` without the pair's intermediate results: the row Jacobian and the inverse reflected
+/// masses from `cache`, or from [`pair_kinematics`] (then cached), the force law (3.10) of
+/// `parameters` and the damping constant of (3.23) in the closed form
+/// `c = 2 ξ √(k / (m_i⁻¹ + m_j⁻¹))` (see [`pair_damping`]). The proximity must have a
+/// direction. On error `row` is unspecified.
 #[allow(clippy::too_many_arguments, reason = "the inputs of pair_kinematics, the force law and the cache")]
+fn pair_row_into<
+    T: RealField + Copy,
+    const N: usize,
+    const B: usize,
+    const F: usize,
+    const V: usize,
+    const P: usize,
+    const C: usize,
+>(
+    collision_model: &CollisionModel<T, V, P>,
+    collision: &CollisionData<T, V, P>,
+    model: &Model<T, N, B, F>,
+    data: &Data<T, N, B, F>,
+    factor: &PairFactor<'_, T, N>,
+    parameters: &CollisionParameters<T>,
+    pair: usize,
+    cache: &mut PairRowCache<T, N, P, C>,
+    row: &mut TaskRow<T, N>,
+) -> Result<(), TaskError> {
+    let invalid = TaskError::InvalidParameter { name: "pair" };
+    let proximity: &Proximity<T> = collision.proximities.get(pair).ok_or(invalid)?;
+    let d = proximity.distance;
+    let inverse_mass_sum = match cache.get(pair) {
+        Some(entry) => {
+            row.jacobian = entry.jacobian;
+            entry.inverse_mass_sum
+        }
+        None => {
+            let sum = pair_kinematics(collision_model, proximity, model, data, factor, pair, &mut row.jacobian)?;
+            cache.insert(pair, CachedPairRow { jacobian: row.jacobian, inverse_mass_sum: sum });
+            sum
+        }
+    };
+    let stiffness = parameters.stiffness(d);
+    let c = if stiffness > T::zero() && inverse_mass_sum > T::zero() {
+        convert::<f64, T>(2.0) * parameters.damping_ratio * sqrt(stiffness / inverse_mass_sum)
+    } else {
+        T::zero()
+    };
+    let rate = row.jacobian.as_slice().iter().zip(data.v.as_slice()).fold(T::zero(), |r, (&j, &v)| r + j * v);
+    row.force = parameters.force(d) - c * rate;
+    row.potential = parameters.potential(d);
+    row.activation = parameters.activation(d);
+    if !(row.force.is_finite() && row.potential.is_finite() && row.activation.is_finite()) {
+        return Err(TaskError::NonFinite);
+    }
+    Ok(())
+}
+
+/// [`pair_row_into`] returning the row.
+#[cfg(test)]
+#[allow(clippy::too_many_arguments, reason = "the inputs of pair_row_into")]
 fn pair_row<
     T: RealField + Copy,
     const N: usize,
@@ -551,41 +614,17 @@ fn pair_row<
     pair: usize,
     cache: &mut PairRowCache<T, N, P, C>,
 ) -> Result<TaskRow<T, N>, TaskError> {
-    let invalid = TaskError::InvalidParameter { name: "pair" };
-    let proximity: &Proximity<T> = collision.proximities.get(pair).ok_or(invalid)?;
-    let d = proximity.distance;
-    let cached = match cache.get(pair) {
-        Some(entry) => *entry,
-        None => {
-            let entry = pair_kinematics(collision_model, proximity, model, data, factor, pair)?;
-            cache.insert(pair, entry);
-            entry
-        }
-    };
-    let stiffness = parameters.stiffness(d);
-    let c = if stiffness > T::zero() && cached.inverse_mass_sum > T::zero() {
-        convert::<f64, T>(2.0) * parameters.damping_ratio * sqrt(stiffness / cached.inverse_mass_sum)
-    } else {
-        T::zero()
-    };
-    let rate = cached.jacobian.as_slice().iter().zip(data.v.as_slice()).fold(T::zero(), |r, (&j, &v)| r + j * v);
-    let row = TaskRow {
-        jacobian: cached.jacobian,
-        force: parameters.force(d) - c * rate,
-        potential: parameters.potential(d),
-        activation: parameters.activation(d),
-    };
-    if !(row.force.is_finite() && row.potential.is_finite() && row.activation.is_finite()) {
-        return Err(TaskError::NonFinite);
-    }
+    let mut row =
+        TaskRow { jacobian: RowSVector::zeros(), force: T::zero(), potential: T::zero(), activation: T::zero() };
+    pair_row_into(collision_model, collision, model, data, factor, parameters, pair, cache, &mut row)?;
     Ok(row)
 }
 
 /// The configuration-dependent part of pair `pair`'s row: the two projected Jacobians written in
-/// place ([`projected_jacobian_into`]), their difference, and both inverse reflected masses
-/// (3.20) by one forward substitution over the factor ([`inverse_reflected_masses`] on dense rows,
-/// [`TreeFactorization::inverse_reflected_masses`] on the tree factor; none
-/// for a world-fixed volume, whose mass is infinite). The proximity must have a direction.
+/// place ([`projected_jacobian_into`]), their difference written into `jacobian`, and the sum of
+/// both inverse reflected masses (3.20), returned: one forward substitution over the factor for
+/// both ([`inverse_reflected_masses`] on dense rows, [`TreeFactorization::inverse_reflected_masses`]
+/// on the tree factor); none for a world-fixed volume, whose mass is infinite. The proximity must have a direction.
 fn pair_kinematics<
     T: RealField + Copy,
     const N: usize,
@@ -600,7 +639,8 @@ fn pair_kinematics<
     data: &Data<T, N, B, F>,
     factor: &PairFactor<'_, T, N>,
     pair: usize,
-) -> Result<CachedPairRow<T, N>, TaskError> {
+    jacobian: &mut RowSVector<T, N>,
+) -> Result<T, TaskError> {
     let invalid = TaskError::InvalidParameter { name: "pair" };
     let &CollisionPair { first, second } = collision_model.pairs().get(pair).ok_or(invalid)?;
     let (Some(a), Some(b)) = (collision_model.volume(first), collision_model.volume(second)) else {
@@ -631,7 +671,6 @@ fn pair_kinematics<
         (false, false, _) => T::zero(),
     };
     // The difference and its finiteness in one pass (no early exit: a branch-free flag).
-    let mut jacobian = RowSVector::<T, N>::zeros();
     let mut finite = inverse_mass_sum.is_finite();
     for ((x, &ji), &jj) in jacobian.as_mut_slice().iter_mut().zip(&jacobian_first).zip(&jacobian_second) {
         let value = jj - ji;
@@ -641,7 +680,42 @@ fn pair_kinematics<
     if !finite {
         return Err(TaskError::NonFinite);
     }
-    Ok(CachedPairRow { jacobian, inverse_mass_sum })
+    Ok(inverse_mass_sum)
+}
+
+/// Puts `item` at node `root` of the binary max-heap `heap` (by distance, the farthest at the
+/// root), whose subtrees below `root` are heaps, and restores the order of that subtree: the
+/// larger child moves up into the hole until `item` is no closer than both children.
+/// O(log len).
+fn sift<T: RealField + Copy>(heap: &mut [(T, usize)], root: usize, item: (T, usize)) {
+    let mut hole = root;
+    for _ in 0..heap.len() {
+        let left = 2 * hole + 1;
+        let Some(&l) = heap.get(left) else { break };
+        let (child, c) = match heap.get(left + 1) {
+            Some(&r) if r.0 > l.0 => (left + 1, r),
+            _ => (left, l),
+        };
+        if c.0 <= item.0 {
+            break;
+        }
+        if let Some(h) = heap.get_mut(hole) {
+            *h = c;
+        }
+        hole = child;
+    }
+    if let Some(h) = heap.get_mut(hole) {
+        *h = item;
+    }
+}
+
+/// Orders `heap` as a binary max-heap by distance (the farthest at the root), O(len).
+fn heapify<T: RealField + Copy>(heap: &mut [(T, usize)]) {
+    for root in (0..heap.len() / 2).rev() {
+        if let Some(&item) = heap.get(root) {
+            sift(heap, root, item);
+        }
+    }
 }
 
 /// What [`self_collision_rows`] did in one cycle (telemetry).
@@ -783,10 +857,11 @@ pub fn collision_rows_shared<
     let free = R.saturating_sub(rows.len());
     let limit = parameters.emit_distance();
     let mut report = CollisionReport { candidates: 0, rows: 0, dropped: 0, undefined_direction: 0, min_distance: None };
-    // The `free` closest candidates: (distance, pair index), and where the farthest of them is
-    // (searched again only after it was replaced, not for every dropped candidate).
+    // The `free` closest candidates `(distance, pair index)`: filled in pair order, then kept as
+    // a binary max-heap by distance whose root (the farthest) a closer candidate replaces,
+    // O(log R) per replacement.
     let mut selected: Vec<(T, usize), R> = Vec::new();
-    let mut farthest: Option<(usize, T)> = None;
+    let mut heap = false;
     for (index, proximity) in collision.proximities.iter().take(collision_model.pairs().len()).enumerate() {
         let d = proximity.distance;
         if !d.is_finite() {
@@ -806,23 +881,13 @@ pub fn collision_rows_shared<
             continue;
         }
         report.dropped += 1;
-        let (slot, distance) = match farthest {
-            Some(known) => known,
-            None => selected.iter().enumerate().fold((0, T::min_value().unwrap_or_else(T::zero)), |(k, m), (i, c)| {
-                if c.0 > m {
-                    (i, c.0)
-                } else {
-                    (k, m)
-                }
-            }),
-        };
-        if d < distance {
-            if let Some(entry) = selected.get_mut(slot) {
-                *entry = (d, index);
-            }
-            farthest = None;
-        } else {
-            farthest = Some((slot, distance));
+        if !heap {
+            heapify(&mut selected);
+            heap = true;
+        }
+        // A candidate at the root's distance stays out (the earlier pair is kept).
+        if selected.first().is_some_and(|root| d < root.0) {
+            sift(&mut selected, 0, (d, index));
         }
     }
     // Rows in pair order: a pass over a membership mask of the pairs instead of a sort, whose
@@ -833,20 +898,23 @@ pub fn collision_rows_shared<
             *flag = true;
         }
     }
-    let mut staged: Vec<TaskRow<T, N>, R> = Vec::new();
+    // Each row is built in its slot of `rows`; on an error the rows appended here are removed.
     if !selected.is_empty() {
         let factor = match mass.into() {
             InertiaFactor::Dense(cholesky) => PairFactor::Rows(factor_rows(cholesky)),
             InertiaFactor::Tree(tree) => PairFactor::Tree(tree),
         };
+        let start = rows.len();
         for (index, _) in chosen.iter().enumerate().filter(|(_, &flag)| flag) {
-            let row = pair_row(collision_model, collision, model, data, &factor, parameters, index, cache)?;
-            staged.push(row).map_err(|_| TaskError::Capacity { capacity: R })?;
+            let mut result = Ok(());
+            let pushed = rows.push_with(|row| {
+                result = pair_row_into(collision_model, collision, model, data, &factor, parameters, index, cache, row);
+            });
+            if let Err(e) = result.and(pushed) {
+                rows.truncate(start);
+                return Err(e);
+            }
         }
-    }
-    // By reference: consuming a heapless vector drops its iterator through a slice index.
-    for r in &staged {
-        rows.push(*r)?;
     }
     report.rows = selected.len();
     Ok(report)
@@ -1117,6 +1185,106 @@ mod tests {
         assert_eq!((report.rows, few), (0, before));
         // Unknown pair.
         assert!(evaluate_pair(&cm, &cd, &robot, &data, &factor, &p, 99).is_err());
+    }
+
+    /// [`CollisionModel::compute_distances`] (triangle frames computed once per volume) gives
+    /// every pair the proximity of [`crate::tasks::collision::proximity`] of its world volumes,
+    /// bit for bit, at random states (f64 and f32), with and without the broad phase's far pairs.
+    fn shared_triangle_frames_match_proximity<T: RealField + Copy>() {
+        let robot = branched::<T>();
+        let cm = collision_model(&robot);
+        let mut cd = CollisionData::new(&cm);
+        let mut data = Data::new(&robot);
+        let mut exact = 0;
+        for seed in 0..100 {
+            forward_kinematics(&robot, &mut data, &state(seed, 1.5).cast::<T>(), &SVector::zeros()).unwrap();
+            cd.exact_within = if seed % 2 == 0 { None } else { Some(convert(0.05)) };
+            cm.update(&data, &mut cd);
+            for (pair, proximity) in cm.pairs().iter().zip(&cd.proximities) {
+                let (a, b) = (&cd.world_volumes[pair.first.0], &cd.world_volumes[pair.second.0]);
+                if proximity.direction.is_none() && cd.exact_within.is_some() {
+                    continue; // a far pair of the broad phase
+                }
+                assert_eq!(*proximity, crate::tasks::collision::proximity(a, b), "seed {seed} {pair:?}");
+                exact += 1;
+            }
+        }
+        assert!(exact > 800, "{exact}");
+    }
+
+    #[test]
+    fn shared_triangle_frames_match_proximity_f64() {
+        shared_triangle_frames_match_proximity::<f64>();
+    }
+
+    #[test]
+    fn shared_triangle_frames_match_proximity_f32() {
+        shared_triangle_frames_match_proximity::<f32>();
+    }
+
+    /// The heap selection of the `k` closest candidates against a sort: at random states and
+    /// every capacity `k` from 1 to 6, the rows of a field with `k` free rows are exactly the
+    /// rows (bit for bit, in pair order) of the `k` candidates with the smallest distances in a
+    /// field with room for all, f64 and f32.
+    fn selection_matches_a_sort<T: RealField + Copy>() {
+        let robot = branched::<T>();
+        let cm = collision_model(&robot);
+        let mut cd = CollisionData::new(&cm);
+        let mut data = Data::new(&robot);
+        let p = parameters::<T>(0.7);
+        let mut checked = 0;
+        for seed in 0..100 {
+            forward_kinematics(&robot, &mut data, &state(seed, 1.5).cast::<T>(), &state(seed + 300, 1.0).cast::<T>())
+                .unwrap();
+            crba(&robot, &mut data);
+            let factor = mass_matrix_cholesky(&data).unwrap();
+            let mut all = TaskRows::<T, N, P>::new();
+            let full = self_collision_rows(&cm, &mut cd, &robot, &data, &factor, &p, &mut all).unwrap();
+            assert_eq!(full.dropped, 0);
+            let mut candidates: std::vec::Vec<(T, usize)> = cd
+                .proximities
+                .iter()
+                .take(cm.pairs().len())
+                .enumerate()
+                .filter(|(_, x)| x.distance < p.emit_distance() && x.direction.is_some())
+                .map(|(i, x)| (x.distance, i))
+                .collect();
+            let order: std::vec::Vec<usize> = candidates.iter().map(|c| c.1).collect();
+            candidates.sort_by(|a, b| a.0.partial_cmp(&b.0).unwrap().then(a.1.cmp(&b.1)));
+            for k in 1..=6_usize {
+                let mut few = TaskRows::<T, N, 6>::new();
+                for _ in k..6 {
+                    few.push(TaskRow {
+                        jacobian: RowSVector::zeros(),
+                        force: T::one(),
+                        potential: T::zero(),
+                        activation: T::one(),
+                    })
+                    .unwrap();
+                }
+                let report = collision_rows_from_geometry(&cm, &cd, &robot, &data, &factor, &p, &mut few).unwrap();
+                let mut closest: std::vec::Vec<usize> = candidates.iter().take(k).map(|c| c.1).collect();
+                closest.sort_unstable();
+                assert_eq!(report.rows, closest.len());
+                assert_eq!(report.dropped, candidates.len() - closest.len());
+                for (row, pair) in few.rows()[6 - k..].iter().zip(&closest) {
+                    let position = order.iter().position(|x| x == pair).unwrap();
+                    assert_eq!(*row, all.rows()[position], "seed {seed} k {k} pair {pair}");
+                }
+                checked += usize::from(candidates.len() > k);
+            }
+        }
+        assert!(checked > 300, "{checked} selections dropped candidates");
+    }
+
+    #[test]
+    fn selection_matches_a_sort_f64() {
+        selection_matches_a_sort::<f64>();
+    }
+
+    #[test]
+    fn selection_matches_a_sort_f32() {
+        selection_matches_a_sort::<f32>();
     }
 
     /// Largest relative difference of two rows' Jacobians, forces, potentials and activations.
