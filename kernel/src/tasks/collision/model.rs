@@ -159,9 +159,10 @@ impl<T: RealField + Copy, const V: usize, const P: usize> CollisionModel<T, V, P
     /// writes `collision.proximities`. Cost O(P), bounded per pair kind.
     ///
     /// With `collision.exact_within = Some(d)` (broad phase), a pair whose bounding spheres are
-    /// more than `d` apart gets that gap as its distance — a lower bound of the true distance,
-    /// larger than `d` — with the sphere centres as "closest points" and no direction, without
-    /// the exact narrow-phase computation. Every pair closer than `d` is exact. A task that emits
+    /// more than `d` apart, or one of whose triangles has the other's bounding sphere more than
+    /// `d` beyond the slab the triangle's volume lies in, gets that gap as its distance —
+    /// a lower bound of the true distance, larger than `d` — with the sphere centres as "closest
+    /// points" and no direction, without the exact narrow-phase computation. Every pair closer than `d` is exact. A task that emits
     /// rows below `d` ([`super::CollisionParameters::emit_distance`]) gets the same rows.
     pub fn compute_distances(&self, collision: &mut CollisionData<T, V, P>) {
         let CollisionData { world_volumes, bounding_spheres, proximities, exact_within, triangle_frames } = collision;
@@ -173,6 +174,9 @@ impl<T: RealField + Copy, const V: usize, const P: usize> CollisionModel<T, V, P
         }
         for (pair, slot) in self.pairs.iter().zip(proximities.iter_mut()) {
             let (Some(a), Some(b)) = (world_volumes.get(pair.first.0), world_volumes.get(pair.second.0)) else {
+                continue;
+            };
+            let (Some(fa), Some(fb)) = (triangle_frames.get(pair.first.0), triangle_frames.get(pair.second.0)) else {
                 continue;
             };
             if let (Some(limit), Some((ca, ra)), Some((cb, rb))) =
@@ -187,10 +191,24 @@ impl<T: RealField + Copy, const V: usize, const P: usize> CollisionModel<T, V, P
                         continue;
                     }
                 }
+                // A triangle's plane separates it from the other volume's bounding sphere. The
+                // triangle's bounding centre (its centroid) lies in its plane, so the sphere's
+                // height above the plane is at most the centres' separation: only pairs whose
+                // separation exceeds what the slab needs are tested.
+                let slab = |frame: &TriangleFrame<T>, volume: &SweptSphere<T>, center, ball_radius: T| {
+                    let Core::Triangle(_) = volume.core else { return None };
+                    let needed = limit + volume.radius + ball_radius;
+                    if needed > T::zero() && separation2 > needed * needed {
+                        frame.slab_gap(volume.radius, center, ball_radius, limit)
+                    } else {
+                        None
+                    }
+                };
+                if let Some(gap) = slab(fa, a, cb, *rb).or_else(|| slab(fb, b, ca, *ra)) {
+                    *slot = Proximity { distance: gap, core_first: *ca, core_second: *cb, direction: None };
+                    continue;
+                }
             }
-            let (Some(fa), Some(fb)) = (triangle_frames.get(pair.first.0), triangle_frames.get(pair.second.0)) else {
-                continue;
-            };
             *slot = proximity_framed(a, fa, b, fb);
         }
     }

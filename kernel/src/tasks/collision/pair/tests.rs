@@ -261,28 +261,37 @@ fn rows_keep_the_closest_pairs_and_errors_leave_rows_unchanged() {
 }
 
 /// [`CollisionModel::compute_distances`] (triangle frames computed once per volume) gives
-/// every pair the proximity of [`crate::tasks::collision::proximity`] of its world volumes,
-/// bit for bit, at random states (f64 and f32), with and without the broad phase's far pairs.
+/// every exact pair the proximity of [`crate::tasks::collision::proximity`] of its world volumes,
+/// bit for bit, at random states (f64 and f32); with the broad phase (bounding spheres and
+/// triangle slabs) every skipped pair reports a lower bound of its distance above the cull
+/// distance, and the skipped pairs include pairs whose bounding spheres are not separated.
 fn shared_triangle_frames_match_proximity<T: RealField + Copy>() {
     let robot = branched::<T>();
     let cm = collision_model(&robot);
     let mut cd = CollisionData::new(&cm);
     let mut data = Data::new(&robot);
-    let mut exact = 0;
+    let (mut exact, mut culled, mut by_slab) = (0, 0, 0);
+    let limit: T = convert(0.05);
     for seed in 0..100 {
         forward_kinematics(&robot, &mut data, &state(seed, 1.5).cast::<T>(), &SVector::zeros()).unwrap();
-        cd.exact_within = if seed % 2 == 0 { None } else { Some(convert(0.05)) };
+        cd.exact_within = if seed % 2 == 0 { None } else { Some(limit) };
         cm.update(&data, &mut cd);
         for (pair, proximity) in cm.pairs().iter().zip(&cd.proximities) {
             let (a, b) = (&cd.world_volumes[pair.first.0], &cd.world_volumes[pair.second.0]);
-            if proximity.direction.is_none() && cd.exact_within.is_some() {
-                continue; // a far pair of the broad phase
+            let plain = crate::tasks::collision::proximity(a, b);
+            if cd.exact_within.is_some() && *proximity != plain {
+                assert!(proximity.direction.is_none() && proximity.distance > limit, "seed {seed} {pair:?}");
+                assert!(proximity.distance <= plain.distance + convert(1e-5), "seed {seed} {pair:?}");
+                let ((ca, ra), (cb, rb)) = (cd.bounding_spheres[pair.first.0], cd.bounding_spheres[pair.second.0]);
+                by_slab += usize::from((ca - cb).norm() - ra - rb <= limit);
+                culled += 1;
+                continue;
             }
-            assert_eq!(*proximity, crate::tasks::collision::proximity(a, b), "seed {seed} {pair:?}");
+            assert_eq!(*proximity, plain, "seed {seed} {pair:?}");
             exact += 1;
         }
     }
-    assert!(exact > 800, "{exact}");
+    assert!(exact > 600 && culled > 300 && by_slab > 100, "{exact} exact, {culled} culled ({by_slab} by a slab)");
 }
 
 #[test]

@@ -5,6 +5,7 @@
 use nalgebra::{RealField, Vector3};
 
 use super::{closest_edge_edge, closest_on_edge, negligible, Core};
+use crate::math::sqrt;
 
 /// Normal `(b − a) × (c − a)` of a triangle if its area is not negligible against its size.
 fn triangle_normal<T: RealField + Copy>([a, b, c]: &[Vector3<T>; 3]) -> Option<Vector3<T>> {
@@ -86,6 +87,31 @@ impl<T: RealField + Copy> TriangleFrame<T> {
     pub(super) fn height(&self, p: &Vector3<T>) -> T {
         let [a, _, _] = &self.vertices;
         self.normal.dot(&(p - a))
+    }
+
+    /// Broad phase against the triangle's plane: every point within `radius` of the triangle
+    /// lies in the slab `|n̂ · (x − v₀)| ≤ radius`, every point of the ball `(center,
+    /// ball_radius)` at least `|n̂ · (center − v₀)| − ball_radius` from the plane, so the
+    /// difference is a lower bound of their distance. `Some(that bound)` if it exceeds `limit`
+    /// (squared test first: one root and one division only then); `None` otherwise and without
+    /// a plane.
+    pub(in crate::tasks::collision) fn slab_gap(
+        &self,
+        radius: T,
+        center: &Vector3<T>,
+        ball_radius: T,
+        limit: T,
+    ) -> Option<T> {
+        let reach = limit + radius + ball_radius;
+        if !self.planar || reach <= T::zero() {
+            return None;
+        }
+        let h = self.height(center);
+        if h * h <= reach * reach * self.normal_length2 {
+            return None;
+        }
+        let gap = h.abs() / sqrt(self.normal_length2) - radius - ball_radius;
+        (gap > limit).then_some(gap)
     }
 
     /// A lower bound of the squared distance of any point of the triangle's plane to the
