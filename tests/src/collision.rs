@@ -773,3 +773,60 @@ fn broad_phase_keeps_every_row_and_bounds_the_skipped_distances() {
     assert!(skipped > 60 * 100, "the broad phase skipped only {skipped} pair evaluations");
     println!("broad phase: {skipped} of {} pair evaluations skipped, {rows_seen} rows identical", 60 * jc::PAIRS);
 }
+
+/// The per-field selection of the closest candidates (a max-heap of the kept ones) on Justin:
+/// at random states with a wide field (d0 = 0.5 m, so dozens of candidates), a field with 8 free
+/// rows emits exactly the rows, bit for bit and in pair order, of the 8 candidates with the
+/// smallest distances among the rows of a field with room for all; f64 and f32.
+fn justin_selection_keeps_the_closest<T: nalgebra::RealField + Copy>(seed: u64) {
+    use kernel::tasks::collision::collision_rows_from_geometry;
+    const ALL: usize = jc::PAIRS;
+    let model = justin::model::<T>().unwrap();
+    let bounds = justin::model::<f64>().unwrap();
+    let collision = jc::collision_model(&model).unwrap();
+    let mut data = Data::new(&model);
+    let mut cd = CollisionData::new(&collision);
+    let c = |x: f64| nalgebra::convert::<f64, T>(x);
+    let parameters = CollisionParameters::try_new(c(25.0), c(0.5), c(0.7), c(0.0), c(0.5)).unwrap();
+    let mut rng = Rng(seed);
+    let mut dropped = 0;
+    for _ in 0..20 {
+        let q = random_state(&bounds, &mut rng);
+        let v = SVector::<f64, N>::from_fn(|_, _| rng.uniform(-1.0, 1.0));
+        forward_kinematics(&model, &mut data, &q.cast::<T>(), &v.cast::<T>()).unwrap();
+        crba(&model, &mut data);
+        let factor = mass_matrix_cholesky(&data).unwrap();
+        let mut all = Box::new(TaskRows::<T, N, ALL>::new());
+        self_collision_rows(&collision, &mut cd, &model, &data, &factor, &parameters, &mut all).unwrap();
+        let mut candidates: Vec<(T, usize)> = (0..collision.pairs().len())
+            .filter(|&k| {
+                cd.proximities[k].distance < parameters.emit_distance() && cd.proximities[k].direction.is_some()
+            })
+            .map(|k| (cd.proximities[k].distance, k))
+            .collect();
+        let order: Vec<usize> = candidates.iter().map(|x| x.1).collect();
+        candidates.sort_by(|a, b| a.0.partial_cmp(&b.0).unwrap().then(a.1.cmp(&b.1)));
+        let mut few = TaskRows::<T, N, 8>::new();
+        let report =
+            collision_rows_from_geometry(&collision, &cd, &model, &data, &factor, &parameters, &mut few).unwrap();
+        let mut closest: Vec<usize> = candidates.iter().take(8).map(|x| x.1).collect();
+        closest.sort_unstable();
+        assert_eq!((report.rows, few.len()), (closest.len(), closest.len()));
+        for (row, pair) in few.rows().iter().zip(&closest) {
+            let position = order.iter().position(|x| x == pair).unwrap();
+            assert_eq!(*row, all.rows()[position], "pair {pair}");
+        }
+        dropped += report.dropped;
+    }
+    assert!(dropped > 100, "{dropped} candidates dropped");
+}
+
+#[test]
+fn justin_selection_keeps_the_closest_f64() {
+    justin_selection_keeps_the_closest::<f64>(0x5E1E_C700_0000_0064);
+}
+
+#[test]
+fn justin_selection_keeps_the_closest_f32() {
+    justin_selection_keeps_the_closest::<f32>(0x5E1E_C700_0000_0032);
+}

@@ -10,7 +10,7 @@ use core::fmt;
 use heapless::Vec;
 use nalgebra::{RealField, Vector3};
 
-use super::volumes::{proximity, Core, Proximity, SweptSphere};
+use super::volumes::{proximity_framed, Core, Proximity, SweptSphere, TriangleFrame};
 use crate::math::sqrt;
 use crate::model::{BodyId, Data, Model};
 
@@ -159,14 +159,24 @@ impl<T: RealField + Copy, const V: usize, const P: usize> CollisionModel<T, V, P
     /// writes `collision.proximities`. Cost O(P), bounded per pair kind.
     ///
     /// With `collision.exact_within = Some(d)` (broad phase), a pair whose bounding spheres are
-    /// more than `d` apart gets that gap as its distance — a lower bound of the true distance,
-    /// larger than `d` — with the sphere centres as "closest points" and no direction, without
-    /// the exact narrow-phase computation. Every pair closer than `d` is exact. A task that emits
+    /// more than `d` apart, or one of whose triangles has the other's bounding sphere more than
+    /// `d` beyond the slab the triangle's volume lies in, gets that gap as its distance —
+    /// a lower bound of the true distance, larger than `d` — with the sphere centres as "closest
+    /// points" and no direction, without the exact narrow-phase computation. Every pair closer than `d` is exact. A task that emits
     /// rows below `d` ([`super::CollisionParameters::emit_distance`]) gets the same rows.
     pub fn compute_distances(&self, collision: &mut CollisionData<T, V, P>) {
-        let CollisionData { world_volumes, bounding_spheres, proximities, exact_within } = collision;
+        let CollisionData { world_volumes, bounding_spheres, proximities, exact_within, triangle_frames } = collision;
+        // Each triangle's frame once per call, shared by all its pairs.
+        for (frame, volume) in triangle_frames.iter_mut().zip(world_volumes.iter()) {
+            if let Core::Triangle(_) = volume.core {
+                *frame = TriangleFrame::of(&volume.core);
+            }
+        }
         for (pair, slot) in self.pairs.iter().zip(proximities.iter_mut()) {
             let (Some(a), Some(b)) = (world_volumes.get(pair.first.0), world_volumes.get(pair.second.0)) else {
+                continue;
+            };
+            let (Some(fa), Some(fb)) = (triangle_frames.get(pair.first.0), triangle_frames.get(pair.second.0)) else {
                 continue;
             };
             if let (Some(limit), Some((ca, ra)), Some((cb, rb))) =
@@ -181,8 +191,25 @@ impl<T: RealField + Copy, const V: usize, const P: usize> CollisionModel<T, V, P
                         continue;
                     }
                 }
+                // A triangle's plane separates it from the other volume's bounding sphere. The
+                // triangle's bounding centre (its centroid) lies in its plane, so the sphere's
+                // height above the plane is at most the centres' separation: only pairs whose
+                // separation exceeds what the slab needs are tested.
+                let slab = |frame: &TriangleFrame<T>, volume: &SweptSphere<T>, center, ball_radius: T| {
+                    let Core::Triangle(_) = volume.core else { return None };
+                    let needed = limit + volume.radius + ball_radius;
+                    if needed > T::zero() && separation2 > needed * needed {
+                        frame.slab_gap(volume.radius, center, ball_radius, limit)
+                    } else {
+                        None
+                    }
+                };
+                if let Some(gap) = slab(fa, a, cb, *rb).or_else(|| slab(fb, b, ca, *ra)) {
+                    *slot = Proximity { distance: gap, core_first: *ca, core_second: *cb, direction: None };
+                    continue;
+                }
             }
-            *slot = proximity(a, b);
+            *slot = proximity_framed(a, fa, b, fb);
         }
     }
 }
@@ -201,6 +228,9 @@ pub struct CollisionData<T: RealField, const V: usize, const P: usize> {
     /// distance ([`CollisionModel::compute_distances`]); `None` (the default) computes every
     /// pair exactly.
     pub exact_within: Option<T>,
+    /// The triangle frame of each world volume with a triangle core (edges, normal, edge
+    /// normals), written by [`CollisionModel::compute_distances`] for its pairs.
+    triangle_frames: [TriangleFrame<T>; V],
 }
 
 impl<T: RealField + Copy, const V: usize, const P: usize> CollisionData<T, V, P> {
@@ -213,6 +243,7 @@ impl<T: RealField + Copy, const V: usize, const P: usize> CollisionData<T, V, P>
             proximities: [Proximity { distance: T::zero(), core_first: origin, core_second: origin, direction: None };
                 P],
             exact_within: None,
+            triangle_frames: [TriangleFrame::placeholder(); V],
         }
     }
 }

@@ -1,0 +1,567 @@
+//! The fast collision rows of one cycle (Sec. 3.1.2–3.1.4): support-path pair Jacobians
+//! (3.17)–(3.18), both reflected masses (3.20) in one substitution over the inertia factor,
+//! the closed-form pair damping (3.23), rows shared between the fields of a cycle
+//! ([`PairRowCache`]), and the selection of the closest candidates per field. The plain
+//! per-pair evaluation they are tested against is [`super::evaluate_pair`].
+
+use heapless::Vec;
+use nalgebra::{convert, Cholesky, Const, RealField, RowSVector, SMatrix, Vector3};
+
+use super::CollisionParameters;
+use crate::dynamics::{DynamicsError, InertiaFactor, TreeFactorization};
+use crate::math::sqrt;
+use crate::model::{BodyId, Data, Model};
+use crate::tasks::collision::model::{CollisionData, CollisionModel, CollisionPair};
+use crate::tasks::collision::volumes::Proximity;
+use crate::tasks::{TaskError, TaskRow, TaskRows};
+
+/// The inertia factor of the pair rows: the rows of a dense factor ([`factor_rows`]) or the
+/// tree-sparse factor (reflected masses by [`TreeFactorization::inverse_reflected_masses`] over
+/// the support paths of the two Jacobians).
+pub(super) enum PairFactor<'a, T: RealField, const N: usize> {
+    Rows(SMatrix<T, N, N>),
+    Tree(&'a TreeFactorization<T, N>),
+}
+
+/// The rows of the Cholesky factor `L` of `M = L Lᵀ` as contiguous slices: `Lᵀ` in
+/// column-major storage (column `i` holds row `i` of `L`; only its first `i + 1` entries, the
+/// lower triangle, are written). Built once per [`collision_rows_from_geometry`] call for the
+/// dot-product forward substitutions of [`inverse_reflected_masses`].
+pub fn factor_rows<T: RealField + Copy, const N: usize>(mass_cholesky: &Cholesky<T, Const<N>>) -> SMatrix<T, N, N> {
+    let mut rows = SMatrix::<T, N, N>::zeros();
+    let out = rows.as_mut_slice();
+    for (c, column) in mass_cholesky.l_dirty().as_slice().chunks_exact(N).enumerate() {
+        for (r, &x) in column.iter().enumerate().skip(c) {
+            if let Some(slot) = out.get_mut(r * N + c) {
+                *slot = x;
+            }
+        }
+    }
+    rows
+}
+
+/// `(‖L⁻¹ b₁‖², …, ‖L⁻¹ b_K‖²)` with `M = L Lᵀ` given by [`factor_rows`] (1/kg): the inverse
+/// reflected masses `J M⁻¹ Jᵀ` (3.20) of the Jacobian rows `J = bₖᵀ`.
+///
+/// Forward substitution in dot-product form over the rows of `L`,
+/// `yᵢ = (bᵢ − Σ_{k<i} l_ik y_k) / l_ii`, with the same operations in the same order as the
+/// column-oriented [`inverse_reflected_mass`](super::inverse_reflected_mass) (the reference), starting at the first nonzero
+/// entry of the right-hand sides (the entries of `y` before it are zero).
+pub fn inverse_reflected_masses<T: RealField + Copy, const N: usize, const K: usize>(
+    factor_rows: &SMatrix<T, N, N>,
+    rhs: [&[T; N]; K],
+) -> Result<[T; K], TaskError> {
+    // `y[k]` holds the K solutions' entries `k` side by side: one pass over each row of `L`
+    // serves every right-hand side.
+    let mut y = [[T::zero(); K]; N];
+    let start = rhs.iter().map(|b| b.iter().position(|x| !x.is_zero()).unwrap_or(N)).fold(N, usize::min);
+    let rows = factor_rows.as_slice().chunks_exact(N).skip(start);
+    for (i, row) in (start..N).zip(rows) {
+        let (Some(before), Some(&diag), Some(done)) = (row.get(start..i), row.get(i), y.get(start..i)) else {
+            break;
+        };
+        if diag.is_zero() {
+            return Err(TaskError::Singular);
+        }
+        let mut sum = [T::zero(); K];
+        for (s, b) in sum.iter_mut().zip(rhs) {
+            *s = b.get(i).copied().unwrap_or_else(T::zero);
+        }
+        for (&l, yk) in before.iter().zip(done) {
+            for (s, &x) in sum.iter_mut().zip(yk) {
+                *s += -(x * l);
+            }
+        }
+        if let Some(yi) = y.get_mut(i) {
+            for (x, s) in yi.iter_mut().zip(sum) {
+                *x = s / diag;
+            }
+        }
+    }
+    let mut norms = [T::zero(); K];
+    for yk in y.get(start..).unwrap_or_default() {
+        for (n, &x) in norms.iter_mut().zip(yk) {
+            *n += x * x;
+        }
+    }
+    Ok(norms)
+}
+
+/// Writes `eᵀ J_{x,q}` for the point `point` (world, m) on `body` into `row` (zeroed first):
+/// per joint on the support path, `eᵀ (v_S + ω_S × x) = eᵀ v_S + ω_Sᵀ (x × e)` spread over
+/// the joint's drive terms, (3.17)–(3.18). The fast form of [`projected_jacobian`](super::projected_jacobian).
+fn projected_jacobian_into<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
+    model: &Model<T, N, B, F>,
+    data: &Data<T, N, B, F>,
+    body: BodyId,
+    point: &Vector3<T>,
+    direction: &Vector3<T>,
+    row: &mut [T; N],
+) -> Result<(), TaskError> {
+    *row = [T::zero(); N];
+    let bodies = model.bodies();
+    bodies.get(body.0).ok_or(DynamicsError::UnknownBody)?;
+    let moment = point.cross(direction);
+    let (e, m) = (direction, &moment);
+    let mut next = Some(body);
+    for _ in 0..B {
+        let Some(id) = next else {
+            break;
+        };
+        let Some(joint) = bodies.get(id.0) else {
+            break;
+        };
+        next = joint.parent;
+        let Some(s) = data.motion_subspaces.get(id.0) else {
+            continue;
+        };
+        let value = e.x * s.w + e.y * s.a + e.z * s.b + (m.x * s.x + m.y * s.y + m.z * s.z);
+        // Most joints have one drive term: no loop set-up for them.
+        match joint.drive.terms() {
+            [term] => {
+                if let Some(x) = row.get_mut(term.coordinate) {
+                    *x += value * term.coefficient;
+                }
+            }
+            terms => {
+                for term in terms {
+                    if let Some(x) = row.get_mut(term.coordinate) {
+                        *x += value * term.coefficient;
+                    }
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The configuration-dependent part of the pair rows of one cycle, shared by the collision
+/// fields that evaluate the same geometry (the strong and the weak field of Fig. 6.3): per pair,
+/// the row Jacobian `eᵀ(J_{x,q,j} − J_{x,q,i})` (3.17)–(3.18) and the sum of the inverse
+/// reflected masses `m_i⁻¹ + m_j⁻¹` (3.20). A pair whose row one field computed costs the next
+/// field only its force law. Valid for one geometry: [`Self::clear`] it when the kinematics or
+/// the inertia factor change (every cycle). Holds up to `C` pairs; a pair that does not fit is
+/// computed again, never dropped.
+#[derive(Clone, Debug)]
+pub struct PairRowCache<T: RealField, const N: usize, const P: usize, const C: usize> {
+    /// Entry of each pair in `entries` (`u16::MAX`: none).
+    slot: [u16; P],
+    entries: Vec<CachedPairRow<T, N>, C>,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct CachedPairRow<T: RealField, const N: usize> {
+    jacobian: RowSVector<T, N>,
+    inverse_mass_sum: T,
+}
+
+impl<T: RealField + Copy, const N: usize, const P: usize, const C: usize> Default for PairRowCache<T, N, P, C> {
+    fn default() -> Self {
+        Self { slot: [u16::MAX; P], entries: Vec::new() }
+    }
+}
+
+impl<T: RealField + Copy, const N: usize, const P: usize, const C: usize> PairRowCache<T, N, P, C> {
+    /// Forgets every pair (a new geometry or inertia factor).
+    pub fn clear(&mut self) {
+        self.slot = [u16::MAX; P];
+        self.entries.clear();
+    }
+
+    fn get(&self, pair: usize) -> Option<&CachedPairRow<T, N>> {
+        let k = usize::from(*self.slot.get(pair)?);
+        self.entries.get(k)
+    }
+
+    fn insert(&mut self, pair: usize, row: CachedPairRow<T, N>) {
+        let (Some(slot), Ok(k)) = (self.slot.get_mut(pair), u16::try_from(self.entries.len())) else {
+            return;
+        };
+        if self.entries.push(row).is_ok() {
+            *slot = k;
+        }
+    }
+}
+
+/// The row of pair `pair` (as [`evaluate_pair`](super::evaluate_pair)`(..).row`, equal to rounding) written into
+/// `row` without the pair's intermediate results: the row Jacobian and the inverse reflected
+/// masses from `cache`, or from [`pair_kinematics`] (then cached), the force law (3.10) of
+/// `parameters` and the damping constant of (3.23) in the closed form
+/// `c = 2 ξ √(k / (m_i⁻¹ + m_j⁻¹))` (see [`pair_damping`](super::pair_damping)). The proximity must have a
+/// direction. On error `row` is unspecified.
+#[allow(clippy::too_many_arguments, reason = "the inputs of pair_kinematics, the force law and the cache")]
+fn pair_row_into<
+    T: RealField + Copy,
+    const N: usize,
+    const B: usize,
+    const F: usize,
+    const V: usize,
+    const P: usize,
+    const C: usize,
+>(
+    collision_model: &CollisionModel<T, V, P>,
+    collision: &CollisionData<T, V, P>,
+    model: &Model<T, N, B, F>,
+    data: &Data<T, N, B, F>,
+    factor: &PairFactor<'_, T, N>,
+    parameters: &CollisionParameters<T>,
+    pair: usize,
+    cache: &mut PairRowCache<T, N, P, C>,
+    row: &mut TaskRow<T, N>,
+) -> Result<(), TaskError> {
+    let invalid = TaskError::InvalidParameter { name: "pair" };
+    let proximity: &Proximity<T> = collision.proximities.get(pair).ok_or(invalid)?;
+    let d = proximity.distance;
+    let inverse_mass_sum = match cache.get(pair) {
+        Some(entry) => {
+            row.jacobian = entry.jacobian;
+            entry.inverse_mass_sum
+        }
+        None => {
+            let sum = pair_kinematics(collision_model, proximity, model, data, factor, pair, &mut row.jacobian)?;
+            cache.insert(pair, CachedPairRow { jacobian: row.jacobian, inverse_mass_sum: sum });
+            sum
+        }
+    };
+    let stiffness = parameters.stiffness(d);
+    let c = if stiffness > T::zero() && inverse_mass_sum > T::zero() {
+        convert::<f64, T>(2.0) * parameters.damping_ratio * sqrt(stiffness / inverse_mass_sum)
+    } else {
+        T::zero()
+    };
+    let rate = row.jacobian.as_slice().iter().zip(data.v.as_slice()).fold(T::zero(), |r, (&j, &v)| r + j * v);
+    row.force = parameters.force(d) - c * rate;
+    row.potential = parameters.potential(d);
+    row.activation = parameters.activation(d);
+    if !(row.force.is_finite() && row.potential.is_finite() && row.activation.is_finite()) {
+        return Err(TaskError::NonFinite);
+    }
+    Ok(())
+}
+
+/// [`pair_row_into`] returning the row.
+#[cfg(test)]
+#[allow(clippy::too_many_arguments, reason = "the inputs of pair_row_into")]
+pub(super) fn pair_row<
+    T: RealField + Copy,
+    const N: usize,
+    const B: usize,
+    const F: usize,
+    const V: usize,
+    const P: usize,
+    const C: usize,
+>(
+    collision_model: &CollisionModel<T, V, P>,
+    collision: &CollisionData<T, V, P>,
+    model: &Model<T, N, B, F>,
+    data: &Data<T, N, B, F>,
+    factor: &PairFactor<'_, T, N>,
+    parameters: &CollisionParameters<T>,
+    pair: usize,
+    cache: &mut PairRowCache<T, N, P, C>,
+) -> Result<TaskRow<T, N>, TaskError> {
+    let mut row =
+        TaskRow { jacobian: RowSVector::zeros(), force: T::zero(), potential: T::zero(), activation: T::zero() };
+    pair_row_into(collision_model, collision, model, data, factor, parameters, pair, cache, &mut row)?;
+    Ok(row)
+}
+
+/// The configuration-dependent part of pair `pair`'s row: the two projected Jacobians written in
+/// place ([`projected_jacobian_into`]), their difference written into `jacobian`, and the sum of
+/// both inverse reflected masses (3.20), returned: one forward substitution over the factor for
+/// both ([`inverse_reflected_masses`] on dense rows, [`TreeFactorization::inverse_reflected_masses`]
+/// on the tree factor); none for a world-fixed volume, whose mass is infinite. The proximity must have a direction.
+fn pair_kinematics<
+    T: RealField + Copy,
+    const N: usize,
+    const B: usize,
+    const F: usize,
+    const V: usize,
+    const P: usize,
+>(
+    collision_model: &CollisionModel<T, V, P>,
+    proximity: &Proximity<T>,
+    model: &Model<T, N, B, F>,
+    data: &Data<T, N, B, F>,
+    factor: &PairFactor<'_, T, N>,
+    pair: usize,
+    jacobian: &mut RowSVector<T, N>,
+) -> Result<T, TaskError> {
+    let invalid = TaskError::InvalidParameter { name: "pair" };
+    let &CollisionPair { first, second } = collision_model.pairs().get(pair).ok_or(invalid)?;
+    let (Some(a), Some(b)) = (collision_model.volume(first), collision_model.volume(second)) else {
+        return Err(invalid);
+    };
+    let e = proximity.direction.ok_or(TaskError::Singular)?.into_inner();
+    let mut jacobian_first = [T::zero(); N];
+    let mut jacobian_second = [T::zero(); N];
+    if let Some(body) = a.body {
+        projected_jacobian_into(model, data, body, &proximity.core_first, &e, &mut jacobian_first)?;
+    }
+    if let Some(body) = b.body {
+        projected_jacobian_into(model, data, body, &proximity.core_second, &e, &mut jacobian_second)?;
+    }
+    let inverse_mass_sum = match (a.body.is_some(), b.body.is_some(), factor) {
+        (true, true, PairFactor::Rows(rows)) => {
+            let [wi, wj] = inverse_reflected_masses(rows, [&jacobian_first, &jacobian_second])?;
+            wi + wj
+        }
+        (true, false, PairFactor::Rows(rows)) => inverse_reflected_masses(rows, [&jacobian_first])?[0],
+        (false, true, PairFactor::Rows(rows)) => inverse_reflected_masses(rows, [&jacobian_second])?[0],
+        (true, true, PairFactor::Tree(tree)) => {
+            let [wi, wj] = tree.inverse_reflected_masses([&jacobian_first, &jacobian_second]);
+            wi + wj
+        }
+        (true, false, PairFactor::Tree(tree)) => tree.inverse_reflected_masses([&jacobian_first])[0],
+        (false, true, PairFactor::Tree(tree)) => tree.inverse_reflected_masses([&jacobian_second])[0],
+        (false, false, _) => T::zero(),
+    };
+    // The difference and its finiteness in one pass (no early exit: a branch-free flag).
+    let mut finite = inverse_mass_sum.is_finite();
+    for ((x, &ji), &jj) in jacobian.as_mut_slice().iter_mut().zip(&jacobian_first).zip(&jacobian_second) {
+        let value = jj - ji;
+        finite &= value.is_finite();
+        *x = value;
+    }
+    if !finite {
+        return Err(TaskError::NonFinite);
+    }
+    Ok(inverse_mass_sum)
+}
+
+/// Puts `item` at node `root` of the binary max-heap `heap` (by distance, the farthest at the
+/// root), whose subtrees below `root` are heaps, and restores the order of that subtree: the
+/// larger child moves up into the hole until `item` is no closer than both children.
+/// O(log len).
+fn sift<T: RealField + Copy>(heap: &mut [(T, usize)], root: usize, item: (T, usize)) {
+    let mut hole = root;
+    for _ in 0..heap.len() {
+        let left = 2 * hole + 1;
+        let Some(&l) = heap.get(left) else { break };
+        let (child, c) = match heap.get(left + 1) {
+            Some(&r) if r.0 > l.0 => (left + 1, r),
+            _ => (left, l),
+        };
+        if c.0 <= item.0 {
+            break;
+        }
+        if let Some(h) = heap.get_mut(hole) {
+            *h = c;
+        }
+        hole = child;
+    }
+    if let Some(h) = heap.get_mut(hole) {
+        *h = item;
+    }
+}
+
+/// Orders `heap` as a binary max-heap by distance (the farthest at the root), O(len).
+fn heapify<T: RealField + Copy>(heap: &mut [(T, usize)]) {
+    for root in (0..heap.len() / 2).rev() {
+        if let Some(&item) = heap.get(root) {
+            sift(heap, root, item);
+        }
+    }
+}
+
+/// What [`self_collision_rows`] did in one cycle (telemetry).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CollisionReport<T> {
+    /// Pairs closer than [`CollisionParameters::emit_distance`].
+    pub candidates: usize,
+    /// Rows appended.
+    pub rows: usize,
+    /// Candidates left out because the row list was full (the farthest ones).
+    pub dropped: usize,
+    /// Candidates whose cores touch (no collision direction): deep penetration, left out.
+    pub undefined_direction: usize,
+    /// The smallest distance over all enabled pairs (m), `None` without pairs.
+    pub min_distance: Option<T>,
+}
+
+/// The self- and environment-collision avoidance rows of one control cycle (Sec. 3.1,
+/// n_sca contact-point pairs of (3.3)).
+///
+/// Updates the geometry ([`CollisionModel::update`]), selects the pairs closer than
+/// `max(d0, ϑ2)` — the closest ones if more than the free row capacity `R − rows.len()` —
+/// and appends one row per selected pair in pair order ([`evaluate_pair`](super::evaluate_pair)). Summed alone the
+/// rows give τ_sca of (3.2)/(3.24): `rows.torque()`.
+///
+/// Preconditions: `forward_kinematics` at `(q, q̇)`, then `crba` and the inertia factor `mass`
+/// ([`InertiaFactor`]: `mass_matrix_cholesky`'s dense factor, O(R·N²) for the reflected masses,
+/// or a [`TreeFactorization`], O(R·Σ depth) over the support paths).
+/// Writes `collision`; appends to `rows`. Cost O(V + P·R) plus the reflected masses. On error `rows` is
+/// unchanged (the geometry in `collision` is updated).
+pub fn self_collision_rows<
+    'm,
+    T: RealField + Copy,
+    const N: usize,
+    const B: usize,
+    const F: usize,
+    const V: usize,
+    const P: usize,
+    const R: usize,
+>(
+    collision_model: &CollisionModel<T, V, P>,
+    collision: &mut CollisionData<T, V, P>,
+    model: &Model<T, N, B, F>,
+    data: &Data<T, N, B, F>,
+    mass: impl Into<InertiaFactor<'m, T, N>>,
+    parameters: &CollisionParameters<T>,
+    rows: &mut TaskRows<T, N, R>,
+) -> Result<CollisionReport<T>, TaskError> {
+    collision_model.update(data, collision);
+    collision_rows_from_geometry(collision_model, collision, model, data, mass, parameters, rows)
+}
+
+/// [`self_collision_rows`] without the geometry update: selects and evaluates the pairs from
+/// the proximities already in `collision`, which must come from [`CollisionModel::update`]
+/// after the `forward_kinematics` of `data` (this cycle's). Gives exactly the rows and report
+/// of [`self_collision_rows`] then; lets several collision fields (the strong and the weak one
+/// of Fig. 6.3) share one geometry update per cycle, which is most of the cost of a field with
+/// few active pairs (214 pair distances for Justin).
+///
+/// ```
+/// # use kernel::dynamics::{crba, forward_kinematics, mass_matrix_cholesky};
+/// # use kernel::model::{Data, Inertia, JointDrive, JointKind, ModelBuilder, Placement};
+/// # use kernel::tasks::collision::{collision_rows_from_geometry, self_collision_rows,
+/// #     CollisionData, CollisionModelBuilder, CollisionParameters, SweptSphere};
+/// # use kernel::tasks::TaskRows;
+/// # use nalgebra::{SVector, Unit, Vector3};
+/// # let mut b = ModelBuilder::<f64, 1, 1, 1>::new(Vector3::zeros());
+/// # let slider = b.add_body(None, Placement::identity(),
+/// #     JointKind::Prismatic { axis: Unit::new_normalize(Vector3::x()) }, JointDrive::actuated(0),
+/// #     Inertia::point_mass(2.0, Vector3::zeros())).unwrap();
+/// # let robot = b.try_build().unwrap();
+/// # let mut c = CollisionModelBuilder::<f64, 2, 1>::new();
+/// # c.add_volume(Some(slider), SweptSphere::sphere(Vector3::zeros(), 0.1)).unwrap();
+/// # c.add_volume(None, SweptSphere::sphere(Vector3::new(0.3, 0.0, 0.0), 0.1)).unwrap();
+/// # let collision_model = c.try_build(&robot, &[]).unwrap();
+/// # let mut collision = CollisionData::new(&collision_model);
+/// # let mut data = Data::new(&robot);
+/// # forward_kinematics(&robot, &mut data, &SVector::zeros(), &SVector::zeros()).unwrap();
+/// # crba(&robot, &mut data);
+/// # let factor = mass_matrix_cholesky(&data).unwrap();
+/// let strong = CollisionParameters::try_new(150.0, 0.05, 0.7, 0.01, 0.05).unwrap();
+/// let weak = CollisionParameters::try_new(25.0, 0.15, 0.7, 0.0, 0.15).unwrap();
+/// let (mut a, mut b) = (TaskRows::<f64, 1, 4>::new(), TaskRows::<f64, 1, 4>::new());
+/// // First field: updates the geometry; second field: reuses it.
+/// self_collision_rows(&collision_model, &mut collision, &robot, &data, &factor, &strong, &mut a).unwrap();
+/// collision_rows_from_geometry(&collision_model, &collision, &robot, &data, &factor, &weak, &mut b).unwrap();
+/// let mut c = TaskRows::<f64, 1, 4>::new();
+/// self_collision_rows(&collision_model, &mut collision, &robot, &data, &factor, &weak, &mut c).unwrap();
+/// assert_eq!(b, c);
+/// ```
+pub fn collision_rows_from_geometry<
+    'm,
+    T: RealField + Copy,
+    const N: usize,
+    const B: usize,
+    const F: usize,
+    const V: usize,
+    const P: usize,
+    const R: usize,
+>(
+    collision_model: &CollisionModel<T, V, P>,
+    collision: &CollisionData<T, V, P>,
+    model: &Model<T, N, B, F>,
+    data: &Data<T, N, B, F>,
+    mass: impl Into<InertiaFactor<'m, T, N>>,
+    parameters: &CollisionParameters<T>,
+    rows: &mut TaskRows<T, N, R>,
+) -> Result<CollisionReport<T>, TaskError> {
+    let mut cache = PairRowCache::<T, N, P, R>::default();
+    collision_rows_shared(collision_model, collision, model, data, mass, parameters, &mut cache, rows)
+}
+
+/// [`collision_rows_from_geometry`] with the pair rows shared between fields through `cache`:
+/// a pair another field of this cycle already evaluated costs only its force law. `cache`
+/// must be cleared ([`PairRowCache::clear`]) whenever the geometry or the inertia factor
+/// change; with a cleared cache the rows are those of [`collision_rows_from_geometry`], and
+/// with a filled one they are equal to them (the same arithmetic).
+#[allow(clippy::too_many_arguments, reason = "the inputs of collision_rows_from_geometry and the cache")]
+pub fn collision_rows_shared<
+    'm,
+    T: RealField + Copy,
+    const N: usize,
+    const B: usize,
+    const F: usize,
+    const V: usize,
+    const P: usize,
+    const C: usize,
+    const R: usize,
+>(
+    collision_model: &CollisionModel<T, V, P>,
+    collision: &CollisionData<T, V, P>,
+    model: &Model<T, N, B, F>,
+    data: &Data<T, N, B, F>,
+    mass: impl Into<InertiaFactor<'m, T, N>>,
+    parameters: &CollisionParameters<T>,
+    cache: &mut PairRowCache<T, N, P, C>,
+    rows: &mut TaskRows<T, N, R>,
+) -> Result<CollisionReport<T>, TaskError> {
+    let free = R.saturating_sub(rows.len());
+    let limit = parameters.emit_distance();
+    let mut report = CollisionReport { candidates: 0, rows: 0, dropped: 0, undefined_direction: 0, min_distance: None };
+    // The `free` closest candidates `(distance, pair index)`: filled in pair order, then kept as
+    // a binary max-heap by distance whose root (the farthest) a closer candidate replaces,
+    // O(log R) per replacement.
+    let mut selected: Vec<(T, usize), R> = Vec::new();
+    let mut heap = false;
+    for (index, proximity) in collision.proximities.iter().take(collision_model.pairs().len()).enumerate() {
+        let d = proximity.distance;
+        if !d.is_finite() {
+            return Err(TaskError::NonFinite);
+        }
+        report.min_distance = Some(report.min_distance.map_or(d, |m: T| m.min(d)));
+        if d >= limit {
+            continue;
+        }
+        report.candidates += 1;
+        if proximity.direction.is_none() {
+            report.undefined_direction += 1;
+            continue;
+        }
+        if selected.len() < free {
+            let _ = selected.push((d, index));
+            continue;
+        }
+        report.dropped += 1;
+        if !heap {
+            heapify(&mut selected);
+            heap = true;
+        }
+        // A candidate at the root's distance stays out (the earlier pair is kept).
+        if selected.first().is_some_and(|root| d < root.0) {
+            sift(&mut selected, 0, (d, index));
+        }
+    }
+    // Rows in pair order: a pass over a membership mask of the pairs instead of a sort, whose
+    // ordering-violation panic path would survive in the image.
+    let mut chosen = [false; P];
+    for &(_, index) in &selected {
+        if let Some(flag) = chosen.get_mut(index) {
+            *flag = true;
+        }
+    }
+    // Each row is built in its slot of `rows`; on an error the rows appended here are removed.
+    if !selected.is_empty() {
+        let factor = match mass.into() {
+            InertiaFactor::Dense(cholesky) => PairFactor::Rows(factor_rows(cholesky)),
+            InertiaFactor::Tree(tree) => PairFactor::Tree(tree),
+        };
+        let start = rows.len();
+        for (index, _) in chosen.iter().enumerate().filter(|(_, &flag)| flag) {
+            let mut result = Ok(());
+            let pushed = rows.push_with(|row| {
+                result = pair_row_into(collision_model, collision, model, data, &factor, parameters, index, cache, row);
+            });
+            if let Err(e) = result.and(pushed) {
+                rows.truncate(start);
+                return Err(e);
+            }
+        }
+    }
+    report.rows = selected.len();
+    Ok(report)
+}
