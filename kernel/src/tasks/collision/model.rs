@@ -169,7 +169,7 @@ impl<T: RealField + Copy, const V: usize, const P: usize> CollisionModel<T, V, P
         // Each triangle's frame once per call, shared by all its pairs.
         for (frame, volume) in triangle_frames.iter_mut().zip(world_volumes.iter()) {
             if let Core::Triangle(_) = volume.core {
-                *frame = TriangleFrame::of(&volume.core);
+                *frame = volume.core.triangle_frame();
             }
         }
         for (pair, slot) in self.pairs.iter().zip(proximities.iter_mut()) {

@@ -7,7 +7,7 @@
 use heapless::Vec;
 use nalgebra::{convert, Cholesky, Const, RealField, RowSVector, SMatrix, Vector3};
 
-use super::CollisionParameters;
+use super::parameters::CollisionParameters;
 use crate::dynamics::{DynamicsError, InertiaFactor, TreeFactorization};
 use crate::math::sqrt;
 use crate::model::{BodyId, Data, Model};
@@ -225,7 +225,7 @@ fn pair_row_into<
     };
     let stiffness = parameters.stiffness(d);
     let c = if stiffness > T::zero() && inverse_mass_sum > T::zero() {
-        convert::<f64, T>(2.0) * parameters.damping_ratio * sqrt(stiffness / inverse_mass_sum)
+        convert::<f64, T>(2.0) * parameters.damping_ratio() * sqrt(stiffness / inverse_mass_sum)
     } else {
         T::zero()
     };

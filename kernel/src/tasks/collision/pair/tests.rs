@@ -5,7 +5,7 @@ use crate::dynamics::{crba, forward_kinematics, mass_matrix_cholesky, TreeFactor
 use crate::tasks::collision::{CollisionModelBuilder, SweptSphere};
 use crate::tasks::TaskRows;
 use crate::test_models::{branched, state, Branched, B, F, N};
-use nalgebra::Vector3;
+use nalgebra::{convert, Vector3};
 
 const V: usize = 6;
 const P: usize = 15;

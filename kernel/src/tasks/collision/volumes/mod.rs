@@ -33,8 +33,10 @@ use nalgebra::{convert, RealField, Unit, Vector3};
 use crate::math::spatial::Placement;
 use crate::math::sqrt;
 
+mod segment;
 mod triangle;
 
+use segment::{closest_on_segment, closest_segment_segment};
 pub(super) use triangle::TriangleFrame;
 use triangle::{closest_on_triangle, closest_segment_framed, closest_triangles_framed};
 #[cfg(test)]
@@ -52,6 +54,16 @@ pub enum Core<T: RealField> {
 }
 
 impl<T: RealField + Copy> Core<T> {
+    /// The frame of the core if it is a triangle, else [`TriangleFrame::placeholder`] (never
+    /// read: only a triangle core's frame is).
+    #[inline]
+    pub(in crate::tasks::collision) fn triangle_frame(&self) -> TriangleFrame<T> {
+        match self {
+            Self::Triangle(t) => TriangleFrame::new(t),
+            _ => TriangleFrame::placeholder(),
+        }
+    }
+
     /// The core mapped through `placement` (body frame → world frame).
     pub fn transformed(&self, placement: &Placement<T>) -> Self {
         let map = |p: &Vector3<T>| placement.rotation * p + placement.translation.vector;
@@ -178,11 +190,11 @@ pub fn direction_threshold<T: RealField + Copy>() -> T {
 /// assert!((p.direction.unwrap().into_inner() - Vector3::z()).norm() < 1e-15);
 /// ```
 pub fn proximity<T: RealField + Copy>(a: &SweptSphere<T>, b: &SweptSphere<T>) -> Proximity<T> {
-    let (fa, fb) = (TriangleFrame::of(&a.core), TriangleFrame::of(&b.core));
+    let (fa, fb) = (a.core.triangle_frame(), b.core.triangle_frame());
     proximity_framed(a, &fa, b, &fb)
 }
 
-/// [`proximity`] with the triangle frames of both cores given ([`TriangleFrame::of`], computed
+/// [`proximity`] with the triangle frames of both cores given ([`Core::triangle_frame`], computed
 /// once per volume and cycle and shared by all its pairs): the same operations, so the same
 /// result.
 pub(super) fn proximity_framed<T: RealField + Copy>(
@@ -202,10 +214,10 @@ pub(super) fn proximity_framed<T: RealField + Copy>(
 /// Closest points `(on a, on b)` of two cores in the same frame. Cost: bounded per kind, at most six
 /// piercing tests, six vertex projections and nine edge–edge tests (triangle–triangle).
 pub fn closest_points<T: RealField + Copy>(a: &Core<T>, b: &Core<T>) -> (Vector3<T>, Vector3<T>) {
-    closest_points_framed(a, &TriangleFrame::of(a), b, &TriangleFrame::of(b))
+    closest_points_framed(a, &a.triangle_frame(), b, &b.triangle_frame())
 }
 
-/// [`closest_points`] with the cores' triangle frames `fa`, `fb` ([`TriangleFrame::of`]; read
+/// [`closest_points`] with the cores' triangle frames `fa`, `fb` ([`Core::triangle_frame`]; read
 /// only for a triangle core).
 fn closest_points_framed<T: RealField + Copy>(
     a: &Core<T>,
@@ -225,101 +237,6 @@ fn closest_points_framed<T: RealField + Copy>(
         (Core::Triangle(_), Core::Segment([p, q])) => swap(closest_segment_framed(p, q, fa)),
         (Core::Triangle(_), Core::Triangle(_)) => closest_triangles_framed(fa, fb),
     }
-}
-
-/// A positive scalar far below any meaningful squared length (m²): `ε⁴` (5e-63 in `f64`,
-/// 2e-28 in `f32`, both representable). Guards the divisions by squared lengths.
-#[inline]
-fn negligible<T: RealField + Copy>() -> T {
-    let e = T::default_epsilon();
-    e * e * e * e
-}
-
-/// `value` clamped to `[0, 1]` (NaN maps to 0).
-#[inline]
-fn unit_clamp<T: RealField + Copy>(value: T) -> T {
-    if value > T::one() {
-        T::one()
-    } else if value > T::zero() {
-        value
-    } else {
-        T::zero()
-    }
-}
-
-/// Closest point to `p` on the segment `[a, b]`.
-fn closest_on_segment<T: RealField + Copy>(p: &Vector3<T>, a: &Vector3<T>, b: &Vector3<T>) -> Vector3<T> {
-    closest_on_edge(p, a, &(b - a), (b - a).norm_squared())
-}
-
-/// Closest point to `p` on the segment from `a` along `d` with `length2 = ‖d‖²`.
-#[inline]
-fn closest_on_edge<T: RealField + Copy>(p: &Vector3<T>, a: &Vector3<T>, d: &Vector3<T>, length2: T) -> Vector3<T> {
-    if length2 <= negligible::<T>() {
-        return *a;
-    }
-    a + d * unit_clamp((p - a).dot(d) / length2)
-}
-
-/// Closest points of the segments `[p1, q1]` and `[p2, q2]`.
-///
-/// Minimises `f(s, t) = ‖p1 + s d1 − p2 − t d2‖²` over `[0, 1]²`: the infinite lines' solution
-/// for `s`, clamped; the best `t` for it, clamped; the best `s` for that `t`, clamped (exact for
-/// this convex quadratic). Parallel segments (`a e − b² ≤ ε a e`) take the midpoint of the
-/// overlap of the projections (or the nearest end), zero-length ones the point.
-fn closest_segment_segment<T: RealField + Copy>(
-    p1: &Vector3<T>,
-    q1: &Vector3<T>,
-    p2: &Vector3<T>,
-    q2: &Vector3<T>,
-) -> (Vector3<T>, Vector3<T>) {
-    let (d1, d2) = (q1 - p1, q2 - p2);
-    let (a, e) = (d1.norm_squared(), d2.norm_squared());
-    closest_edge_edge(p1, &d1, a, p2, &d2, e)
-}
-
-/// [`closest_segment_segment`] of the segments from `p1` along `d1` and from `p2` along `d2`,
-/// with `a = ‖d1‖²` and `e = ‖d2‖²` given by the caller (computed once per edge).
-fn closest_edge_edge<T: RealField + Copy>(
-    p1: &Vector3<T>,
-    d1: &Vector3<T>,
-    a: T,
-    p2: &Vector3<T>,
-    d2: &Vector3<T>,
-    e: T,
-) -> (Vector3<T>, Vector3<T>) {
-    let r = p1 - p2;
-    let f = d2.dot(&r);
-    let eps = T::default_epsilon();
-    let tiny = eps * eps * (a + e + r.norm_squared()) + negligible::<T>();
-    let point1 = |s: T| p1 + d1 * s;
-    let point2 = |t: T| p2 + d2 * t;
-    match (a <= tiny, e <= tiny) {
-        (true, true) => return (*p1, *p2),
-        (true, false) => return (*p1, point2(unit_clamp(f / e))),
-        (false, true) => return (point1(unit_clamp(-d1.dot(&r) / a)), *p2),
-        (false, false) => {}
-    }
-    let (b, c) = (d1.dot(d2), d1.dot(&r));
-    let denominator = a * e - b * b;
-    let mut s = if denominator > eps * a * e {
-        unit_clamp((b * f - c * e) / denominator)
-    } else {
-        // Parallel: parameters of p2 and q2 projected onto the first segment.
-        let (sa, sb) = (-c / a, (b - c) / a);
-        let (lo, hi) = (sa.min(sb).max(T::zero()), sa.max(sb).min(T::one()));
-        if lo <= hi {
-            (lo + hi) * convert::<f64, T>(0.5)
-        } else {
-            unit_clamp(sa.min(sb))
-        }
-    };
-    let t_free = (b * s + f) / e;
-    let t = unit_clamp(t_free);
-    if t != t_free {
-        s = unit_clamp((b * t - c) / a);
-    }
-    (point1(s), point2(t))
 }
 
 #[cfg(test)]

@@ -4,7 +4,7 @@
 
 use nalgebra::{RealField, Vector3};
 
-use super::{closest_edge_edge, closest_on_edge, negligible, Core};
+use super::segment::{closest_edge_edge, closest_on_edge, negligible};
 use crate::math::sqrt;
 
 /// Normal `(b − a) × (c − a)` of a triangle if its area is not negligible against its size.
@@ -32,16 +32,6 @@ pub(in crate::tasks::collision) struct TriangleFrame<T: RealField> {
 }
 
 impl<T: RealField + Copy> TriangleFrame<T> {
-    /// The frame of `core` if it is a triangle, else [`Self::placeholder`] (never read: only a
-    /// triangle core's frame is).
-    #[inline]
-    pub(in crate::tasks::collision) fn of(core: &Core<T>) -> Self {
-        match core {
-            Core::Triangle(t) => Self::new(t),
-            _ => Self::placeholder(),
-        }
-    }
-
     /// The frame of the degenerate triangle at the origin.
     pub(in crate::tasks::collision) fn placeholder() -> Self {
         let zero = Vector3::zeros();
@@ -56,7 +46,7 @@ impl<T: RealField + Copy> TriangleFrame<T> {
         }
     }
 
-    fn new(t: &[Vector3<T>; 3]) -> Self {
+    pub(super) fn new(t: &[Vector3<T>; 3]) -> Self {
         let [a, b, c] = t;
         let edges = [b - a, c - b, a - c];
         let edge_length2 = edges.each_ref().map(|e| e.norm_squared());
