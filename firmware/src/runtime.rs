@@ -35,6 +35,8 @@ pub struct PeriodReport {
     pub link_fault: Option<LinkFault>,
     /// The output mode changed to this one.
     pub mode_change: Option<OutputMode>,
+    /// The kernel's fault code of the period's last step (`messages::fault_code`, 0 for none).
+    pub fault_code: u8,
     /// Statistics were sent.
     pub stats: Option<RuntimeStats>,
     /// Planner commands the controller rejected.
@@ -191,6 +193,7 @@ impl Runtime {
             self.mode = mode;
             report.mode_change = Some(mode);
         }
+        report.fault_code = fault_code(controller.telemetry().fault);
         let actuator = ActuatorMsg {
             cycle: frame.joints.cycle,
             torque: Joints::from_slice(&output.torque).unwrap_or_default(),
@@ -198,7 +201,7 @@ impl Runtime {
             leg_rates: output.platform.leg_rates,
             brake: output.brake,
             mode,
-            fault_code: fault_code(controller.telemetry().fault),
+            fault_code: report.fault_code,
             link_fault,
         };
         self.send(port, Payload::Actuator(actuator));

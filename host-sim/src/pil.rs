@@ -6,19 +6,21 @@
 //! with UART0 connected to it, and waits for the connection. [`Firmware::step`] sends one sensor
 //! frame and waits for the actuator frame of the same cycle: lockstep on simulated time,
 //! however slowly QEMU runs. An answer that does not come within the timeout is an error,
-//! never a hang. QEMU's semihosting log (faults, mode changes, statistics once per second) goes
-//! to `runtime.log` beside the image. Dropping the [`Firmware`] kills QEMU.
+//! never a hang. The image logs through defmt on QEMU's semihosting stdout (faults, mode changes,
+//! statistics once per second): a thread decodes it with the image's `.defmt` table
+//! (`defmt-decoder`), prints each line as `pil: firmware: …`, keeps it ([`Firmware::log_line`])
+//! and writes it to `runtime.log` beside the image. Dropping the [`Firmware`] kills QEMU.
 //!
 //! The run selects a target once ([`select`], the `--pil` option); [`crate::wbc::rig`] then
 //! attaches the firmware to the rig it builds.
 
 use std::fs::File;
-use std::io::BufReader;
+use std::io::{BufReader, Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command as Process, Stdio};
+use std::process::{Child, ChildStdout, Command as Process, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::OnceLock;
+use std::sync::{Arc, Mutex, OnceLock};
 use std::time::{Duration, Instant};
 
 use embedded_io_adapters::std::FromStd;
@@ -129,6 +131,8 @@ pub struct Firmware {
     reader: FrameReader,
     seq: u32,
     timeout: Duration,
+    /// The decoded defmt log lines so far.
+    log: Arc<Mutex<Vec<String>>>,
     /// The firmware's latest statistics frame.
     pub stats: Option<RuntimeStats>,
 }
@@ -145,17 +149,18 @@ impl Firmware {
         let port = listener.local_addr().map_err(|e| format!("listen: {e}"))?.port();
         let log_path = elf.with_file_name("runtime.log");
         let log = File::create(&log_path).map_err(|e| format!("{}: {e}", log_path.display()))?;
-        let qemu = Process::new("qemu-system-arm")
+        let mut qemu = Process::new("qemu-system-arm")
             .args(["-machine", target.machine(), "-display", "none", "-monitor", "none", "-serial"])
             .arg(format!("tcp:127.0.0.1:{port}"))
             .args(["-semihosting-config", "enable=on,target=native", "-kernel"])
             .arg(&elf)
             .stdin(Stdio::null())
-            .stdout(log)
+            .stdout(Stdio::piped())
             .stderr(Stdio::inherit())
             .spawn()
             .map_err(|e| format!("qemu-system-arm: {e}"))?;
-        let mut firmware = Self::connect(target, qemu, &listener, timeout)?;
+        let log = decode_log(&elf, &mut qemu, log)?;
+        let mut firmware = Self::connect(target, qemu, &listener, timeout, log)?;
         firmware.qemu_alive()?;
         STARTED.store(true, Ordering::Relaxed);
         eprintln!("pil: {} on QEMU {} connected (log: {})", target.label(), target.machine(), log_path.display());
@@ -163,7 +168,13 @@ impl Firmware {
     }
 
     /// Waits for QEMU to connect its UART to `listener`.
-    fn connect(target: Target, mut qemu: Child, listener: &TcpListener, timeout: Duration) -> Result<Self, String> {
+    fn connect(
+        target: Target,
+        mut qemu: Child,
+        listener: &TcpListener,
+        timeout: Duration,
+        log: Arc<Mutex<Vec<String>>>,
+    ) -> Result<Self, String> {
         listener.set_nonblocking(true).map_err(|e| format!("listen: {e}"))?;
         let start = Instant::now();
         let stream = loop {
@@ -197,6 +208,7 @@ impl Firmware {
             reader: FrameReader::new(),
             seq: 0,
             timeout,
+            log,
             stats: None,
         })
     }
@@ -204,6 +216,19 @@ impl Firmware {
     /// The target the image was built for.
     pub fn target(&self) -> Target {
         self.target
+    }
+
+    /// The first decoded log line (`<s.ms> <LEVEL> <message>`) that contains `text`, waiting up
+    /// to `within` for it (the firmware logs after it answers a frame); `None` if none came.
+    pub fn log_line(&self, text: &str, within: Duration) -> Option<String> {
+        let deadline = Instant::now() + within;
+        loop {
+            let found = self.log.lock().ok()?.iter().find(|line| line.contains(text)).cloned();
+            if found.is_some() || Instant::now() > deadline {
+                return found;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
     }
 
     /// The QEMU process id (to stop it in tests).
@@ -305,6 +330,45 @@ impl Drop for Firmware {
     fn drop(&mut self) {
         let _ = self.qemu.kill();
         let _ = self.qemu.wait();
+    }
+}
+
+/// Starts a thread that decodes the defmt frames on QEMU's stdout with `elf`'s `.defmt` table;
+/// each line is printed, written to `file` and kept in the returned list.
+fn decode_log(elf: &Path, qemu: &mut Child, file: File) -> Result<Arc<Mutex<Vec<String>>>, String> {
+    let bytes = std::fs::read(elf).map_err(|e| format!("{}: {e}", elf.display()))?;
+    let table = defmt_decoder::Table::parse(&bytes)
+        .map_err(|e| format!("defmt table of {}: {e}", elf.display()))?
+        .ok_or_else(|| format!("{} has no defmt table", elf.display()))?;
+    let stdout = qemu.stdout.take().ok_or("QEMU's stdout is not piped")?;
+    let lines = Arc::new(Mutex::new(Vec::new()));
+    let kept = Arc::clone(&lines);
+    std::thread::spawn(move || print_log(&table, stdout, file, &kept));
+    Ok(lines)
+}
+
+/// Decodes `stdout` until QEMU closes it.
+fn print_log(table: &defmt_decoder::Table, mut stdout: ChildStdout, mut file: File, lines: &Mutex<Vec<String>>) {
+    let mut decoder = table.new_stream_decoder();
+    let mut chunk = [0u8; 1024];
+    while let Ok(n @ 1..) = stdout.read(&mut chunk) {
+        decoder.received(chunk.get(..n).unwrap_or_default());
+        loop {
+            let line = match decoder.decode() {
+                Ok(frame) => frame.display(false).to_string(),
+                // rzcobs (the default) drops the bad frame; the raw encoding cannot resynchronise.
+                Err(defmt_decoder::DecodeError::Malformed) if table.encoding().can_recover() => {
+                    "(malformed defmt frame)".to_string()
+                }
+                Err(defmt_decoder::DecodeError::Malformed) => return,
+                Err(defmt_decoder::DecodeError::UnexpectedEof) => break,
+            };
+            eprintln!("pil: firmware: {line}");
+            let _ = writeln!(file, "{line}");
+            if let Ok(mut lines) = lines.lock() {
+                lines.push(line);
+            }
+        }
     }
 }
 
