@@ -1,10 +1,11 @@
 //! The control image: Justin's whole-body controller (`f32`, `controller_config`, Fig. 6.3
-//! hierarchy for the right hand) at 1 kHz on the SysTick tick, sensor and actuator frames on
-//! UART0 (`firmware::runtime`). Logs through defmt, its frames on semihosting stdout (the host
-//! decodes them with the image's `.defmt` table: `host-sim`'s PIL, or `defmt-print -e`): link
-//! faults, output mode changes, and once per second the cycles run, deadline misses and the
-//! worst cycle's cost; timestamps are control ticks (ms). Runs until the board is reset (QEMU:
-//! killed); a panic is logged and ends the QEMU run as a failure.
+//! hierarchy for the right hand) at 1 kHz on the SysTick tick, the robot behind UART0 through
+//! the `hal` traits (`firmware::serial_robot`: sensor and actuator frames of the `link` crate).
+//! Logs through defmt, its frames on semihosting stdout (the host decodes them with the image's
+//! `.defmt` table: `host-sim`'s PIL, or `defmt-print -e`): link faults, output mode changes, and
+//! once per second the cycles run, deadline misses and the worst cycle's cost; timestamps are
+//! control ticks (ms). Runs until the board is reset (QEMU: killed); a panic is logged and ends
+//! the QEMU run as a failure.
 #![no_std]
 #![no_main]
 
@@ -15,7 +16,7 @@ use cortex_m_rt::entry;
 use cortex_m_semihosting::debug;
 use defmt_semihosting as _;
 use firmware::board::{self, Stopwatch};
-use firmware::runtime::{Controller, PeriodReport, Runtime};
+use firmware::runtime::{Controller, PeriodReport, Robot, Runtime};
 use fixtures::justin::{self, whole_body};
 use kernel::controller::config::Hand;
 
@@ -86,8 +87,8 @@ fn main() -> ! {
         exit_failure()
     };
     let Some(peripherals) = cortex_m::Peripherals::take() else { exit_failure() };
-    let mut port = board::uart0();
-    let mut runtime = Runtime::new(WATCHDOG_PERIODS);
+    let mut robot = Robot::new(board::uart0(), WATCHDOG_PERIODS);
+    let mut runtime = Runtime::new();
     let _systick = board::start_ticks(peripherals.SYST);
     defmt::info!("runtime: {=u32} Hz, UART0 at {=usize:#x}", board::TICK_HZ, board::UART0_BASE);
     let mut seen = board::ticks();
@@ -96,7 +97,7 @@ fn main() -> ! {
         let missed = now.wrapping_sub(seen).saturating_sub(1);
         seen = now;
         let stopwatch = Stopwatch::start();
-        let report = runtime.period(&mut port, controller, missed, || board::ticks() != now);
+        let report = runtime.period(&mut robot, controller, missed, || board::ticks() != now);
         if report.steps > 0 {
             runtime.record_cost(stopwatch.elapsed());
         }
