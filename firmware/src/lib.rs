@@ -7,11 +7,14 @@
 //!   link, on any `embedded-io` port.
 //! - [`uart`]: the CMSDK APB UART of the MPS2 boards behind `embedded-io`.
 //! - [`board`]: the QEMU MPS2 boards: UART0 and the SysTick control tick.
+//! - [`probe`]: region markers (the runtime's step is region 0) and stack painting of the
+//!   measuring images (`wcet/README.md`).
 //!
 //! The images are thin binaries in `src/bin/` (`runtime.rs` is the control loop).
 #![no_std]
 
 pub mod board;
+pub mod probe;
 pub mod runtime;
 pub mod serial_robot;
 pub mod uart;

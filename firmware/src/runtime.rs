@@ -19,6 +19,7 @@ use kernel::controller::messages::{fault_code, TelemetryMessage};
 use kernel::controller::SensorFrame;
 use link::{LinkFault, OutputMode, Payload, RuntimeStats, MAX_MESSAGE_BYTES};
 
+use crate::probe;
 use crate::serial_robot::{OutputStatus, Received, SerialRobot};
 
 /// The controller the images run: Justin's whole-body controller in `f32`.
@@ -177,7 +178,10 @@ impl Runtime {
     ) where
         P: embedded_io::Read + embedded_io::ReadReady + embedded_io::Write,
     {
+        // Region 0 of the counting plugin (`wcet/wcet_insn.c`): a NOP pair on the board.
+        probe::mark_begin::<0>();
         let output = *controller.step(frame);
+        probe::mark_end::<0>();
         self.stats.cycles += 1;
         report.steps += 1;
         let mode = match output.mode {

@@ -9,7 +9,11 @@
 //! never a hang. The image logs through defmt on QEMU's semihosting stdout (faults, mode changes,
 //! statistics once per second): a thread decodes it with the image's `.defmt` table
 //! (`defmt-decoder`), prints each line as `pil: firmware: …`, keeps it ([`Firmware::log_line`])
-//! and writes it to `runtime.log` beside the image. Dropping the [`Firmware`] kills QEMU.
+//! and writes it to `runtime.log` beside the image. With `PIL_PLUGIN` naming a build of the
+//! counting plugin (`firmware/wcet/wcet_insn.c`, `firmware/wcet/build_plugin.sh`), QEMU loads
+//! it and counts the instructions of every controller step of the image (region 0 of its
+//! markers) into `step-counts.txt` beside the image ([`Firmware::step_counts`]). Dropping the
+//! [`Firmware`] kills QEMU.
 //!
 //! The run selects a target once ([`select`], the `--pil` option); [`crate::wbc::rig`] then
 //! attaches the firmware to the rig it builds.
@@ -131,6 +135,8 @@ pub struct Firmware {
     reader: FrameReader,
     seq: u32,
     timeout: Duration,
+    /// The counting plugin's output file, when the plugin is loaded.
+    counts: Option<PathBuf>,
     /// The decoded defmt log lines so far.
     log: Arc<Mutex<Vec<String>>>,
     /// The firmware's latest statistics frame.
@@ -149,7 +155,16 @@ impl Firmware {
         let port = listener.local_addr().map_err(|e| format!("listen: {e}"))?.port();
         let log_path = elf.with_file_name("runtime.log");
         let log = File::create(&log_path).map_err(|e| format!("{}: {e}", log_path.display()))?;
-        let mut qemu = Process::new("qemu-system-arm")
+        let counts = std::env::var_os("PIL_PLUGIN").map(|plugin| (plugin, elf.with_file_name("step-counts.txt")));
+        let mut qemu = Process::new("qemu-system-arm");
+        if let Some((plugin, file)) = &counts {
+            let _ = std::fs::remove_file(file);
+            let mut argument = plugin.clone();
+            argument.push(",out=");
+            argument.push(file);
+            qemu.arg("-plugin").arg(argument);
+        }
+        let mut qemu = qemu
             .args(["-machine", target.machine(), "-display", "none", "-monitor", "none", "-serial"])
             .arg(format!("tcp:127.0.0.1:{port}"))
             .args(["-semihosting-config", "enable=on,target=native", "-kernel"])
@@ -161,6 +176,7 @@ impl Firmware {
             .map_err(|e| format!("qemu-system-arm: {e}"))?;
         let log = decode_log(&elf, &mut qemu, log)?;
         let mut firmware = Self::connect(target, qemu, &listener, timeout, log)?;
+        firmware.counts = counts.map(|(_, file)| file);
         firmware.qemu_alive()?;
         STARTED.store(true, Ordering::Relaxed);
         eprintln!("pil: {} on QEMU {} connected (log: {})", target.label(), target.machine(), log_path.display());
@@ -208,6 +224,7 @@ impl Firmware {
             reader: FrameReader::new(),
             seq: 0,
             timeout,
+            counts: None,
             log,
             stats: None,
         })
@@ -229,6 +246,14 @@ impl Firmware {
             }
             std::thread::sleep(Duration::from_millis(20));
         }
+    }
+
+    /// The instruction counts of the controller steps run so far, when the counting plugin is
+    /// loaded (`PIL_PLUGIN`).
+    pub fn step_counts(&self) -> Result<Option<StepCounts>, String> {
+        let Some(file) = &self.counts else { return Ok(None) };
+        let text = std::fs::read_to_string(file).map_err(|e| format!("{}: {e}", file.display()))?;
+        Ok(StepCounts::parse(&text))
     }
 
     /// The QEMU process id (to stop it in tests).
@@ -333,6 +358,33 @@ impl Drop for Firmware {
     }
 }
 
+/// Instructions per controller step of the firmware (QEMU counting plugin).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StepCounts {
+    /// Steps counted.
+    pub steps: usize,
+    /// The median step's instructions.
+    pub median: u64,
+    /// The most expensive step's instructions.
+    pub max: u64,
+}
+
+impl StepCounts {
+    /// The counts of the plugin's region-0 sample lines (`wcet region=0 sample=K insns=X …`);
+    /// `None` without any.
+    pub fn parse(text: &str) -> Option<Self> {
+        let mut counts: Vec<u64> = text
+            .lines()
+            .filter_map(|line| line.strip_prefix("wcet region=0 sample="))
+            .filter_map(|rest| rest.split_whitespace().find_map(|field| field.strip_prefix("insns=")))
+            .filter_map(|insns| insns.parse().ok())
+            .collect();
+        counts.sort_unstable();
+        let median = *counts.get((counts.len().checked_sub(1)?) / 2)?;
+        Some(Self { steps: counts.len(), median, max: *counts.last()? })
+    }
+}
+
 /// Starts a thread that decodes the defmt frames on QEMU's stdout with `elf`'s `.defmt` table;
 /// each line is printed, written to `file` and kept in the returned list.
 fn decode_log(elf: &Path, qemu: &mut Child, file: File) -> Result<Arc<Mutex<Vec<String>>>, String> {
@@ -408,4 +460,21 @@ fn actuator_frame(answer: &ActuatorMsg) -> Result<ActuatorFrame<f64, U>, String>
             OutputMode::Brake => SafeOutput::Brake,
         },
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::StepCounts;
+
+    #[test]
+    fn step_counts_are_read_from_the_plugins_region_0_samples() {
+        let text = "wcet region=0 sample=0 insns=300 fp_div_sqrt=4\n\
+                    wcet region=1 sample=0 insns=9999 fp_div_sqrt=0\n\
+                    wcet region=0 sample=1 insns=100 fp_div_sqrt=2\n\
+                    wcet region=0 sample=2 insns=200 fp_div_sqrt=3\n\
+                    wcet region=0 sample=3 insns=400 fp_div_sqrt=5\n\
+                    wcet SUMMARY region=0 samples=4 min=100 max=400 mean=250.0 spread=300\n";
+        assert_eq!(StepCounts::parse(text), Some(StepCounts { steps: 4, median: 200, max: 400 }));
+        assert_eq!(StepCounts::parse("wcet total guest insns=5\n"), None);
+    }
 }
