@@ -23,9 +23,10 @@ step() { printf '\n==> %s   [%s free]\n' "$*" "$(df -h --output=avail . | tail -
 step "toolchain set-up"
 rustup target add thumbv7em-none-eabihf >/dev/null
 rustup component add clippy rustfmt >/dev/null 2>&1 || true
-if ! command -v qemu-system-arm >/dev/null; then
+# gcc builds the QEMU counting plugin of the PIL test (firmware/wcet/build_plugin.sh).
+if ! command -v qemu-system-arm >/dev/null || ! command -v gcc >/dev/null; then
     export DEBIAN_FRONTEND=noninteractive
-    apt-get update -qq && apt-get install -y -qq qemu-system-arm >/dev/null
+    apt-get update -qq && apt-get install -y -qq qemu-system-arm gcc >/dev/null
 fi
 
 step "formatting (rustfmt.toml) of the workspace, the firmware and its host bench"
@@ -72,7 +73,7 @@ RUSTDOCFLAGS="-D warnings" cargo doc --locked --workspace --no-deps
 step "workspace tests"
 cargo test --locked --workspace
 
-step "processor in the loop (runtime image on QEMU Cortex-M7: 300 cycles, link-fault injection)"
+step "processor in the loop (runtime image on QEMU Cortex-M7: 300 cycles with the defmt log and instruction counts, link-fault injection)"
 cargo test --locked -p host-sim --test pil_rig --test pil_link_faults -- --ignored --test-threads 1
 
 step "replay.html in headless Chromium (replay/README.md)"

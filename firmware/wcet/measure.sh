@@ -23,13 +23,8 @@ if ! command -v qemu-system-arm >/dev/null || ! command -v gcc >/dev/null; then
     export DEBIAN_FRONTEND=noninteractive
     apt-get update -qq && apt-get install -y -qq qemu-system-arm gcc >/dev/null
 fi
-# The plugin declares the QEMU plugin API itself: no glib or qemu headers needed.
-qemu_major=$(qemu-system-arm --version | sed -n 's/.*version \([0-9]*\)\..*/\1/p' | head -n1)
-api=""
-if [ "${qemu_major:-7}" -ge 9 ]; then api="-DQEMU_PLUGIN_API_VERSION=3"; fi
 plugin="$out/wcet_insn.so"
-# shellcheck disable=SC2086
-gcc -O2 -shared -fPIC -fvisibility=hidden $api -o "$plugin" "$here/wcet_insn.c"
+bash "$here/build_plugin.sh" "$plugin"
 
 # --- build and run --------------------------------------------------------------------------
 # VARIANTS="m7-f32" limits the run to some variants (default: all three).

@@ -367,6 +367,9 @@ EXPORT int qemu_plugin_install(qemu_plugin_id_t id, const qemu_info_t *info, int
                 perror(argv[i] + 4);
                 return -1;
             }
+            /* Each sample line is in the file when its region ends: a PIL run reads the file
+             * while QEMU runs, and QEMU may be killed rather than exit. */
+            setvbuf(out, NULL, _IOLBF, 0);
         } else if (strcmp(argv[i], "each=off") == 0) {
             each = false;
         } else if (strcmp(argv[i], "hist=on") == 0) {

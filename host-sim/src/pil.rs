@@ -6,19 +6,25 @@
 //! with UART0 connected to it, and waits for the connection. [`Firmware::step`] sends one sensor
 //! frame and waits for the actuator frame of the same cycle: lockstep on simulated time,
 //! however slowly QEMU runs. An answer that does not come within the timeout is an error,
-//! never a hang. QEMU's semihosting log (faults, mode changes, statistics once per second) goes
-//! to `runtime.log` beside the image. Dropping the [`Firmware`] kills QEMU.
+//! never a hang. The image logs through defmt on QEMU's semihosting stdout (faults, mode changes,
+//! statistics once per second): a thread decodes it with the image's `.defmt` table
+//! (`defmt-decoder`), prints each line as `pil: firmware: …`, keeps it ([`Firmware::log_line`])
+//! and writes it to `runtime.log` beside the image. With `PIL_PLUGIN` naming a build of the
+//! counting plugin (`firmware/wcet/wcet_insn.c`, `firmware/wcet/build_plugin.sh`), QEMU loads
+//! it and counts the instructions of every controller step of the image (region 0 of its
+//! markers) into `step-counts.txt` beside the image ([`Firmware::step_counts`]). Dropping the
+//! [`Firmware`] kills QEMU.
 //!
 //! The run selects a target once ([`select`], the `--pil` option); [`crate::wbc::rig`] then
 //! attaches the firmware to the rig it builds.
 
 use std::fs::File;
-use std::io::BufReader;
+use std::io::{BufReader, Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command as Process, Stdio};
+use std::process::{Child, ChildStdout, Command as Process, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::OnceLock;
+use std::sync::{Arc, Mutex, OnceLock};
 use std::time::{Duration, Instant};
 
 use embedded_io_adapters::std::FromStd;
@@ -129,6 +135,10 @@ pub struct Firmware {
     reader: FrameReader,
     seq: u32,
     timeout: Duration,
+    /// The counting plugin's output file, when the plugin is loaded.
+    counts: Option<PathBuf>,
+    /// The decoded defmt log lines so far.
+    log: Arc<Mutex<Vec<String>>>,
     /// The firmware's latest statistics frame.
     pub stats: Option<RuntimeStats>,
 }
@@ -145,17 +155,28 @@ impl Firmware {
         let port = listener.local_addr().map_err(|e| format!("listen: {e}"))?.port();
         let log_path = elf.with_file_name("runtime.log");
         let log = File::create(&log_path).map_err(|e| format!("{}: {e}", log_path.display()))?;
-        let qemu = Process::new("qemu-system-arm")
+        let counts = std::env::var_os("PIL_PLUGIN").map(|plugin| (plugin, elf.with_file_name("step-counts.txt")));
+        let mut qemu = Process::new("qemu-system-arm");
+        if let Some((plugin, file)) = &counts {
+            let _ = std::fs::remove_file(file);
+            let mut argument = plugin.clone();
+            argument.push(",out=");
+            argument.push(file);
+            qemu.arg("-plugin").arg(argument);
+        }
+        let mut qemu = qemu
             .args(["-machine", target.machine(), "-display", "none", "-monitor", "none", "-serial"])
             .arg(format!("tcp:127.0.0.1:{port}"))
             .args(["-semihosting-config", "enable=on,target=native", "-kernel"])
             .arg(&elf)
             .stdin(Stdio::null())
-            .stdout(log)
+            .stdout(Stdio::piped())
             .stderr(Stdio::inherit())
             .spawn()
             .map_err(|e| format!("qemu-system-arm: {e}"))?;
-        let mut firmware = Self::connect(target, qemu, &listener, timeout)?;
+        let log = decode_log(&elf, &mut qemu, log)?;
+        let mut firmware = Self::connect(target, qemu, &listener, timeout, log)?;
+        firmware.counts = counts.map(|(_, file)| file);
         firmware.qemu_alive()?;
         STARTED.store(true, Ordering::Relaxed);
         eprintln!("pil: {} on QEMU {} connected (log: {})", target.label(), target.machine(), log_path.display());
@@ -163,7 +184,13 @@ impl Firmware {
     }
 
     /// Waits for QEMU to connect its UART to `listener`.
-    fn connect(target: Target, mut qemu: Child, listener: &TcpListener, timeout: Duration) -> Result<Self, String> {
+    fn connect(
+        target: Target,
+        mut qemu: Child,
+        listener: &TcpListener,
+        timeout: Duration,
+        log: Arc<Mutex<Vec<String>>>,
+    ) -> Result<Self, String> {
         listener.set_nonblocking(true).map_err(|e| format!("listen: {e}"))?;
         let start = Instant::now();
         let stream = loop {
@@ -197,6 +224,8 @@ impl Firmware {
             reader: FrameReader::new(),
             seq: 0,
             timeout,
+            counts: None,
+            log,
             stats: None,
         })
     }
@@ -204,6 +233,27 @@ impl Firmware {
     /// The target the image was built for.
     pub fn target(&self) -> Target {
         self.target
+    }
+
+    /// The first decoded log line (`<s.ms> <LEVEL> <message>`) that contains `text`, waiting up
+    /// to `within` for it (the firmware logs after it answers a frame); `None` if none came.
+    pub fn log_line(&self, text: &str, within: Duration) -> Option<String> {
+        let deadline = Instant::now() + within;
+        loop {
+            let found = self.log.lock().ok()?.iter().find(|line| line.contains(text)).cloned();
+            if found.is_some() || Instant::now() > deadline {
+                return found;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    /// The instruction counts of the controller steps run so far, when the counting plugin is
+    /// loaded (`PIL_PLUGIN`).
+    pub fn step_counts(&self) -> Result<Option<StepCounts>, String> {
+        let Some(file) = &self.counts else { return Ok(None) };
+        let text = std::fs::read_to_string(file).map_err(|e| format!("{}: {e}", file.display()))?;
+        Ok(StepCounts::parse(&text))
     }
 
     /// The QEMU process id (to stop it in tests).
@@ -308,6 +358,72 @@ impl Drop for Firmware {
     }
 }
 
+/// Instructions per controller step of the firmware (QEMU counting plugin).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StepCounts {
+    /// Steps counted.
+    pub steps: usize,
+    /// The median step's instructions.
+    pub median: u64,
+    /// The most expensive step's instructions.
+    pub max: u64,
+}
+
+impl StepCounts {
+    /// The counts of the plugin's region-0 sample lines (`wcet region=0 sample=K insns=X …`);
+    /// `None` without any.
+    pub fn parse(text: &str) -> Option<Self> {
+        let mut counts: Vec<u64> = text
+            .lines()
+            .filter_map(|line| line.strip_prefix("wcet region=0 sample="))
+            .filter_map(|rest| rest.split_whitespace().find_map(|field| field.strip_prefix("insns=")))
+            .filter_map(|insns| insns.parse().ok())
+            .collect();
+        counts.sort_unstable();
+        let median = *counts.get((counts.len().checked_sub(1)?) / 2)?;
+        Some(Self { steps: counts.len(), median, max: *counts.last()? })
+    }
+}
+
+/// Starts a thread that decodes the defmt frames on QEMU's stdout with `elf`'s `.defmt` table;
+/// each line is printed, written to `file` and kept in the returned list.
+fn decode_log(elf: &Path, qemu: &mut Child, file: File) -> Result<Arc<Mutex<Vec<String>>>, String> {
+    let bytes = std::fs::read(elf).map_err(|e| format!("{}: {e}", elf.display()))?;
+    let table = defmt_decoder::Table::parse(&bytes)
+        .map_err(|e| format!("defmt table of {}: {e}", elf.display()))?
+        .ok_or_else(|| format!("{} has no defmt table", elf.display()))?;
+    let stdout = qemu.stdout.take().ok_or("QEMU's stdout is not piped")?;
+    let lines = Arc::new(Mutex::new(Vec::new()));
+    let kept = Arc::clone(&lines);
+    std::thread::spawn(move || print_log(&table, stdout, file, &kept));
+    Ok(lines)
+}
+
+/// Decodes `stdout` until QEMU closes it.
+fn print_log(table: &defmt_decoder::Table, mut stdout: ChildStdout, mut file: File, lines: &Mutex<Vec<String>>) {
+    let mut decoder = table.new_stream_decoder();
+    let mut chunk = [0u8; 1024];
+    while let Ok(n @ 1..) = stdout.read(&mut chunk) {
+        decoder.received(chunk.get(..n).unwrap_or_default());
+        loop {
+            let line = match decoder.decode() {
+                Ok(frame) => frame.display(false).to_string(),
+                // rzcobs (the default) drops the bad frame; the raw encoding cannot resynchronise.
+                Err(defmt_decoder::DecodeError::Malformed) if table.encoding().can_recover() => {
+                    "(malformed defmt frame)".to_string()
+                }
+                Err(defmt_decoder::DecodeError::Malformed) => return,
+                Err(defmt_decoder::DecodeError::UnexpectedEof) => break,
+            };
+            eprintln!("pil: firmware: {line}");
+            let _ = writeln!(file, "{line}");
+            if let Ok(mut lines) = lines.lock() {
+                lines.push(line);
+            }
+        }
+    }
+}
+
 /// The sensor frame in `f32` (the joint cycle counter is sent; the controller checks both).
 pub fn sensor_message(frame: &SensorFrame<f64, U>) -> Result<SensorMsg, String> {
     let narrow = |v: &[f64; U]| v.map(|x| x as f32);
@@ -344,4 +460,21 @@ fn actuator_frame(answer: &ActuatorMsg) -> Result<ActuatorFrame<f64, U>, String>
             OutputMode::Brake => SafeOutput::Brake,
         },
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::StepCounts;
+
+    #[test]
+    fn step_counts_are_read_from_the_plugins_region_0_samples() {
+        let text = "wcet region=0 sample=0 insns=300 fp_div_sqrt=4\n\
+                    wcet region=1 sample=0 insns=9999 fp_div_sqrt=0\n\
+                    wcet region=0 sample=1 insns=100 fp_div_sqrt=2\n\
+                    wcet region=0 sample=2 insns=200 fp_div_sqrt=3\n\
+                    wcet region=0 sample=3 insns=400 fp_div_sqrt=5\n\
+                    wcet SUMMARY region=0 samples=4 min=100 max=400 mean=250.0 spread=300\n";
+        assert_eq!(StepCounts::parse(text), Some(StepCounts { steps: 4, median: 200, max: 400 }));
+        assert_eq!(StepCounts::parse("wcet total guest insns=5\n"), None);
+    }
 }

@@ -298,7 +298,8 @@ impl Rig {
     }
 
     /// Records which controller ran (`"host f64"` or the firmware's label) and, with the
-    /// firmware, the torque difference to the host controller and the firmware's statistics.
+    /// firmware, the torque difference to the host controller, the firmware's statistics and,
+    /// with the counting plugin loaded, the instructions per step (max, median).
     pub fn describe_controller(&self, summary: &mut Summary) {
         let Some(firmware) = &self.firmware else {
             summary.value("controller", "host f64");
@@ -312,6 +313,16 @@ impl Rig {
                 .value("firmware_deadline_misses", stats.deadline_misses)
                 .value("firmware_worst_cycle_clock_cycles", stats.worst_cycle_cost)
                 .value("firmware_link_faults", stats.link_faults);
+        }
+        match firmware.step_counts() {
+            Ok(Some(counts)) => {
+                summary
+                    .value("firmware_step_instructions_max", counts.max)
+                    .value("firmware_step_instructions_median", counts.median)
+                    .value("firmware_steps_counted", counts.steps);
+            }
+            Ok(None) => {}
+            Err(e) => eprintln!("pil: no instruction counts: {e}"),
         }
     }
 

@@ -1,11 +1,11 @@
 //! The firmware image under QEMU (Cortex-M7) refuses every kind of bad link input with a typed
-//! link fault and the controller's safe output, recovers after the controller's recovery wait
+//! link fault (also in its decoded defmt log) and the controller's safe output, recovers after the controller's recovery wait
 //! (`valid_cycles` valid frames, [`kernel::controller::recovery`]), and a
 //! firmware that stops answering is a timeout on the host. Needs `qemu-system-arm` and builds
 //! the image: run by `.ci/test.sh` (`--ignored`).
 #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
 
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use fixtures::justin;
 use hal::{JointTorqueInterface, PlatformVelocityInterface};
@@ -56,6 +56,9 @@ fn bad_link_input_gives_a_typed_fault_and_the_safe_output() {
     corrupted[40] ^= 0x01;
     firmware.send_bytes(&corrupted).unwrap();
     assert_safe(&firmware.next_actuator().unwrap(), 1, LinkFault::Corrupted);
+    // ... and the firmware's defmt log, decoded on the host, names it.
+    let logged = firmware.log_line("link fault Corrupted", Duration::from_secs(5));
+    assert!(logged.as_deref().is_some_and(|line| line.contains("WARN")), "{logged:?}");
 
     // Truncated: the frame cut inside its first COBS run.
     let whole = wire(&mut firmware, &mut rig, 2);

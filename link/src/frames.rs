@@ -55,6 +55,7 @@ pub struct SensorMsg {
 }
 
 /// Which output the controller produced (the kernel's `SafeOutput`).
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum OutputMode {
     /// The controlled torque.
@@ -66,6 +67,7 @@ pub enum OutputMode {
 }
 
 /// A fault the board found on the link itself (before the controller saw the frame).
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum LinkFault {
     /// Bad COBS, CRC or payload encoding.
@@ -102,6 +104,7 @@ pub struct ActuatorMsg {
 }
 
 /// The board runtime's counters, sent once per second of control cycles.
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct RuntimeStats {
     /// Control cycles run.

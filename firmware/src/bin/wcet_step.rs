@@ -16,7 +16,7 @@
 #![no_std]
 #![no_main]
 
-use cortex_m_rt::entry;
+use cortex_m_rt::{entry, exception, ExceptionFrame};
 use cortex_m_semihosting::hprintln;
 use fixtures::justin;
 use panic_semihosting as _;
@@ -26,9 +26,13 @@ use panic_semihosting as _;
 mod stages;
 use stages::*;
 
-#[path = "../../wcet/probe.rs"]
-mod probe;
-use probe::{exit, mark_begin, mark_end, GUARD, PAINT};
+use firmware::probe::{self, exit, mark_begin, mark_end, GUARD, PAINT};
+
+/// A hard fault ends the run as a failure, naming where.
+#[exception]
+unsafe fn HardFault(frame: &ExceptionFrame) -> ! {
+    probe::hard_fault(frame)
+}
 
 /// Bytes of stack painted below the stack pointer before each measured call.
 const WINDOW: usize = 64 * 1024;

@@ -1,4 +1,5 @@
-//! Region markers and stack painting shared by the measurement images (wcet/README.md).
+//! Region markers and stack painting of the measurement images (wcet/README.md); the runtime
+//! brackets each controller step as region 0, so a PIL run under the counting plugin counts it.
 //!
 //! `mark_begin::<R>()` / `mark_end::<R>()` emit `dbg #2R` / `dbg #2R+1`, which the TCG plugin
 //! `wcet_insn.c` turns into exact instruction counts of region `R`. `paint_stack::<W>()` fills
@@ -8,7 +9,7 @@
 
 use core::arch::asm;
 
-use cortex_m_rt::{exception, ExceptionFrame};
+use cortex_m_rt::ExceptionFrame;
 use cortex_m_semihosting::{debug, hprintln};
 
 /// Ends the QEMU run (semihosting exit) with success or failure.
@@ -19,8 +20,9 @@ pub fn exit(success: bool) -> ! {
     }
 }
 
-#[exception]
-unsafe fn HardFault(frame: &ExceptionFrame) -> ! {
+/// Reports a hard fault's program counter and ends the run as a failure (the measuring images'
+/// `HardFault` handler calls it).
+pub fn hard_fault(frame: &ExceptionFrame) -> ! {
     hprintln!("HardFault at pc={:#010x}", frame.pc());
     exit(false)
 }
