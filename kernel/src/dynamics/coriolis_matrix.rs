@@ -4,7 +4,7 @@ use nalgebra::{RealField, SMatrix, Vector6};
 
 use super::crba::accumulate_world_composites;
 use super::rnea::force_cross;
-use super::{add6, add_coupled, add_coupled_pair, add_scaled6, dot6, single_terms};
+use super::{add6, add_coupled, add_coupled_pair, add_entry, add_scaled6, dot6, scale6, single_terms, walk_drives};
 use crate::math::spatial::{SpatialForce, SpatialMatrix};
 use crate::model::{Data, Model, WorldInertia};
 
@@ -68,36 +68,68 @@ pub fn coriolis_matrix<'d, T: RealField + Copy, const N: usize, const B: usize, 
         *bc = coriolis_operator(rate, momentum, half);
     }
 
-    let m = data.coriolis.as_mut_slice();
-    m.fill(T::zero());
+    data.coriolis.fill(T::zero());
     let bodies = model.bodies();
+    let drives = walk_drives(model);
     let singles = single_terms(model);
+    // `g_a S_a` and `g_a Ṡ_a`: a walk step is three products with the body's scaled vectors.
+    let mut scaled = [(Vector6::zeros(), Vector6::zeros()); B];
+    for (((x, s), s_dot), d) in
+        scaled.iter_mut().zip(data.motion_subspaces.iter()).zip(data.subspace_rates.iter()).zip(drives.iter())
+    {
+        *x = (scale6(s, d.coefficient), scale6(s_dot, d.coefficient));
+    }
+    let m: &mut [[T; N]; N] = &mut data.coriolis.data.0;
     let per_body = bodies
         .iter()
         .zip(data.composite_world_inertias.iter())
         .zip(data.composite_inertia_rates.iter())
         .zip(data.composite_momenta.iter())
         .zip(data.motion_subspaces.iter().zip(data.subspace_rates.iter()))
-        .zip(singles.iter());
-    for (((((body, ic), rate), momentum), (s_j, s_dot_j)), &single) in per_body {
+        .zip(drives.iter().zip(singles.iter()));
+    for (((((body, ic), rate), momentum), (s_j, s_dot_j)), (own, &single)) in per_body {
         let d = scale6(&rate.apply(s_j), half);
         let e = scale6(&force_cross(s_j, momentum), half);
         let column_force = add6(&add6(&ic.apply(s_dot_j), &d), &e);
         let row_inertia = ic.apply(s_j);
         let row_coriolis = add_scaled6(&d, &e, -T::one());
         let terms = body.drive.terms();
-        add_coupled::<T, N>(m, terms, terms, dot6(s_j, &column_force));
-        let mut next = body.parent;
-        while let Some(a) = next {
-            let (Some(ancestor), Some(s_a), Some(s_dot_a), Some(&single_a)) =
-                (bodies.get(a.0), data.motion_subspaces.get(a.0), data.subspace_rates.get(a.0), singles.get(a.0))
-            else {
-                break;
-            };
-            let column = dot6(s_a, &column_force);
-            let row = dot6(&row_inertia, s_dot_a) + dot6(&row_coriolis, s_a);
-            add_coupled_pair::<T, N>(m, single_a, ancestor.drive.terms(), single, terms, column, row);
-            next = ancestor.parent.filter(|p| p.0 < a.0);
+        if own.coordinate >= N {
+            // A coupled joint: every entry through both drive rows.
+            add_coupled::<T, N>(m.as_flattened_mut(), terms, terms, dot6(s_j, &column_force));
+            let mut a = own.parent;
+            while let (Some(ancestor), Some(s_a), Some(s_dot_a), Some(&single_a), Some(next)) =
+                (bodies.get(a), data.motion_subspaces.get(a), data.subspace_rates.get(a), singles.get(a), drives.get(a))
+            {
+                let column = dot6(s_a, &column_force);
+                let row = dot6(&row_inertia, s_dot_a) + dot6(&row_coriolis, s_a);
+                let terms_a = ancestor.drive.terms();
+                add_coupled_pair::<T, N>(m.as_flattened_mut(), single_a, terms_a, single, terms, column, row);
+                a = next.parent;
+            }
+            continue;
+        }
+        let c = own.coordinate;
+        let g = own.coefficient;
+        add_entry(m, c, c, dot6(s_j, &column_force) * g * g);
+        let (column_force_g, row_inertia_g, row_coriolis_g) =
+            (scale6(&column_force, g), scale6(&row_inertia, g), scale6(&row_coriolis, g));
+        let mut a = own.parent;
+        while let (Some(next), Some((s_a, s_dot_a))) = (drives.get(a), scaled.get(a)) {
+            if next.coordinate < N {
+                let column = dot6(s_a, &column_force_g);
+                let row = dot6(&row_inertia_g, s_dot_a) + dot6(&row_coriolis_g, s_a);
+                add_entry(m, next.coordinate, c, column);
+                add_entry(m, c, next.coordinate, row);
+            } else if let (Some(ancestor), Some(s_a), Some(s_dot_a)) =
+                (bodies.get(a), data.motion_subspaces.get(a), data.subspace_rates.get(a))
+            {
+                let column = dot6(s_a, &column_force);
+                let row = dot6(&row_inertia, s_dot_a) + dot6(&row_coriolis, s_a);
+                let terms_a = ancestor.drive.terms();
+                add_coupled_pair::<T, N>(m.as_flattened_mut(), None, terms_a, single, terms, column, row);
+            }
+            a = next.parent;
         }
     }
     &data.coriolis
@@ -124,13 +156,6 @@ fn coriolis_operator<T: RealField + Copy>(
         [f2 - h2, z, h0 - f0, z, z, z],
         [h1 - f1, f0 - h0, z, z, z, z],
     ]))
-}
-
-/// `k a`, written out.
-#[inline(always)]
-fn scale6<T: RealField + Copy>(a: &Vector6<T>, k: T) -> Vector6<T> {
-    let [a0, a1, a2, a3, a4, a5] = a.data.0[0];
-    Vector6::new(k * a0, k * a1, k * a2, k * a3, k * a4, k * a5)
 }
 
 #[cfg(test)]

@@ -1,8 +1,8 @@
 //! Composite rigid-body algorithm: the joint-space inertia matrix.
 
-use nalgebra::{RealField, SMatrix};
+use nalgebra::{RealField, SMatrix, Vector6};
 
-use super::{add_coupled, add_coupled_pair, dot6, single_terms};
+use super::{add_coupled, add_coupled_pair, add_entry, dot6, scale6, single_terms, walk_drives};
 use crate::model::{Data, Model, WorldInertia};
 
 /// Joint-space inertia matrix `M(q)` ((2.1)) by the composite rigid-body algorithm.
@@ -21,31 +21,70 @@ pub fn crba<'d, T: RealField + Copy, const N: usize, const B: usize, const F: us
     data: &'d mut Data<T, N, B, F>,
 ) -> &'d SMatrix<T, N, N> {
     accumulate_world_composites(model, &data.world_inertias, &mut data.composite_world_inertias);
-    let m = data.mass_matrix.as_mut_slice();
-    m.fill(T::zero());
+    data.mass_matrix.fill(T::zero());
     let bodies = model.bodies();
+    let drives = walk_drives(model);
     let singles = single_terms(model);
-    for ((((body, composite), s_i), &single), matrix) in bodies
+    // `g_a S_a`: a walk step is one product with the body's scaled force.
+    let mut scaled = [Vector6::zeros(); B];
+    for ((x, s), d) in scaled.iter_mut().zip(data.motion_subspaces.iter()).zip(drives.iter()) {
+        *x = scale6(s, d.coefficient);
+    }
+    let m: &mut [[T; N]; N] = &mut data.mass_matrix.data.0;
+    for (((((body, composite), s_i), own), &single), matrix) in bodies
         .iter()
         .zip(data.composite_world_inertias.iter())
         .zip(data.motion_subspaces.iter())
+        .zip(drives.iter())
         .zip(singles.iter())
         .zip(data.composite_inertias.iter_mut())
     {
         *matrix = composite.matrix();
         let force = composite.apply(s_i);
         let terms = body.drive.terms();
-        add_coupled::<T, N>(m, terms, terms, dot6(s_i, &force));
-        let mut next = body.parent;
-        while let Some(j) = next {
-            let (Some(ancestor), Some(s_j), Some(&single_j)) =
-                (bodies.get(j.0), data.motion_subspaces.get(j.0), singles.get(j.0))
-            else {
-                break;
-            };
-            let value = dot6(s_j, &force);
-            add_coupled_pair::<T, N>(m, single_j, ancestor.drive.terms(), single, terms, value, value);
-            next = ancestor.parent.filter(|p| p.0 < j.0);
+        if own.coordinate >= N {
+            // A coupled joint: every entry through both drive rows.
+            add_coupled::<T, N>(m.as_flattened_mut(), terms, terms, dot6(s_i, &force));
+            let mut a = own.parent;
+            while let (Some(ancestor), Some(s_a), Some(&single_a), Some(d)) =
+                (bodies.get(a), data.motion_subspaces.get(a), singles.get(a), drives.get(a))
+            {
+                let value = dot6(s_a, &force);
+                add_coupled_pair::<T, N>(
+                    m.as_flattened_mut(),
+                    single_a,
+                    ancestor.drive.terms(),
+                    single,
+                    terms,
+                    value,
+                    value,
+                );
+                a = d.parent;
+            }
+            continue;
+        }
+        let c = own.coordinate;
+        let scaled_force = scale6(&force, own.coefficient);
+        add_entry(m, c, c, dot6(s_i, &scaled_force) * own.coefficient);
+        let mut a = own.parent;
+        while let (Some(d), Some(s_a)) = (drives.get(a), scaled.get(a)) {
+            if d.coordinate < N {
+                let value = dot6(s_a, &scaled_force);
+                add_entry(m, d.coordinate, c, value);
+                add_entry(m, c, d.coordinate, value);
+            } else if let (Some(ancestor), Some(raw)) = (bodies.get(a), data.motion_subspaces.get(a)) {
+                let value = dot6(raw, &force);
+                add_coupled_pair::<T, N>(
+                    m.as_flattened_mut(),
+                    None,
+                    ancestor.drive.terms(),
+                    single,
+                    terms,
+                    value,
+                    value,
+                );
+            }
+            a = d.parent;
         }
     }
     &data.mass_matrix

@@ -91,6 +91,51 @@ fn single_terms<T: RealField + Copy, const N: usize, const B: usize, const F: us
     out
 }
 
+/// One body as the ancestor walks of [`crba`] and [`coriolis_matrix`] see it: its parent
+/// (`B` for none, so that a walk ends at the first index out of range; a parent index that is
+/// not smaller than the body's own ends the walk too) and, for a joint driven by one
+/// coordinate, that coordinate and its coefficient (`coordinate = N` and coefficient one for a
+/// joint coupled to several coordinates, whose entries go through its drive row).
+#[derive(Clone, Copy)]
+struct WalkDrive<T> {
+    parent: usize,
+    coordinate: usize,
+    coefficient: T,
+}
+
+/// The [`WalkDrive`] of every body, built once per algorithm call.
+#[inline(always)]
+fn walk_drives<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
+    model: &crate::model::Model<T, N, B, F>,
+) -> [WalkDrive<T>; B] {
+    let mut out = [WalkDrive { parent: B, coordinate: N, coefficient: T::one() }; B];
+    for (i, (slot, body)) in out.iter_mut().zip(model.bodies()).enumerate() {
+        slot.parent = body.parent.map(|p| p.0).filter(|p| *p < i).unwrap_or(B);
+        if let [term] = body.drive.terms() {
+            if term.coordinate < N {
+                slot.coordinate = term.coordinate;
+                slot.coefficient = term.coefficient;
+            }
+        }
+    }
+    out
+}
+
+/// `m[c][r] += value` on column arrays (entry `(r, c)` of a column-major matrix).
+#[inline(always)]
+fn add_entry<T: RealField + Copy, const N: usize>(m: &mut [[T; N]; N], r: usize, c: usize, value: T) {
+    if let Some(x) = m.get_mut(c).and_then(|column| column.get_mut(r)) {
+        *x += value;
+    }
+}
+
+/// `k a`, written out.
+#[inline(always)]
+fn scale6<T: RealField + Copy>(a: &Vector6<T>, k: T) -> Vector6<T> {
+    let [a0, a1, a2, a3, a4, a5] = a.data.0[0];
+    Vector6::new(k * a0, k * a1, k * a2, k * a3, k * a4, k * a5)
+}
+
 /// `m[a][b] += ab` and `m[b][a] += ba` for the tree entries of bodies `a` and `b` (single drive
 /// terms `single_a`, `single_b` from [`single_terms`], or their full drive rows `terms_a`,
 /// `terms_b` when either is coupled), mapped to coordinates as in [`add_coupled`].
