@@ -13,7 +13,8 @@ mod reference {
 }
 
 use kernel::dynamics::{
-    coriolis_matrix, crba, forward_kinematics, frame_jacobian, gravity, placement_kinematics, rnea, support_kinematics,
+    composite_coriolis_operators, coriolis_matrix, crba, forward_kinematics, frame_jacobian, gravity,
+    placement_kinematics, rnea, support_kinematics,
 };
 use kernel::model::FrameId;
 use kernel::{Data, Model};
@@ -56,7 +57,7 @@ fn fast<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
     let mut out = vec![("kinematics", kinematics(&data))];
     out.push(("M", to_f64(crba(model, &mut data).as_slice())));
     out.push(("C", to_f64(coriolis_matrix(model, &mut data).as_slice())));
-    for bc in &data.composite_coriolis {
+    for bc in composite_coriolis_operators(&mut data) {
         out.push(("B^c", to_f64(bc.as_slice())));
     }
     out.push(("g", to_f64(gravity(model, &mut data).as_slice())));

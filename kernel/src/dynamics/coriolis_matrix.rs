@@ -28,9 +28,12 @@ use crate::model::{Data, Model, WorldInertia};
 /// mapped to coordinates as `Gᵀ C_tree G`. Entries of bodies on different branches are zero
 /// and never visited.
 ///
+/// The walks apply `B^c_j` to motion subspaces without forming the 6×6 operator
+/// ([`composite_coriolis_operators`] forms it on request).
+///
 /// Precondition: [`super::forward_kinematics`] at `(q, q̇)`. Writes `composite_world_inertias`,
-/// `composite_inertia_rates`, `composite_momenta`, the 6×6 `composite_coriolis` (`B^c`), and
-/// `coriolis` (returned); the 6×6 `composite_inertias` are [`super::crba`]'s.
+/// `composite_inertia_rates`, `composite_momenta` and `coriolis` (returned); the 6×6
+/// `composite_inertias` are [`super::crba`]'s.
 pub fn coriolis_matrix<'d, T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
     model: &Model<T, N, B, F>,
     data: &'d mut Data<T, N, B, F>,
@@ -62,13 +65,8 @@ pub fn coriolis_matrix<'d, T: RealField + Copy, const N: usize, const B: usize, 
             }
         }
     }
-    for ((bc, rate), momentum) in
-        data.composite_coriolis.iter_mut().zip(data.composite_inertia_rates.iter()).zip(data.composite_momenta.iter())
-    {
-        *bc = coriolis_operator(rate, momentum, half);
-    }
 
-    data.coriolis.fill(T::zero());
+    data.coriolis.as_mut_slice().fill(T::zero());
     let bodies = model.bodies();
     let drives = walk_drives(model);
     let singles = single_terms(model);
@@ -133,6 +131,22 @@ pub fn coriolis_matrix<'d, T: RealField + Copy, const N: usize, const B: usize, 
         }
     }
     &data.coriolis
+}
+
+/// The 6×6 composite Coriolis operators `B^c_j = ½ İ^c_j + ½ (p^c_j)×̄` of every subtree
+/// (the operators of [`coriolis_matrix`]) from the composite inertia rates and momenta that
+/// [`coriolis_matrix`] stored: call it first, at the same state. Writes `composite_coriolis`
+/// (returned). Cost O(B).
+pub fn composite_coriolis_operators<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
+    data: &mut Data<T, N, B, F>,
+) -> &[SpatialMatrix<T>; B] {
+    let half = nalgebra::convert::<f64, T>(0.5);
+    for ((bc, rate), momentum) in
+        data.composite_coriolis.iter_mut().zip(data.composite_inertia_rates.iter()).zip(data.composite_momenta.iter())
+    {
+        *bc = coriolis_operator(rate, momentum, half);
+    }
+    &data.composite_coriolis
 }
 
 /// The 6×6 operator `B = ½ İ + ½ (p)×̄` from the inertia rate `İ` (ten-parameter form, zero

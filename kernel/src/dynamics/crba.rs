@@ -21,7 +21,7 @@ pub fn crba<'d, T: RealField + Copy, const N: usize, const B: usize, const F: us
     data: &'d mut Data<T, N, B, F>,
 ) -> &'d SMatrix<T, N, N> {
     accumulate_world_composites(model, &data.world_inertias, &mut data.composite_world_inertias);
-    data.mass_matrix.fill(T::zero());
+    data.mass_matrix.as_mut_slice().fill(T::zero());
     let bodies = model.bodies();
     let drives = walk_drives(model);
     let singles = single_terms(model);

@@ -17,6 +17,7 @@
 //! | [`gravity`] | `g(q)` | O(B) |
 //! | [`crba`] | `M(q)` | O(B·depth) |
 //! | [`coriolis_matrix`] | `C(q, q̇)` with `Ṁ = C + Cᵀ` (2.7) | O(B·depth) |
+//! | [`composite_coriolis_operators`] | the 6×6 `B^c` of [`coriolis_matrix`] | O(B) |
 //! | [`mass_matrix_cholesky`], [`forward_dynamics`] | `M = L Lᵀ`, `q̈ = M⁻¹(τ − C q̇ − g)` | O(N³) |
 //! | [`TreeFactorization`] | `M = Lᵀ L` over the branch-induced sparsity, solves | O(Σ depth²) |
 //! | [`kinetic_energy`], [`potential_energy`] | `½ q̇ᵀ M q̇`, `−Σ m_i gᵀ c_i` | O(B) |
@@ -37,7 +38,7 @@ mod gravity;
 mod rnea;
 mod tree_factorization;
 
-pub use coriolis_matrix::coriolis_matrix;
+pub use coriolis_matrix::{composite_coriolis_operators, coriolis_matrix};
 pub use crba::crba;
 pub use energy::{kinetic_energy, potential_energy};
 pub use error::DynamicsError;
@@ -259,7 +260,7 @@ mod reference_tests {
         forward_kinematics(model, &mut data, &cast(q), &cast(v)).unwrap();
         let m = crba(model, &mut data).map(|e| nalgebra::try_convert(e).unwrap());
         let c = coriolis_matrix(model, &mut data).map(|e| nalgebra::try_convert(e).unwrap());
-        let bc = data.composite_coriolis.map(|x| x.map(|e| nalgebra::try_convert(e).unwrap()));
+        let bc = composite_coriolis_operators(&mut data).map(|x| x.map(|e| nalgebra::try_convert(e).unwrap()));
         let g = gravity(model, &mut data).map(|e| nalgebra::try_convert(e).unwrap());
         let tau = rnea(model, &mut data, &cast(a)).unwrap().map(|e| nalgebra::try_convert(e).unwrap());
         let mut jacobians = [SMatrix::zeros(); 2];
