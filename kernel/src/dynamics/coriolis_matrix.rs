@@ -32,8 +32,7 @@ use crate::model::{Data, Model, WorldInertia};
 /// ([`composite_coriolis_operators`] forms it on request).
 ///
 /// Precondition: [`super::forward_kinematics`] at `(q, q̇)`. Writes `composite_world_inertias`,
-/// `composite_inertia_rates`, `composite_momenta` and `coriolis` (returned); the 6×6
-/// `composite_inertias` are [`super::crba`]'s.
+/// `composite_inertia_rates`, `composite_momenta` and `coriolis` (returned).
 pub fn coriolis_matrix<'d, T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
     model: &Model<T, N, B, F>,
     data: &'d mut Data<T, N, B, F>,

@@ -3,6 +3,7 @@
 use nalgebra::{RealField, SMatrix, Vector6};
 
 use super::{add_coupled, add_coupled_pair, add_entry, dot6, scale6, single_terms, walk_drives};
+use crate::math::spatial::SpatialMatrix;
 use crate::model::{Data, Model, WorldInertia};
 
 /// Joint-space inertia matrix `M(q)` ((2.1)) by the composite rigid-body algorithm.
@@ -14,8 +15,9 @@ use crate::model::{Data, Model, WorldInertia};
 /// sparsity: they are zero). Both triangles are filled; `M` is symmetric positive definite for a
 /// valid model.
 ///
-/// Precondition: [`super::forward_kinematics`] or [`super::placement_kinematics`] at `q`. Writes `composite_world_inertias`,
-/// `composite_inertias` (6×6 form) and `mass_matrix` (returned). Cost O(B·depth).
+/// Precondition: [`super::forward_kinematics`] or [`super::placement_kinematics`] at `q`. Writes
+/// `composite_world_inertias` (ten-parameter form; [`composite_inertia_matrices`] forms the 6×6
+/// matrices on request) and `mass_matrix` (returned). Cost O(B·depth).
 pub fn crba<'d, T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
     model: &Model<T, N, B, F>,
     data: &'d mut Data<T, N, B, F>,
@@ -31,15 +33,13 @@ pub fn crba<'d, T: RealField + Copy, const N: usize, const B: usize, const F: us
         *x = scale6(s, d.coefficient);
     }
     let m: &mut [[T; N]; N] = &mut data.mass_matrix.data.0;
-    for (((((body, composite), s_i), own), &single), matrix) in bodies
+    for ((((body, composite), s_i), own), &single) in bodies
         .iter()
         .zip(data.composite_world_inertias.iter())
         .zip(data.motion_subspaces.iter())
         .zip(drives.iter())
         .zip(singles.iter())
-        .zip(data.composite_inertias.iter_mut())
     {
-        *matrix = composite.matrix();
         let force = composite.apply(s_i);
         let terms = body.drive.terms();
         if own.coordinate >= N {
@@ -88,6 +88,18 @@ pub fn crba<'d, T: RealField + Copy, const N: usize, const B: usize, const F: us
         }
     }
     &data.mass_matrix
+}
+
+/// The 6×6 composite inertia `I^c_i` of every subtree from the ten-parameter composites that
+/// [`crba`] (or [`super::coriolis_matrix`]) stored: call it first, at the same `q`. Writes
+/// `composite_inertias` (returned). Cost O(B).
+pub fn composite_inertia_matrices<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
+    data: &mut Data<T, N, B, F>,
+) -> &[SpatialMatrix<T>; B] {
+    for (matrix, composite) in data.composite_inertias.iter_mut().zip(data.composite_world_inertias.iter()) {
+        *matrix = composite.matrix();
+    }
+    &data.composite_inertias
 }
 
 /// `out_i = Σ_{k ∈ subtree(i)} per_body_k` for ten-parameter inertias (one backward pass).

@@ -16,6 +16,7 @@
 //! | [`rnea`] | `M q̈ + C q̇ + g` | O(B) |
 //! | [`gravity`] | `g(q)` | O(B) |
 //! | [`crba`] | `M(q)` | O(B·depth) |
+//! | [`composite_inertia_matrices`] | the 6×6 `I^c` of [`crba`] | O(B) |
 //! | [`coriolis_matrix`] | `C(q, q̇)` with `Ṁ = C + Cᵀ` (2.7) | O(B·depth) |
 //! | [`composite_coriolis_operators`] | the 6×6 `B^c` of [`coriolis_matrix`] | O(B) |
 //! | [`mass_matrix_cholesky`], [`forward_dynamics`] | `M = L Lᵀ`, `q̈ = M⁻¹(τ − C q̇ − g)` | O(N³) |
@@ -39,7 +40,7 @@ mod rnea;
 mod tree_factorization;
 
 pub use coriolis_matrix::{composite_coriolis_operators, coriolis_matrix};
-pub use crba::crba;
+pub use crba::{composite_inertia_matrices, crba};
 pub use energy::{kinetic_energy, potential_energy};
 pub use error::DynamicsError;
 pub use forward_dynamics::{forward_dynamics, mass_matrix_cholesky};
@@ -241,6 +242,7 @@ mod reference_tests {
     /// Every output of the fast algorithms, cast to f64.
     struct Outputs {
         m: SMatrix<f64, N, N>,
+        ic: [SMatrix<f64, 6, 6>; B],
         c: SMatrix<f64, N, N>,
         bc: [SMatrix<f64, 6, 6>; B],
         g: SVector<f64, N>,
@@ -259,6 +261,7 @@ mod reference_tests {
         let mut data = Data::new(model);
         forward_kinematics(model, &mut data, &cast(q), &cast(v)).unwrap();
         let m = crba(model, &mut data).map(|e| nalgebra::try_convert(e).unwrap());
+        let ic = composite_inertia_matrices(&mut data).map(|x| x.map(|e| nalgebra::try_convert(e).unwrap()));
         let c = coriolis_matrix(model, &mut data).map(|e| nalgebra::try_convert(e).unwrap());
         let bc = composite_coriolis_operators(&mut data).map(|x| x.map(|e| nalgebra::try_convert(e).unwrap()));
         let g = gravity(model, &mut data).map(|e| nalgebra::try_convert(e).unwrap());
@@ -269,7 +272,7 @@ mod reference_tests {
             frame_jacobian(model, &data, crate::model::FrameId(k), &mut j).unwrap();
             *out = j.map(|e| nalgebra::try_convert(e).unwrap());
         }
-        Outputs { m, c, bc, g, tau, jacobians, kinematics: kinematics(&data) }
+        Outputs { m, ic, c, bc, g, tau, jacobians, kinematics: kinematics(&data) }
     }
 
     fn reference_outputs(
@@ -292,6 +295,7 @@ mod reference_tests {
         }
         Outputs {
             m: reference::crba(model, &data),
+            ic: reference::composites(model, &data.body_inertias),
             c,
             bc,
             g: reference::rnea(model, &at_rest, &SVector::zeros()),
@@ -328,6 +332,9 @@ mod reference_tests {
         };
         close("kinematics", &fast.kinematics, &reference.kinematics)?;
         close("M", fast.m.as_slice(), reference.m.as_slice())?;
+        for (a, b) in fast.ic.iter().zip(reference.ic.iter()) {
+            close("I^c", a.as_slice(), b.as_slice())?;
+        }
         close("C", fast.c.as_slice(), reference.c.as_slice())?;
         for (a, b) in fast.bc.iter().zip(reference.bc.iter()) {
             close("B^c", a.as_slice(), b.as_slice())?;

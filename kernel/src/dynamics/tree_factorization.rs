@@ -113,6 +113,8 @@ impl<const N: usize> TreeStructure<N> {
 pub struct TreeFactorization<T: RealField, const N: usize> {
     structure: TreeStructure<N>,
     rows: SMatrix<T, N, N>,
+    /// `1 / L_kk` of every coordinate: the solves multiply by it.
+    reciprocal: [T; N],
 }
 
 impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
@@ -123,7 +125,7 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
 
     /// A zero factor over `structure`.
     pub fn from_structure(structure: TreeStructure<N>) -> Self {
-        Self { structure, rows: SMatrix::zeros() }
+        Self { structure, rows: SMatrix::zeros(), reciprocal: [T::zero(); N] }
     }
 
     /// The symbolic part.
@@ -155,9 +157,9 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
 
     /// Factorizes `m` (symmetric; only the entries `(k, j)`, `j` on the ancestor chain of `k`,
     /// are read) as `M = Lᵀ L` (Featherstone's LTL algorithm, Table 6.3): for
-    /// `k = N − 1, …, 0`, `L_kk = √H_kk`, `L_ki = H_ki / L_kk` for `i` on the chain of `k`,
-    /// then `H_ij −= L_ki L_kj` for `i`, `j` on that chain (`j` an ancestor of `i` or `i`).
-    /// Cost Σ_k depth_k²/2 multiply-adds.
+    /// `k = N − 1, …, 0`, `L_kk = √H_kk`, `L_ki = H_ki · (1/L_kk)` for `i` on the chain of `k`
+    /// (the reciprocal is kept for the solves), then `H_ij −= L_ki L_kj` for `i`, `j` on that
+    /// chain (`j` an ancestor of `i` or `i`). Cost Σ_k depth_k²/2 multiply-adds and N divisions.
     ///
     /// Errors: [`DynamicsError::MassMatrixNotPositiveDefinite`] if a pivot is not positive
     /// (or NaN); the factor is unspecified then.
@@ -188,8 +190,12 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
             }
             let l_kk = sqrt(*diagonal);
             *diagonal = l_kk;
+            let inverse = T::one() / l_kk;
+            if let Some(r) = self.reciprocal.get_mut(k) {
+                *r = inverse;
+            }
             for x in below.iter_mut() {
-                *x /= l_kk;
+                *x *= inverse;
             }
             let mut tail = &*below;
             for a in structure.ancestors(k) {
@@ -226,8 +232,13 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
         // The decoupled coordinates leave every chain (they are its last entries): their
         // columns of `L` are zero and they become roots.
         let structure = &mut self.structure;
-        for (k, (packed, depth)) in
-            self.rows.as_mut_slice().chunks_exact_mut(N).zip(structure.depth.iter_mut()).enumerate()
+        for (k, ((packed, depth), reciprocal)) in self
+            .rows
+            .as_mut_slice()
+            .chunks_exact_mut(N)
+            .zip(structure.depth.iter_mut())
+            .zip(self.reciprocal.iter_mut())
+            .enumerate()
         {
             let Some((diagonal, below)) = packed.split_first_mut() else { continue };
             if decoupled.get(k).copied().unwrap_or(false) {
@@ -236,6 +247,7 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
                     return Err(DynamicsError::MassMatrixNotPositiveDefinite);
                 }
                 *diagonal = sqrt(d);
+                *reciprocal = T::one() / *diagonal;
             }
             let chain = structure.chains.get(k).map_or(&[][..], |c| c.get(1..=usize::from(*depth)).unwrap_or(&[]));
             let kept = chain.iter().take_while(|a| !decoupled.get(usize::from(**a)).copied().unwrap_or(false)).count();
@@ -272,19 +284,17 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
     /// are zero cost nothing.
     pub fn right_solve_mut<const R: usize>(&self, x: &mut SMatrix<T, R, N>) {
         let columns: &mut [[T; R]; N] = &mut x.data.0;
-        for (k, packed) in self.rows.data.0.iter().enumerate().rev() {
+        for ((k, packed), inverse) in self.rows.data.0.iter().enumerate().zip(self.reciprocal.iter()).rev() {
             let Some(column) = columns.get_mut(k) else { break };
             if column.iter().all(|c| *c == T::zero()) {
                 continue;
             }
-            let Some((l_kk, below)) = packed.split_first() else { break };
-            let inverse = T::one() / *l_kk;
             for c in column.iter_mut() {
-                *c *= inverse;
+                *c *= *inverse;
             }
             let column = *column;
             // The ancestors are all `< k`: solved columns are never touched again.
-            for (a, l_ka) in self.structure.ancestors(k).iter().zip(below.iter()) {
+            for (a, l_ka) in self.structure.ancestors(k).iter().zip(packed.iter().skip(1)) {
                 if let Some(target) = columns.get_mut(usize::from(*a)) {
                     for (t, c) in target.iter_mut().zip(column.iter()) {
                         *t -= *l_ka * *c;
@@ -306,11 +316,10 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
     pub fn inverse(&self) -> SMatrix<T, N, N> {
         let mut w = SMatrix::<T, N, N>::zeros();
         let columns: &mut [[T; N]; N] = &mut w.data.0;
-        for (i, packed) in self.rows.data.0.iter().enumerate() {
+        for ((i, packed), &inverse) in self.rows.data.0.iter().enumerate().zip(self.reciprocal.iter()) {
             let Some((before, rest)) = columns.split_at_mut_checked(i) else { break };
-            let (Some(column), Some((l_ii, below))) = (rest.first_mut(), packed.split_first()) else { break };
+            let (Some(column), Some(below)) = (rest.first_mut(), packed.get(1..)) else { break };
             let Some((head, tail)) = column.split_at_mut_checked(i) else { break };
-            let inverse = T::one() / *l_ii;
             let ancestors = self.structure.ancestors(i);
             combine_ancestor_columns(head, before, ancestors, below, -inverse);
             let head = &*head;
