@@ -4,7 +4,7 @@ use nalgebra::{RealField, SMatrix, Vector6};
 
 use super::crba::accumulate_world_composites;
 use super::rnea::force_cross;
-use super::{add6, add_coupled, add_coupled_pair, add_entry, add_scaled6, dot6, scale6, single_terms, walk_drives};
+use super::{add6, add_coupled, add_entry, add_scaled6, dot6, scale6, walk_drives};
 use crate::math::spatial::{SpatialForce, SpatialMatrix};
 use crate::model::{Data, Model, WorldInertia};
 
@@ -68,7 +68,6 @@ pub fn coriolis_matrix<'d, T: RealField + Copy, const N: usize, const B: usize, 
     data.coriolis.as_mut_slice().fill(T::zero());
     let bodies = model.bodies();
     let drives = walk_drives(model);
-    let singles = single_terms(model);
     // `g_a S_a` and `g_a Ṡ_a`: a walk step is three products with the body's scaled vectors.
     let mut scaled = [(Vector6::zeros(), Vector6::zeros()); B];
     for (((x, s), s_dot), d) in
@@ -83,8 +82,8 @@ pub fn coriolis_matrix<'d, T: RealField + Copy, const N: usize, const B: usize, 
         .zip(data.composite_inertia_rates.iter())
         .zip(data.composite_momenta.iter())
         .zip(data.motion_subspaces.iter().zip(data.subspace_rates.iter()))
-        .zip(drives.iter().zip(singles.iter()));
-    for (((((body, ic), rate), momentum), (s_j, s_dot_j)), (own, &single)) in per_body {
+        .zip(drives.iter());
+    for (((((body, ic), rate), momentum), (s_j, s_dot_j)), own) in per_body {
         let d = scale6(&rate.apply(s_j), half);
         let e = scale6(&force_cross(s_j, momentum), half);
         let column_force = add6(&add6(&ic.apply(s_dot_j), &d), &e);
@@ -95,13 +94,14 @@ pub fn coriolis_matrix<'d, T: RealField + Copy, const N: usize, const B: usize, 
             // A coupled joint: every entry through both drive rows.
             add_coupled::<T, N>(m.as_flattened_mut(), terms, terms, dot6(s_j, &column_force));
             let mut a = own.parent;
-            while let (Some(ancestor), Some(s_a), Some(s_dot_a), Some(&single_a), Some(next)) =
-                (bodies.get(a), data.motion_subspaces.get(a), data.subspace_rates.get(a), singles.get(a), drives.get(a))
+            while let (Some(ancestor), Some(s_a), Some(s_dot_a), Some(next)) =
+                (bodies.get(a), data.motion_subspaces.get(a), data.subspace_rates.get(a), drives.get(a))
             {
                 let column = dot6(s_a, &column_force);
                 let row = dot6(&row_inertia, s_dot_a) + dot6(&row_coriolis, s_a);
                 let terms_a = ancestor.drive.terms();
-                add_coupled_pair::<T, N>(m.as_flattened_mut(), single_a, terms_a, single, terms, column, row);
+                add_coupled::<T, N>(m.as_flattened_mut(), terms_a, terms, column);
+                add_coupled::<T, N>(m.as_flattened_mut(), terms, terms_a, row);
                 a = next.parent;
             }
             continue;
@@ -124,7 +124,8 @@ pub fn coriolis_matrix<'d, T: RealField + Copy, const N: usize, const B: usize, 
                 let column = dot6(s_a, &column_force);
                 let row = dot6(&row_inertia, s_dot_a) + dot6(&row_coriolis, s_a);
                 let terms_a = ancestor.drive.terms();
-                add_coupled_pair::<T, N>(m.as_flattened_mut(), None, terms_a, single, terms, column, row);
+                add_coupled::<T, N>(m.as_flattened_mut(), terms_a, terms, column);
+                add_coupled::<T, N>(m.as_flattened_mut(), terms, terms_a, row);
             }
             a = next.parent;
         }

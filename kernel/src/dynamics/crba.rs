@@ -2,7 +2,7 @@
 
 use nalgebra::{RealField, SMatrix, Vector6};
 
-use super::{add_coupled, add_coupled_pair, add_entry, dot6, scale6, single_terms, walk_drives};
+use super::{add_coupled, add_entry, dot6, scale6, walk_drives};
 use crate::math::spatial::SpatialMatrix;
 use crate::model::{Data, Model, WorldInertia};
 
@@ -26,19 +26,14 @@ pub fn crba<'d, T: RealField + Copy, const N: usize, const B: usize, const F: us
     data.mass_matrix.as_mut_slice().fill(T::zero());
     let bodies = model.bodies();
     let drives = walk_drives(model);
-    let singles = single_terms(model);
     // `g_a S_a`: a walk step is one product with the body's scaled force.
     let mut scaled = [Vector6::zeros(); B];
     for ((x, s), d) in scaled.iter_mut().zip(data.motion_subspaces.iter()).zip(drives.iter()) {
         *x = scale6(s, d.coefficient);
     }
     let m: &mut [[T; N]; N] = &mut data.mass_matrix.data.0;
-    for ((((body, composite), s_i), own), &single) in bodies
-        .iter()
-        .zip(data.composite_world_inertias.iter())
-        .zip(data.motion_subspaces.iter())
-        .zip(drives.iter())
-        .zip(singles.iter())
+    for (((body, composite), s_i), own) in
+        bodies.iter().zip(data.composite_world_inertias.iter()).zip(data.motion_subspaces.iter()).zip(drives.iter())
     {
         let force = composite.apply(s_i);
         let terms = body.drive.terms();
@@ -46,19 +41,12 @@ pub fn crba<'d, T: RealField + Copy, const N: usize, const B: usize, const F: us
             // A coupled joint: every entry through both drive rows.
             add_coupled::<T, N>(m.as_flattened_mut(), terms, terms, dot6(s_i, &force));
             let mut a = own.parent;
-            while let (Some(ancestor), Some(s_a), Some(&single_a), Some(d)) =
-                (bodies.get(a), data.motion_subspaces.get(a), singles.get(a), drives.get(a))
+            while let (Some(ancestor), Some(s_a), Some(d)) =
+                (bodies.get(a), data.motion_subspaces.get(a), drives.get(a))
             {
                 let value = dot6(s_a, &force);
-                add_coupled_pair::<T, N>(
-                    m.as_flattened_mut(),
-                    single_a,
-                    ancestor.drive.terms(),
-                    single,
-                    terms,
-                    value,
-                    value,
-                );
+                add_coupled::<T, N>(m.as_flattened_mut(), ancestor.drive.terms(), terms, value);
+                add_coupled::<T, N>(m.as_flattened_mut(), terms, ancestor.drive.terms(), value);
                 a = d.parent;
             }
             continue;
@@ -74,15 +62,8 @@ pub fn crba<'d, T: RealField + Copy, const N: usize, const B: usize, const F: us
                 add_entry(m, c, d.coordinate, value);
             } else if let (Some(ancestor), Some(raw)) = (bodies.get(a), data.motion_subspaces.get(a)) {
                 let value = dot6(raw, &force);
-                add_coupled_pair::<T, N>(
-                    m.as_flattened_mut(),
-                    None,
-                    ancestor.drive.terms(),
-                    single,
-                    terms,
-                    value,
-                    value,
-                );
+                add_coupled::<T, N>(m.as_flattened_mut(), ancestor.drive.terms(), terms, value);
+                add_coupled::<T, N>(m.as_flattened_mut(), terms, ancestor.drive.terms(), value);
             }
             a = d.parent;
         }

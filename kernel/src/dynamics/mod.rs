@@ -77,22 +77,6 @@ fn add_coupled<T: RealField + Copy, const N: usize>(m: &mut [T], row: &[DriveTer
     }
 }
 
-/// The single drive term of every body (`None` for a coupled joint with several terms), looked
-/// up once per algorithm so that the ancestor walks of [`crba`] and [`coriolis_matrix`] read one
-/// local entry per body instead of the drive's term list.
-#[inline(always)]
-fn single_terms<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
-    model: &crate::model::Model<T, N, B, F>,
-) -> [Option<DriveTerm<T>>; B] {
-    let mut out = [None; B];
-    for (slot, body) in out.iter_mut().zip(model.bodies()) {
-        if let [term] = body.drive.terms() {
-            *slot = Some(*term);
-        }
-    }
-    out
-}
-
 /// One body as the ancestor walks of [`crba`] and [`coriolis_matrix`] see it: its parent
 /// (`B` for none, so that a walk ends at the first index out of range; a parent index that is
 /// not smaller than the body's own ends the walk too) and, for a joint driven by one
@@ -136,33 +120,6 @@ fn add_entry<T: RealField + Copy, const N: usize>(m: &mut [[T; N]; N], r: usize,
 fn scale6<T: RealField + Copy>(a: &Vector6<T>, k: T) -> Vector6<T> {
     let [a0, a1, a2, a3, a4, a5] = a.data.0[0];
     Vector6::new(k * a0, k * a1, k * a2, k * a3, k * a4, k * a5)
-}
-
-/// `m[a][b] += ab` and `m[b][a] += ba` for the tree entries of bodies `a` and `b` (single drive
-/// terms `single_a`, `single_b` from [`single_terms`], or their full drive rows `terms_a`,
-/// `terms_b` when either is coupled), mapped to coordinates as in [`add_coupled`].
-#[inline(always)]
-#[allow(clippy::too_many_arguments, reason = "two bodies' drive views and two values, all inlined")]
-fn add_coupled_pair<T: RealField + Copy, const N: usize>(
-    m: &mut [T],
-    single_a: Option<DriveTerm<T>>,
-    terms_a: &[DriveTerm<T>],
-    single_b: Option<DriveTerm<T>>,
-    terms_b: &[DriveTerm<T>],
-    ab: T,
-    ba: T,
-) {
-    if let (Some(ta), Some(tb)) = (single_a, single_b) {
-        if let Some(entry) = m.get_mut(tb.coordinate * N + ta.coordinate) {
-            *entry += ta.coefficient * tb.coefficient * ab;
-        }
-        if let Some(entry) = m.get_mut(ta.coordinate * N + tb.coordinate) {
-            *entry += tb.coefficient * ta.coefficient * ba;
-        }
-    } else {
-        add_coupled::<T, N>(m, terms_a, terms_b, ab);
-        add_coupled::<T, N>(m, terms_b, terms_a, ba);
-    }
 }
 
 /// `out += value · g`: adds a tree-level generalized force to the coordinate vector.
