@@ -260,19 +260,34 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
     }
 
     /// `(‖J₁ L⁻¹‖², …, ‖J_K L⁻¹‖²) = (J_k M⁻¹ J_kᵀ)_k` for the rows `J_k = rhs[k]`: the inverse
-    /// reflected masses (3.20) by one [`Self::right_solve_mut`] of the `K × N` stack.
+    /// reflected masses (3.20) by the substitution of [`Self::right_solve_mut`] on the `K × N`
+    /// stack, each column's squares added to the norms as soon as it is solved.
     pub fn inverse_reflected_masses<const K: usize>(&self, rhs: [&[T; N]; K]) -> [T; K] {
-        let mut x = SMatrix::<T, K, N>::zeros();
-        for (c, column) in x.data.0.iter_mut().enumerate() {
+        let mut x = [[T::zero(); K]; N];
+        for (c, column) in x.iter_mut().enumerate() {
             for (e, b) in column.iter_mut().zip(rhs.iter()) {
                 *e = b.get(c).copied().unwrap_or_else(T::zero);
             }
         }
-        self.right_solve_mut(&mut x);
         let mut norms = [T::zero(); K];
-        for column in x.as_slice().chunks_exact(K) {
-            for (n, e) in norms.iter_mut().zip(column.iter()) {
-                *n += *e * *e;
+        for ((k, packed), inverse) in self.rows.data.0.iter().enumerate().zip(self.reciprocal.iter()).rev() {
+            // The ancestors are all `< k`: solved columns are never touched again.
+            let Some((before, rest)) = x.split_at_mut_checked(k) else { break };
+            let Some(column) = rest.first_mut() else { break };
+            if column.iter().all(|c| *c == T::zero()) {
+                continue;
+            }
+            for (c, n) in column.iter_mut().zip(norms.iter_mut()) {
+                *c *= *inverse;
+                *n += *c * *c;
+            }
+            let column = &*column;
+            for (a, l_ka) in self.structure.ancestors(k).iter().zip(packed.iter().skip(1)) {
+                if let Some(target) = before.get_mut(usize::from(*a)) {
+                    for (t, c) in target.iter_mut().zip(column.iter()) {
+                        *t -= *l_ka * *c;
+                    }
+                }
             }
         }
         norms
@@ -477,6 +492,15 @@ mod tests {
         let reference = j * m64.try_inverse().unwrap() * j.transpose();
         let fast = x * x.transpose();
         prop_assert!((fast - reference).amax() < tol * 1e3 * (1.0 + reference.amax()), "{}", (fast - reference).amax());
+        // The inverse reflected masses of two of those rows: the diagonal of J M⁻¹ Jᵀ.
+        let row = |r: usize| -> [T; N] { core::array::from_fn(|c| nalgebra::convert::<f64, T>(j[(r, c)])) };
+        let (first, second) = (row(0), row(2));
+        let masses =
+            tree.inverse_reflected_masses([&first, &second]).map(|e| nalgebra::try_convert::<T, f64>(e).unwrap());
+        for (fast, r) in masses.iter().zip([0, 2]) {
+            let plain = reference[(r, r)];
+            prop_assert!((fast - plain).abs() < tol * 1e3 * (1.0 + plain.abs()), "row {r}: {fast} vs {plain}");
+        }
         // M⁻¹ from the tree factor against the dense inverse.
         let inverse = tree.inverse().map(|e| nalgebra::try_convert::<T, f64>(e).unwrap());
         let dense_inverse = m64.try_inverse().unwrap();
