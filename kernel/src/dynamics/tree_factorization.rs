@@ -326,7 +326,7 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
     /// `(M⁻¹)_ii = (1/L_ii − Σ_a L_ia (M⁻¹)_ai) / L_ii`: each column is a combination of the
     /// (already complete, by symmetry) columns of its ancestors. The entries above the diagonal
     /// are summed four rows at a time over the ancestors in registers
-    /// ([`combine_ancestor_columns`]). Cost Σ_i i·depth_i multiply-adds, below the dense
+    /// (`combine_ancestor_columns`). Cost Σ_i i·depth_i multiply-adds, below the dense
     /// `N³/2`.
     pub fn inverse(&self) -> SMatrix<T, N, N> {
         let mut w = SMatrix::<T, N, N>::zeros();
