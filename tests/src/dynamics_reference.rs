@@ -1,8 +1,8 @@
 //! The kernel's fast rigid-body algorithms (ten-parameter inertias, written-out spatial
 //! algebra, ancestor walks) against the plain matrix-based reference algorithms
 //! (`kernel/src/dynamics/reference.rs`, the kernel's original implementation) on Justin and the
-//! planar and mobile fixtures at random states: forward kinematics, `M` (CRBA), `C` and the
-//! composite operators `B^c`, `g`, RNEA and every frame Jacobian; f64 to rounding, f32 within
+//! planar and mobile fixtures at random states: forward kinematics, `M` (CRBA) and the composite
+//! inertias `I^c`, `C` and the composite operators `B^c`, `g`, RNEA and every frame Jacobian; f64 to rounding, f32 within
 //! single-precision accumulation of the f64 reference.
 #![allow(clippy::unwrap_used, clippy::indexing_slicing, clippy::panic, reason = "test code")]
 
@@ -13,7 +13,8 @@ mod reference {
 }
 
 use kernel::dynamics::{
-    coriolis_matrix, crba, forward_kinematics, frame_jacobian, gravity, placement_kinematics, rnea, support_kinematics,
+    composite_coriolis_operators, composite_inertia_matrices, coriolis_matrix, crba, forward_kinematics,
+    frame_jacobian, gravity, placement_kinematics, rnea, support_kinematics,
 };
 use kernel::model::FrameId;
 use kernel::{Data, Model};
@@ -55,8 +56,11 @@ fn fast<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
     forward_kinematics(model, &mut data, &cast(q), &cast(v)).unwrap();
     let mut out = vec![("kinematics", kinematics(&data))];
     out.push(("M", to_f64(crba(model, &mut data).as_slice())));
+    for ic in composite_inertia_matrices(&mut data) {
+        out.push(("I^c", to_f64(ic.as_slice())));
+    }
     out.push(("C", to_f64(coriolis_matrix(model, &mut data).as_slice())));
-    for bc in &data.composite_coriolis {
+    for bc in composite_coriolis_operators(&mut data) {
         out.push(("B^c", to_f64(bc.as_slice())));
     }
     out.push(("g", to_f64(gravity(model, &mut data).as_slice())));
@@ -79,6 +83,9 @@ fn plain<const N: usize, const B: usize, const F: usize>(
     reference::forward_kinematics(model, &mut data, q, v);
     let mut out = vec![("kinematics", kinematics(&data))];
     out.push(("M", to_f64(reference::crba(model, &data).as_slice())));
+    for ic in &reference::composites(model, &data.body_inertias) {
+        out.push(("I^c", to_f64(ic.as_slice())));
+    }
     let (c, bc) = reference::coriolis(model, &data);
     out.push(("C", to_f64(c.as_slice())));
     for b in &bc {

@@ -4,7 +4,7 @@ use nalgebra::{RealField, SMatrix, Vector6};
 
 use super::crba::accumulate_world_composites;
 use super::rnea::force_cross;
-use super::{add6, add_coupled, add_coupled_pair, add_scaled6, dot6, single_terms};
+use super::{add6, add_coupled, add_entry, add_scaled6, dot6, scale6, walk_drives};
 use crate::math::spatial::{SpatialForce, SpatialMatrix};
 use crate::model::{Data, Model, WorldInertia};
 
@@ -28,9 +28,11 @@ use crate::model::{Data, Model, WorldInertia};
 /// mapped to coordinates as `Gᵀ C_tree G`. Entries of bodies on different branches are zero
 /// and never visited.
 ///
+/// The walks apply `B^c_j` to motion subspaces without forming the 6×6 operator
+/// ([`composite_coriolis_operators`] forms it on request).
+///
 /// Precondition: [`super::forward_kinematics`] at `(q, q̇)`. Writes `composite_world_inertias`,
-/// `composite_inertia_rates`, `composite_momenta`, the 6×6 `composite_coriolis` (`B^c`), and
-/// `coriolis` (returned); the 6×6 `composite_inertias` are [`super::crba`]'s.
+/// `composite_inertia_rates`, `composite_momenta` and `coriolis` (returned).
 pub fn coriolis_matrix<'d, T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
     model: &Model<T, N, B, F>,
     data: &'d mut Data<T, N, B, F>,
@@ -62,45 +64,89 @@ pub fn coriolis_matrix<'d, T: RealField + Copy, const N: usize, const B: usize, 
             }
         }
     }
-    for ((bc, rate), momentum) in
-        data.composite_coriolis.iter_mut().zip(data.composite_inertia_rates.iter()).zip(data.composite_momenta.iter())
-    {
-        *bc = coriolis_operator(rate, momentum, half);
-    }
 
-    let m = data.coriolis.as_mut_slice();
-    m.fill(T::zero());
+    data.coriolis.as_mut_slice().fill(T::zero());
     let bodies = model.bodies();
-    let singles = single_terms(model);
+    let drives = walk_drives(model);
+    // `g_a S_a` and `g_a Ṡ_a`: a walk step is three products with the body's scaled vectors.
+    let mut scaled = [(Vector6::zeros(), Vector6::zeros()); B];
+    for (((x, s), s_dot), d) in
+        scaled.iter_mut().zip(data.motion_subspaces.iter()).zip(data.subspace_rates.iter()).zip(drives.iter())
+    {
+        *x = (scale6(s, d.coefficient), scale6(s_dot, d.coefficient));
+    }
+    let m: &mut [[T; N]; N] = &mut data.coriolis.data.0;
     let per_body = bodies
         .iter()
         .zip(data.composite_world_inertias.iter())
         .zip(data.composite_inertia_rates.iter())
         .zip(data.composite_momenta.iter())
         .zip(data.motion_subspaces.iter().zip(data.subspace_rates.iter()))
-        .zip(singles.iter());
-    for (((((body, ic), rate), momentum), (s_j, s_dot_j)), &single) in per_body {
+        .zip(drives.iter());
+    for (((((body, ic), rate), momentum), (s_j, s_dot_j)), own) in per_body {
         let d = scale6(&rate.apply(s_j), half);
         let e = scale6(&force_cross(s_j, momentum), half);
         let column_force = add6(&add6(&ic.apply(s_dot_j), &d), &e);
         let row_inertia = ic.apply(s_j);
         let row_coriolis = add_scaled6(&d, &e, -T::one());
         let terms = body.drive.terms();
-        add_coupled::<T, N>(m, terms, terms, dot6(s_j, &column_force));
-        let mut next = body.parent;
-        while let Some(a) = next {
-            let (Some(ancestor), Some(s_a), Some(s_dot_a), Some(&single_a)) =
-                (bodies.get(a.0), data.motion_subspaces.get(a.0), data.subspace_rates.get(a.0), singles.get(a.0))
-            else {
-                break;
-            };
-            let column = dot6(s_a, &column_force);
-            let row = dot6(&row_inertia, s_dot_a) + dot6(&row_coriolis, s_a);
-            add_coupled_pair::<T, N>(m, single_a, ancestor.drive.terms(), single, terms, column, row);
-            next = ancestor.parent.filter(|p| p.0 < a.0);
+        if own.coordinate >= N {
+            // A coupled joint: every entry through both drive rows.
+            add_coupled::<T, N>(m.as_flattened_mut(), terms, terms, dot6(s_j, &column_force));
+            let mut a = own.parent;
+            while let (Some(ancestor), Some(s_a), Some(s_dot_a), Some(next)) =
+                (bodies.get(a), data.motion_subspaces.get(a), data.subspace_rates.get(a), drives.get(a))
+            {
+                let column = dot6(s_a, &column_force);
+                let row = dot6(&row_inertia, s_dot_a) + dot6(&row_coriolis, s_a);
+                let terms_a = ancestor.drive.terms();
+                add_coupled::<T, N>(m.as_flattened_mut(), terms_a, terms, column);
+                add_coupled::<T, N>(m.as_flattened_mut(), terms, terms_a, row);
+                a = next.parent;
+            }
+            continue;
+        }
+        let c = own.coordinate;
+        let g = own.coefficient;
+        add_entry(m, c, c, dot6(s_j, &column_force) * g * g);
+        let (column_force_g, row_inertia_g, row_coriolis_g) =
+            (scale6(&column_force, g), scale6(&row_inertia, g), scale6(&row_coriolis, g));
+        let mut a = own.parent;
+        while let (Some(next), Some((s_a, s_dot_a))) = (drives.get(a), scaled.get(a)) {
+            if next.coordinate < N {
+                let column = dot6(s_a, &column_force_g);
+                let row = dot6(&row_inertia_g, s_dot_a) + dot6(&row_coriolis_g, s_a);
+                add_entry(m, next.coordinate, c, column);
+                add_entry(m, c, next.coordinate, row);
+            } else if let (Some(ancestor), Some(s_a), Some(s_dot_a)) =
+                (bodies.get(a), data.motion_subspaces.get(a), data.subspace_rates.get(a))
+            {
+                let column = dot6(s_a, &column_force);
+                let row = dot6(&row_inertia, s_dot_a) + dot6(&row_coriolis, s_a);
+                let terms_a = ancestor.drive.terms();
+                add_coupled::<T, N>(m.as_flattened_mut(), terms_a, terms, column);
+                add_coupled::<T, N>(m.as_flattened_mut(), terms, terms_a, row);
+            }
+            a = next.parent;
         }
     }
     &data.coriolis
+}
+
+/// The 6×6 composite Coriolis operators `B^c_j = ½ İ^c_j + ½ (p^c_j)×̄` of every subtree
+/// (the operators of [`coriolis_matrix`]) from the composite inertia rates and momenta that
+/// [`coriolis_matrix`] stored: call it first, at the same state. Writes `composite_coriolis`
+/// (returned). Cost O(B).
+pub fn composite_coriolis_operators<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
+    data: &mut Data<T, N, B, F>,
+) -> &[SpatialMatrix<T>; B] {
+    let half = nalgebra::convert::<f64, T>(0.5);
+    for ((bc, rate), momentum) in
+        data.composite_coriolis.iter_mut().zip(data.composite_inertia_rates.iter()).zip(data.composite_momenta.iter())
+    {
+        *bc = coriolis_operator(rate, momentum, half);
+    }
+    &data.composite_coriolis
 }
 
 /// The 6×6 operator `B = ½ İ + ½ (p)×̄` from the inertia rate `İ` (ten-parameter form, zero
@@ -124,13 +170,6 @@ fn coriolis_operator<T: RealField + Copy>(
         [f2 - h2, z, h0 - f0, z, z, z],
         [h1 - f1, f0 - h0, z, z, z, z],
     ]))
-}
-
-/// `k a`, written out.
-#[inline(always)]
-fn scale6<T: RealField + Copy>(a: &Vector6<T>, k: T) -> Vector6<T> {
-    let [a0, a1, a2, a3, a4, a5] = a.data.0[0];
-    Vector6::new(k * a0, k * a1, k * a2, k * a3, k * a4, k * a5)
 }
 
 #[cfg(test)]

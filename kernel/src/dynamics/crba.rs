@@ -1,8 +1,9 @@
 //! Composite rigid-body algorithm: the joint-space inertia matrix.
 
-use nalgebra::{RealField, SMatrix};
+use nalgebra::{RealField, SMatrix, Vector6};
 
-use super::{add_coupled, add_coupled_pair, dot6, single_terms};
+use super::{add_coupled, add_entry, dot6, scale6, walk_drives};
+use crate::math::spatial::SpatialMatrix;
 use crate::model::{Data, Model, WorldInertia};
 
 /// Joint-space inertia matrix `M(q)` ((2.1)) by the composite rigid-body algorithm.
@@ -14,41 +15,72 @@ use crate::model::{Data, Model, WorldInertia};
 /// sparsity: they are zero). Both triangles are filled; `M` is symmetric positive definite for a
 /// valid model.
 ///
-/// Precondition: [`super::forward_kinematics`] or [`super::placement_kinematics`] at `q`. Writes `composite_world_inertias`,
-/// `composite_inertias` (6×6 form) and `mass_matrix` (returned). Cost O(B·depth).
+/// Precondition: [`super::forward_kinematics`] or [`super::placement_kinematics`] at `q`. Writes
+/// `composite_world_inertias` (ten-parameter form; [`composite_inertia_matrices`] forms the 6×6
+/// matrices on request) and `mass_matrix` (returned). Cost O(B·depth).
 pub fn crba<'d, T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
     model: &Model<T, N, B, F>,
     data: &'d mut Data<T, N, B, F>,
 ) -> &'d SMatrix<T, N, N> {
     accumulate_world_composites(model, &data.world_inertias, &mut data.composite_world_inertias);
-    let m = data.mass_matrix.as_mut_slice();
-    m.fill(T::zero());
+    data.mass_matrix.as_mut_slice().fill(T::zero());
     let bodies = model.bodies();
-    let singles = single_terms(model);
-    for ((((body, composite), s_i), &single), matrix) in bodies
-        .iter()
-        .zip(data.composite_world_inertias.iter())
-        .zip(data.motion_subspaces.iter())
-        .zip(singles.iter())
-        .zip(data.composite_inertias.iter_mut())
+    let drives = walk_drives(model);
+    // `g_a S_a`: a walk step is one product with the body's scaled force.
+    let mut scaled = [Vector6::zeros(); B];
+    for ((x, s), d) in scaled.iter_mut().zip(data.motion_subspaces.iter()).zip(drives.iter()) {
+        *x = scale6(s, d.coefficient);
+    }
+    let m: &mut [[T; N]; N] = &mut data.mass_matrix.data.0;
+    for (((body, composite), s_i), own) in
+        bodies.iter().zip(data.composite_world_inertias.iter()).zip(data.motion_subspaces.iter()).zip(drives.iter())
     {
-        *matrix = composite.matrix();
         let force = composite.apply(s_i);
         let terms = body.drive.terms();
-        add_coupled::<T, N>(m, terms, terms, dot6(s_i, &force));
-        let mut next = body.parent;
-        while let Some(j) = next {
-            let (Some(ancestor), Some(s_j), Some(&single_j)) =
-                (bodies.get(j.0), data.motion_subspaces.get(j.0), singles.get(j.0))
-            else {
-                break;
-            };
-            let value = dot6(s_j, &force);
-            add_coupled_pair::<T, N>(m, single_j, ancestor.drive.terms(), single, terms, value, value);
-            next = ancestor.parent.filter(|p| p.0 < j.0);
+        if own.coordinate >= N {
+            // A coupled joint: every entry through both drive rows.
+            add_coupled::<T, N>(m.as_flattened_mut(), terms, terms, dot6(s_i, &force));
+            let mut a = own.parent;
+            while let (Some(ancestor), Some(s_a), Some(d)) =
+                (bodies.get(a), data.motion_subspaces.get(a), drives.get(a))
+            {
+                let value = dot6(s_a, &force);
+                add_coupled::<T, N>(m.as_flattened_mut(), ancestor.drive.terms(), terms, value);
+                add_coupled::<T, N>(m.as_flattened_mut(), terms, ancestor.drive.terms(), value);
+                a = d.parent;
+            }
+            continue;
+        }
+        let c = own.coordinate;
+        let scaled_force = scale6(&force, own.coefficient);
+        add_entry(m, c, c, dot6(s_i, &scaled_force) * own.coefficient);
+        let mut a = own.parent;
+        while let (Some(d), Some(s_a)) = (drives.get(a), scaled.get(a)) {
+            if d.coordinate < N {
+                let value = dot6(s_a, &scaled_force);
+                add_entry(m, d.coordinate, c, value);
+                add_entry(m, c, d.coordinate, value);
+            } else if let (Some(ancestor), Some(raw)) = (bodies.get(a), data.motion_subspaces.get(a)) {
+                let value = dot6(raw, &force);
+                add_coupled::<T, N>(m.as_flattened_mut(), ancestor.drive.terms(), terms, value);
+                add_coupled::<T, N>(m.as_flattened_mut(), terms, ancestor.drive.terms(), value);
+            }
+            a = d.parent;
         }
     }
     &data.mass_matrix
+}
+
+/// The 6×6 composite inertia `I^c_i` of every subtree from the ten-parameter composites that
+/// [`crba`] (or [`super::coriolis_matrix`]) stored: call it first, at the same `q`. Writes
+/// `composite_inertias` (returned). Cost O(B).
+pub fn composite_inertia_matrices<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
+    data: &mut Data<T, N, B, F>,
+) -> &[SpatialMatrix<T>; B] {
+    for (matrix, composite) in data.composite_inertias.iter_mut().zip(data.composite_world_inertias.iter()) {
+        *matrix = composite.matrix();
+    }
+    &data.composite_inertias
 }
 
 /// `out_i = Σ_{k ∈ subtree(i)} per_body_k` for ten-parameter inertias (one backward pass).

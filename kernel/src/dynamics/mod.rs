@@ -16,7 +16,9 @@
 //! | [`rnea`] | `M q̈ + C q̇ + g` | O(B) |
 //! | [`gravity`] | `g(q)` | O(B) |
 //! | [`crba`] | `M(q)` | O(B·depth) |
+//! | [`composite_inertia_matrices`] | the 6×6 `I^c` of [`crba`] | O(B) |
 //! | [`coriolis_matrix`] | `C(q, q̇)` with `Ṁ = C + Cᵀ` (2.7) | O(B·depth) |
+//! | [`composite_coriolis_operators`] | the 6×6 `B^c` of [`coriolis_matrix`] | O(B) |
 //! | [`mass_matrix_cholesky`], [`forward_dynamics`] | `M = L Lᵀ`, `q̈ = M⁻¹(τ − C q̇ − g)` | O(N³) |
 //! | [`TreeFactorization`] | `M = Lᵀ L` over the branch-induced sparsity, solves | O(Σ depth²) |
 //! | [`kinetic_energy`], [`potential_energy`] | `½ q̇ᵀ M q̇`, `−Σ m_i gᵀ c_i` | O(B) |
@@ -37,8 +39,8 @@ mod gravity;
 mod rnea;
 mod tree_factorization;
 
-pub use coriolis_matrix::coriolis_matrix;
-pub use crba::crba;
+pub use coriolis_matrix::{composite_coriolis_operators, coriolis_matrix};
+pub use crba::{composite_inertia_matrices, crba};
 pub use energy::{kinetic_energy, potential_energy};
 pub use error::DynamicsError;
 pub use forward_dynamics::{forward_dynamics, mass_matrix_cholesky};
@@ -75,47 +77,49 @@ fn add_coupled<T: RealField + Copy, const N: usize>(m: &mut [T], row: &[DriveTer
     }
 }
 
-/// The single drive term of every body (`None` for a coupled joint with several terms), looked
-/// up once per algorithm so that the ancestor walks of [`crba`] and [`coriolis_matrix`] read one
-/// local entry per body instead of the drive's term list.
+/// One body as the ancestor walks of [`crba`] and [`coriolis_matrix`] see it: its parent
+/// (`B` for none, so that a walk ends at the first index out of range; a parent index that is
+/// not smaller than the body's own ends the walk too) and, for a joint driven by one
+/// coordinate, that coordinate and its coefficient (`coordinate = N` and coefficient one for a
+/// joint coupled to several coordinates, whose entries go through its drive row).
+#[derive(Clone, Copy)]
+struct WalkDrive<T> {
+    parent: usize,
+    coordinate: usize,
+    coefficient: T,
+}
+
+/// The [`WalkDrive`] of every body, built once per algorithm call.
 #[inline(always)]
-fn single_terms<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
+fn walk_drives<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
     model: &crate::model::Model<T, N, B, F>,
-) -> [Option<DriveTerm<T>>; B] {
-    let mut out = [None; B];
-    for (slot, body) in out.iter_mut().zip(model.bodies()) {
+) -> [WalkDrive<T>; B] {
+    let mut out = [WalkDrive { parent: B, coordinate: N, coefficient: T::one() }; B];
+    for (i, (slot, body)) in out.iter_mut().zip(model.bodies()).enumerate() {
+        slot.parent = body.parent.map(|p| p.0).filter(|p| *p < i).unwrap_or(B);
         if let [term] = body.drive.terms() {
-            *slot = Some(*term);
+            if term.coordinate < N {
+                slot.coordinate = term.coordinate;
+                slot.coefficient = term.coefficient;
+            }
         }
     }
     out
 }
 
-/// `m[a][b] += ab` and `m[b][a] += ba` for the tree entries of bodies `a` and `b` (single drive
-/// terms `single_a`, `single_b` from [`single_terms`], or their full drive rows `terms_a`,
-/// `terms_b` when either is coupled), mapped to coordinates as in [`add_coupled`].
+/// `m[c][r] += value` on column arrays (entry `(r, c)` of a column-major matrix).
 #[inline(always)]
-#[allow(clippy::too_many_arguments, reason = "two bodies' drive views and two values, all inlined")]
-fn add_coupled_pair<T: RealField + Copy, const N: usize>(
-    m: &mut [T],
-    single_a: Option<DriveTerm<T>>,
-    terms_a: &[DriveTerm<T>],
-    single_b: Option<DriveTerm<T>>,
-    terms_b: &[DriveTerm<T>],
-    ab: T,
-    ba: T,
-) {
-    if let (Some(ta), Some(tb)) = (single_a, single_b) {
-        if let Some(entry) = m.get_mut(tb.coordinate * N + ta.coordinate) {
-            *entry += ta.coefficient * tb.coefficient * ab;
-        }
-        if let Some(entry) = m.get_mut(ta.coordinate * N + tb.coordinate) {
-            *entry += tb.coefficient * ta.coefficient * ba;
-        }
-    } else {
-        add_coupled::<T, N>(m, terms_a, terms_b, ab);
-        add_coupled::<T, N>(m, terms_b, terms_a, ba);
+fn add_entry<T: RealField + Copy, const N: usize>(m: &mut [[T; N]; N], r: usize, c: usize, value: T) {
+    if let Some(x) = m.get_mut(c).and_then(|column| column.get_mut(r)) {
+        *x += value;
     }
+}
+
+/// `k a`, written out.
+#[inline(always)]
+fn scale6<T: RealField + Copy>(a: &Vector6<T>, k: T) -> Vector6<T> {
+    let [a0, a1, a2, a3, a4, a5] = a.data.0[0];
+    Vector6::new(k * a0, k * a1, k * a2, k * a3, k * a4, k * a5)
 }
 
 /// `out += value · g`: adds a tree-level generalized force to the coordinate vector.
@@ -195,6 +199,7 @@ mod reference_tests {
     /// Every output of the fast algorithms, cast to f64.
     struct Outputs {
         m: SMatrix<f64, N, N>,
+        ic: [SMatrix<f64, 6, 6>; B],
         c: SMatrix<f64, N, N>,
         bc: [SMatrix<f64, 6, 6>; B],
         g: SVector<f64, N>,
@@ -213,8 +218,9 @@ mod reference_tests {
         let mut data = Data::new(model);
         forward_kinematics(model, &mut data, &cast(q), &cast(v)).unwrap();
         let m = crba(model, &mut data).map(|e| nalgebra::try_convert(e).unwrap());
+        let ic = composite_inertia_matrices(&mut data).map(|x| x.map(|e| nalgebra::try_convert(e).unwrap()));
         let c = coriolis_matrix(model, &mut data).map(|e| nalgebra::try_convert(e).unwrap());
-        let bc = data.composite_coriolis.map(|x| x.map(|e| nalgebra::try_convert(e).unwrap()));
+        let bc = composite_coriolis_operators(&mut data).map(|x| x.map(|e| nalgebra::try_convert(e).unwrap()));
         let g = gravity(model, &mut data).map(|e| nalgebra::try_convert(e).unwrap());
         let tau = rnea(model, &mut data, &cast(a)).unwrap().map(|e| nalgebra::try_convert(e).unwrap());
         let mut jacobians = [SMatrix::zeros(); 2];
@@ -223,7 +229,7 @@ mod reference_tests {
             frame_jacobian(model, &data, crate::model::FrameId(k), &mut j).unwrap();
             *out = j.map(|e| nalgebra::try_convert(e).unwrap());
         }
-        Outputs { m, c, bc, g, tau, jacobians, kinematics: kinematics(&data) }
+        Outputs { m, ic, c, bc, g, tau, jacobians, kinematics: kinematics(&data) }
     }
 
     fn reference_outputs(
@@ -246,6 +252,7 @@ mod reference_tests {
         }
         Outputs {
             m: reference::crba(model, &data),
+            ic: reference::composites(model, &data.body_inertias),
             c,
             bc,
             g: reference::rnea(model, &at_rest, &SVector::zeros()),
@@ -282,6 +289,9 @@ mod reference_tests {
         };
         close("kinematics", &fast.kinematics, &reference.kinematics)?;
         close("M", fast.m.as_slice(), reference.m.as_slice())?;
+        for (a, b) in fast.ic.iter().zip(reference.ic.iter()) {
+            close("I^c", a.as_slice(), b.as_slice())?;
+        }
         close("C", fast.c.as_slice(), reference.c.as_slice())?;
         for (a, b) in fast.bc.iter().zip(reference.bc.iter()) {
             close("B^c", a.as_slice(), b.as_slice())?;

@@ -61,8 +61,8 @@ pub fn forward_kinematics<T: RealField + Copy, const N: usize, const B: usize, c
     }
 }
 
-/// Subtree sums of 6×6 per-body operators.
-fn composites<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
+/// Subtree sums of 6×6 per-body operators (with the body inertias: the composite inertias).
+pub fn composites<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
     model: &Model<T, N, B, F>,
     per_body: &[SpatialMatrix<T>; B],
 ) -> [SpatialMatrix<T>; B] {

@@ -43,9 +43,11 @@ pub struct Data<T: RealField, const N: usize, const B: usize, const F: usize> {
     pub composite_inertia_rates: [WorldInertia<T>; B],
     /// Momentum `Σ_{k ∈ subtree(i)} I_k v_k` of each subtree (`coriolis_matrix`).
     pub composite_momenta: [SpatialForce<T>; B],
-    /// Composite inertia of each body's subtree, 6×6 (written by `crba`).
+    /// Composite inertia of each body's subtree, 6×6 (`composite_inertia_matrices`, after
+    /// `crba`).
     pub composite_inertias: [SpatialMatrix<T>; B],
-    /// Composite Christoffel-consistent Coriolis operator of each subtree (`coriolis_matrix`).
+    /// Composite Christoffel-consistent Coriolis operator of each subtree
+    /// (`composite_coriolis_operators`, after `coriolis_matrix`).
     pub composite_coriolis: [SpatialMatrix<T>; B],
     /// Spatial force transmitted by each body's joint (`rnea`, `gravity`).
     pub body_forces: [SpatialForce<T>; B],
