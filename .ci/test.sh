@@ -6,7 +6,8 @@
 #      the link fails if anything in the kernel's dependency graph pulls in `alloc`
 #   4. a QEMU smoke run of that image on Cortex-M7 (mps2-an500) and Cortex-M4F (mps2-an386)
 #   5. the link-time panic check: Controller::step and apply_bytes linked with an undefined panic handler
-#   6. formatting (`cargo fmt --check`) and rustdoc with warnings as errors
+#   6. formatting (`cargo fmt --check`), rustdoc with warnings as errors, no import cycle
+#      between the kernel's modules (.ci/module_cycles.py)
 #   7. processor in the loop: the runtime image under QEMU (Cortex-M7) controls the simulated
 #      robot for 300 cycles, and refuses injected bad link frames with the safe output
 #   8. the replay page in a real browser: headless Chromium draws replay.html of wbc_phri
@@ -23,10 +24,11 @@ step() { printf '\n==> %s   [%s free]\n' "$*" "$(df -h --output=avail . | tail -
 step "toolchain set-up"
 rustup target add thumbv7em-none-eabihf >/dev/null
 rustup component add clippy rustfmt >/dev/null 2>&1 || true
-# gcc builds the QEMU counting plugin of the PIL test (firmware/wcet/build_plugin.sh).
-if ! command -v qemu-system-arm >/dev/null || ! command -v gcc >/dev/null; then
+# gcc builds the QEMU counting plugin of the PIL test (firmware/wcet/build_plugin.sh);
+# python3 runs the module-graph check (.ci/module_cycles.py).
+if ! command -v qemu-system-arm >/dev/null || ! command -v gcc >/dev/null || ! command -v python3 >/dev/null; then
     export DEBIAN_FRONTEND=noninteractive
-    apt-get update -qq && apt-get install -y -qq qemu-system-arm gcc >/dev/null
+    apt-get update -qq && apt-get install -y -qq qemu-system-arm gcc python3 >/dev/null
 fi
 
 step "formatting (rustfmt.toml) of the workspace, the firmware and its host bench"
@@ -69,6 +71,9 @@ cargo clippy --locked --workspace --all-targets -- -D warnings
 
 step "rustdoc (warnings are errors)"
 RUSTDOCFLAGS="-D warnings" cargo doc --locked --workspace --no-deps
+
+step "no import cycle between the kernel's modules"
+python3 .ci/module_cycles.py kernel/src
 
 step "workspace tests"
 cargo test --locked --workspace

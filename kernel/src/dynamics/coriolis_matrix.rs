@@ -3,8 +3,8 @@
 use nalgebra::{RealField, SMatrix, Vector6};
 
 use super::crba::accumulate_world_composites;
+use super::kernels::{add6, add_coupled, add_entry, add_scaled6, dot6, scale6, walk_drives};
 use super::rnea::force_cross;
-use super::{add6, add_coupled, add_entry, add_scaled6, dot6, scale6, walk_drives};
 use crate::math::spatial::{SpatialForce, SpatialMatrix};
 use crate::model::{Data, Model, WorldInertia};
 

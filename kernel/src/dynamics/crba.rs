@@ -2,7 +2,7 @@
 
 use nalgebra::{RealField, SMatrix, Vector6};
 
-use super::{add_coupled, add_entry, dot6, scale6, walk_drives};
+use super::kernels::{add_coupled, add_entry, dot6, scale6, walk_drives};
 use crate::math::spatial::SpatialMatrix;
 use crate::model::{Data, Model, WorldInertia};
 

@@ -2,7 +2,10 @@
 
 use nalgebra::{Cholesky, Const, RealField, SVector};
 
-use super::{check_finite, crba, rnea, DynamicsError};
+use super::crba::crba;
+use super::error::DynamicsError;
+use super::kernels::check_finite;
+use super::rnea::rnea;
 use crate::model::{Data, Model};
 
 /// Cholesky factorization `M = L Lᵀ` of the mass matrix last written by [`crba`].

@@ -4,7 +4,8 @@
 
 use nalgebra::{ArrayStorage, Matrix3, RealField, Rotation3, SVector, Translation3, Vector3, Vector6};
 
-use super::{add_scaled6, check_finite, DynamicsError};
+use super::error::DynamicsError;
+use super::kernels::{add_scaled6, check_finite};
 use crate::math::spatial::{Motion, Placement};
 use crate::model::{Body, BodyId, Data, JointKind, Model, WorldInertia};
 

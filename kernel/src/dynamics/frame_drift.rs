@@ -2,7 +2,7 @@
 
 use nalgebra::{RealField, Vector3, Vector6};
 
-use super::DynamicsError;
+use super::error::DynamicsError;
 use crate::math::spatial::{angular, linear, linear_at_point};
 use crate::model::{BodyId, Data, FrameId, Model};
 

@@ -2,8 +2,8 @@
 
 use nalgebra::{RealField, SMatrix, Vector3};
 
+use super::error::DynamicsError;
 use super::forward_kinematics::transform_point;
-use super::DynamicsError;
 use crate::model::{BodyId, Data, FrameId, Model};
 
 /// Jacobian of the point `point` (world coordinates, m) rigidly attached to body `body`:

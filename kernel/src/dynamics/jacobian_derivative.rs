@@ -3,7 +3,8 @@
 
 use nalgebra::{RealField, SMatrix, SVector, Vector3};
 
-use super::{check_finite, DynamicsError};
+use super::error::DynamicsError;
+use super::kernels::check_finite;
 use crate::math::spatial::{angular, linear, linear_at_point, motion_cross, Motion};
 use crate::model::{BodyId, Data, FrameId, Model};
 

@@ -2,7 +2,8 @@
 
 use nalgebra::{RealField, SVector, Vector6};
 
-use super::{add6, add_scaled6, add_to_coordinates, check_finite, dot6, DynamicsError};
+use super::error::DynamicsError;
+use super::kernels::{add6, add_scaled6, add_to_coordinates, check_finite, dot6};
 use crate::model::{Data, Model};
 
 /// Inverse dynamics `τ = M(q) q̈ + C(q, q̇) q̇ + g(q)` ((2.1) of the thesis) by the recursive

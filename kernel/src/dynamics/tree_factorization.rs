@@ -9,7 +9,7 @@
 
 use nalgebra::{Cholesky, Const, RealField, SMatrix, SVector};
 
-use super::DynamicsError;
+use super::error::DynamicsError;
 use crate::math::sqrt;
 use crate::model::Model;
 

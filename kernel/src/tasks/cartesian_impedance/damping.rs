@@ -4,7 +4,6 @@
 
 use nalgebra::{Matrix6, RealField, SMatrix, SVector, Vector6};
 
-use super::{CartesianImpedance, DampingFallback};
 use crate::dynamics::TreeFactorization;
 use crate::math::cholesky::{cholesky_in_place, solve_lower_in_place};
 use crate::math::damping::{double_diagonalization_factored, DampingError, ReflectedInertia};
@@ -34,7 +33,8 @@ pub(super) fn symmetric_times<T: RealField + Copy>(s: &Matrix6<T>, x: &Vector6<T
 /// [`crate::math::damping::double_diagonalization_factored`].
 pub(super) fn damping_matrix<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
     data: &Data<T, N, B, F>,
-    task: &CartesianImpedance<T>,
+    stiffness: &Matrix6<T>,
+    damping_ratio: T,
     task_jacobian: &SMatrix<T, 6, N>,
     selected: &[bool; 6],
 ) -> Result<Matrix6<T>, DampingFallback> {
@@ -73,7 +73,7 @@ pub(super) fn damping_matrix<T: RealField + Copy, const N: usize, const B: usize
             }
         }
     }
-    design_from_inverse_inertia(task, &inverse_inertia)
+    design_from_inverse_inertia(stiffness, damping_ratio, &inverse_inertia)
 }
 
 /// [`damping_matrix`] on the tree-sparse factor `M = Lᵀ L`: `X = J_x L⁻¹`
@@ -82,7 +82,8 @@ pub(super) fn damping_matrix<T: RealField + Copy, const N: usize, const B: usize
 /// entries set to 1; then the same pivot check and double diagonalisation.
 pub(super) fn damping_matrix_tree<T: RealField + Copy, const N: usize>(
     factor: Option<&TreeFactorization<T, N>>,
-    task: &CartesianImpedance<T>,
+    stiffness: &Matrix6<T>,
+    damping_ratio: T,
     task_jacobian: &SMatrix<T, 6, N>,
     selected: &[bool; 6],
 ) -> Result<Matrix6<T>, DampingFallback> {
@@ -109,12 +110,13 @@ pub(super) fn damping_matrix_tree<T: RealField + Copy, const N: usize>(
             }
         }
     }
-    design_from_inverse_inertia(task, &inverse_inertia)
+    design_from_inverse_inertia(stiffness, damping_ratio, &inverse_inertia)
 }
 
 /// The pivot check of `Λ⁻¹` and the double diagonalisation (shared by both damping designs).
 fn design_from_inverse_inertia<T: RealField + Copy>(
-    task: &CartesianImpedance<T>,
+    stiffness: &Matrix6<T>,
+    damping_ratio: T,
     inverse_inertia: &Matrix6<T>,
 ) -> Result<Matrix6<T>, DampingFallback> {
     // A rounding-level pivot would pass the factorization inside the design but give a
@@ -130,7 +132,21 @@ fn design_from_inverse_inertia<T: RealField + Copy>(
     if !inverse_inertia.as_slice().iter().all(|x| x.is_finite()) {
         return Err(DampingFallback::Design(DampingError::NonFinite));
     }
-    let ratios = SVector::<T, 6>::repeat(task.config.damping_ratio);
-    double_diagonalization_factored(ReflectedInertia::Inverse(&pivots), &task.stiffness, &ratios)
+    let ratios = SVector::<T, 6>::repeat(damping_ratio);
+    double_diagonalization_factored(ReflectedInertia::Inverse(&pivots), stiffness, &ratios)
         .map_err(DampingFallback::Design)
+}
+
+/// Why the task used its fallback damping.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum DampingFallback {
+    /// The mass matrix failed its Cholesky factorization (was `crba` called?).
+    MassMatrixNotPositiveDefinite,
+    /// `Λ⁻¹ = J_x M⁻¹ J_xᵀ` is numerically singular (a Cholesky pivot at rounding level): the
+    /// selected axes are not independent at this configuration (kinematic singularity, or more
+    /// axes than the frame has joints).
+    TaskJacobianSingular,
+    /// The double diagonalisation failed.
+    Design(DampingError),
 }

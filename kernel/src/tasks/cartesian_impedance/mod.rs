@@ -56,7 +56,6 @@ use nalgebra::{Matrix3, Matrix6, RealField, RowSVector, SMatrix, UnitQuaternion,
 
 use super::{TaskError, TaskRow, TaskRows};
 use crate::dynamics::{frame_jacobian, DynamicsError, TreeFactorization};
-use crate::math::damping::DampingError;
 use crate::math::spatial::{skew, Placement};
 use crate::model::{Data, FrameId, Model};
 
@@ -146,20 +145,6 @@ pub struct CartesianImpedanceConfig<T: RealField> {
     /// Diagonal task-space damping (Ns/m, Nms/rad), `≥ 0`, used when the double
     /// diagonalisation is impossible (singular `M` or task Jacobian).
     pub fallback_damping: Vector6<T>,
-}
-
-/// Why the task used its fallback damping.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum DampingFallback {
-    /// The mass matrix failed its Cholesky factorization (was `crba` called?).
-    MassMatrixNotPositiveDefinite,
-    /// `Λ⁻¹ = J_x M⁻¹ J_xᵀ` is numerically singular (a Cholesky pivot at rounding level): the
-    /// selected axes are not independent at this configuration (kinematic singularity, or more
-    /// axes than the frame has joints).
-    TaskJacobianSingular,
-    /// The double diagonalisation failed.
-    Design(DampingError),
 }
 
 /// What one call of [`cartesian_impedance`] found, per axis `(x, y, z, rx, ry, rz)` of the
@@ -441,8 +426,10 @@ fn evaluate<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
     }
     let error_rate = mask(rate);
     let design = match mass {
-        MassFactor::Dense => damping_matrix(data, task, task_jacobian, &selected),
-        MassFactor::Tree(factor) => damping_matrix_tree(factor, task, task_jacobian, &selected),
+        MassFactor::Dense => damping_matrix(data, &task.stiffness, task.config.damping_ratio, task_jacobian, &selected),
+        MassFactor::Tree(factor) => {
+            damping_matrix_tree(factor, &task.stiffness, task.config.damping_ratio, task_jacobian, &selected)
+        }
     };
     let (damping, damping_fallback) = match design {
         Ok(d) => (d, None),
@@ -487,6 +474,7 @@ fn evaluate<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
 }
 
 mod damping;
+pub use damping::DampingFallback;
 use damping::{damping_matrix, damping_matrix_tree, symmetric_times};
 
 /// The plain implementation (nalgebra products, the mask as a diagonal matrix, nalgebra's
