@@ -29,7 +29,7 @@ use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 
 /// Which plant the simulator drives.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum PlantKind {
     /// Torques act exactly and at once; sensors are exact; no friction.
     #[default]
@@ -44,15 +44,6 @@ impl PlantKind {
         match self {
             Self::Ideal => "ideal",
             Self::Realistic => "realistic",
-        }
-    }
-
-    /// Parses a command-line name.
-    pub fn from_name(name: &str) -> Result<Self, String> {
-        match name {
-            "ideal" => Ok(Self::Ideal),
-            "realistic" => Ok(Self::Realistic),
-            other => Err(format!("unknown plant `{other}` (expected `ideal` or `realistic`)")),
         }
     }
 }
@@ -335,7 +326,11 @@ mod tests {
         m = PlantModel::justin(1);
         m.delay_cycles = 2;
         assert_eq!(m.validate(), Err("delay_cycles"));
-        assert_eq!(PlantKind::from_name("realistic"), Ok(PlantKind::Realistic));
-        assert!(PlantKind::from_name("ideal ").is_err());
+        use clap::ValueEnum;
+        assert_eq!(PlantKind::from_str("realistic", false), Ok(PlantKind::Realistic));
+        assert!(PlantKind::from_str("ideal ", false).is_err());
+        for kind in PlantKind::value_variants() {
+            assert_eq!(kind.to_possible_value().map(|v| v.get_name().to_owned()), Some(kind.name().to_owned()));
+        }
     }
 }

@@ -3,15 +3,16 @@
 //! frames. Needs `qemu-system-arm` and builds the image: run by `.ci/test.sh` (`--ignored`).
 #![allow(clippy::unwrap_used, reason = "tests")]
 
-use host_sim::pil::{select, Target};
+use host_sim::pil::Target;
+use host_sim::scenarios::RunOptions;
 use host_sim::wbc::chapter_6_rig;
 use kernel::controller::config::Hand;
 
 #[test]
 #[ignore = "needs qemu-system-arm and the firmware build (run by .ci/test.sh)"]
 fn the_firmware_controls_the_robot_like_the_host_controller() {
-    select(Target::CortexM7).unwrap();
-    let mut rig = chapter_6_rig(Hand::Right, &[]).unwrap();
+    let options = RunOptions { pil: Some(Target::CortexM7), ..RunOptions::default() };
+    let mut rig = chapter_6_rig(Hand::Right, &[], &options).unwrap();
     let series = rig.run(0.3, |_, _| Ok(())).unwrap();
     assert_eq!(series.rows().len(), 300);
     assert_eq!(rig.faulty_cycles, 0);

@@ -64,9 +64,9 @@ use kernel::tasks::TaskRows;
 use nalgebra::{Matrix3, RowSVector, SMatrix, SVector, Translation3, Unit, UnitQuaternion, Vector3, Vector6};
 
 use super::multilevel_planar::{column, largest_rise, peak, points};
-use super::{joint_columns, Outcome, Progress};
+use super::{joint_columns, Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
-use crate::sim::{run_loop, SimConfig, SimError, Simulator, CONTROL_PERIOD_S};
+use crate::sim::{run_loop, SimConfig, Simulator, CONTROL_PERIOD_S};
 
 /// Registry name.
 pub const NAME: &str = "multilevel_arm";
@@ -80,6 +80,8 @@ pub const ARM_DOF: usize = 7;
 pub const ARM_FRAMES: usize = 9;
 /// The 7-DOF arm model type.
 pub type ArmModel = Model<f64, ARM_DOF, ARM_DOF, ARM_FRAMES>;
+/// The simulated right arm.
+type ArmSim = Simulator<ARM_DOF, ARM_DOF, ARM_FRAMES, ARM_DOF>;
 /// Row capacity of [`ArmHierarchy`]: 3 + 3 Cartesian rows and up to 26 joint rows.
 pub const ROW_CAPACITY: usize = 32;
 
@@ -395,26 +397,18 @@ struct Start {
     kinetic_j: f64,
 }
 
-fn settle(model: &ArmModel, tcp: FrameId) -> Result<Start, String> {
-    let mut sim = Simulator::<ARM_DOF, ARM_DOF, ARM_FRAMES, ARM_DOF>::new(model.clone(), SimConfig::default())
-        .map_err(|e| e.to_string())?;
+fn settle(model: &ArmModel, tcp: FrameId, options: &RunOptions) -> Result<Start, String> {
+    let mut sim: ArmSim = options.simulator(model.clone(), SimConfig::default())?;
     let home = arm_home();
     sim.set_state(home, SVector::zeros()).map_err(|e| e.to_string())?;
     let start = sim.frame_placement(tcp).map_err(|e| e.to_string())?;
     let equilibrium = home + SVector::from(JOINT_EQUILIBRIUM_OFFSET);
     let mut controller = ArmHierarchy::new(model.clone(), tcp, start, equilibrium)?;
-    let mut failure = None;
-    run_loop(&mut sim, SETTLE_S, CONTROL_PERIOD_S, |sim, _| {
+    run_loop(&mut sim, SETTLE_S, CONTROL_PERIOD_S, |sim, _| -> Result<(), String> {
         let (q, v) = (*sim.q(), *sim.v());
-        match controller.step(&q, &v) {
-            Ok(torque) => JointTorqueInterface::<f64, ARM_DOF>::write_torque(sim, &(*torque).into()),
-            Err(e) => {
-                failure.get_or_insert(e);
-                Err(SimError::NonFinite { what: "controller output" })
-            }
-        }
-    })
-    .map_err(|e| failure.clone().unwrap_or_else(|| e.to_string()))?;
+        let torque = *controller.step(&q, &v)?;
+        Ok(JointTorqueInterface::<f64, ARM_DOF>::write_torque(sim, &torque.into())?)
+    })?;
     let energies = sim.energies().map_err(|e| e.to_string())?;
     Ok(Start { q: *sim.q(), v: *sim.v(), kinetic_j: energies.kinetic })
 }
@@ -425,10 +419,9 @@ fn record(
     tcp: FrameId,
     start: &Start,
     decoupling: bool,
-    progress: Progress,
+    options: &RunOptions,
 ) -> Result<TimeSeries, String> {
-    let mut sim = Simulator::<ARM_DOF, ARM_DOF, ARM_FRAMES, ARM_DOF>::new(model.clone(), SimConfig::default())
-        .map_err(|e| e.to_string())?;
+    let mut sim: ArmSim = options.simulator(model.clone(), SimConfig::default())?;
     sim.set_state(arm_home(), SVector::zeros()).map_err(|e| e.to_string())?;
     let home_pose = sim.frame_placement(tcp).map_err(|e| e.to_string())?;
     sim.set_state(start.q, start.v).map_err(|e| e.to_string())?;
@@ -437,8 +430,7 @@ fn record(
     controller.config.coriolis_decoupling = decoupling;
     let stepped = stepped_target(&home_pose);
     let mut series = TimeSeries::new(columns());
-    let mut failure = None;
-    let mut cycle = |sim: &mut Simulator<ARM_DOF, ARM_DOF, ARM_FRAMES, ARM_DOF>, t: f64| -> Result<Vec<f64>, String> {
+    let mut cycle = |sim: &mut ArmSim, t: f64| -> Result<Vec<f64>, String> {
         if t >= STEP_TIME_S - 1e-9 {
             controller.target = stepped;
         }
@@ -464,18 +456,11 @@ fn record(
     };
     run_loop(&mut sim, DURATION_S, CONTROL_PERIOD_S, |sim, info| {
         if info.cycle % 200 == 0 {
-            progress.report(NAME, info.time_s, DURATION_S);
+            options.progress.report(NAME, info.time_s, DURATION_S);
         }
-        match cycle(sim, info.time_s).and_then(|row| series.push(row)) {
-            Ok(()) => Ok(()),
-            Err(e) => {
-                failure.get_or_insert(e);
-                Err(SimError::NonFinite { what: "controller output" })
-            }
-        }
-    })
-    .map_err(|e| failure.clone().unwrap_or_else(|| e.to_string()))?;
-    progress.finish();
+        series.push(cycle(sim, info.time_s)?)
+    })?;
+    options.progress.finish();
     Ok(series)
 }
 
@@ -507,11 +492,11 @@ fn rising_intervals(t: &[f64], s: &[f64], threshold: f64) -> Vec<(f64, f64)> {
 }
 
 /// Runs the scenario: settle, then the step with `τ_μ` (recorded) and without (compared).
-pub fn simulate(progress: Progress) -> Result<Outcome, String> {
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let (model, tcp) = right_arm_model()?;
-    let start = settle(&model, tcp)?;
-    let series = record(&model, tcp, &start, true, progress)?;
-    let without = record(&model, tcp, &start, false, Progress::Silent)?;
+    let start = settle(&model, tcp, &options.silent())?;
+    let series = record(&model, tcp, &start, true, options)?;
+    let without = record(&model, tcp, &start, false, &options.silent())?;
     let t = column(&series, "t")?;
     let mut summary = Summary::new(NAME);
     summary.metric("settled_kinetic_energy_j", start.kinetic_j).metric("duration_s", DURATION_S);

@@ -22,7 +22,7 @@
 use super::multilevel_planar::{
     column, figures, peak, planar_arm, points, run, settle_time, Setup, SIM3_COM_M, SIM3_MASSES_KG,
 };
-use super::{multilevel_sim2, Outcome, Progress};
+use super::{multilevel_sim2, Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Summary};
 
 /// Registry name.
@@ -36,11 +36,11 @@ pub const DURATION_S: f64 = 1.0;
 pub const TRANSIENT_DEVIATION_BOUND: f64 = 0.25;
 
 /// Runs the scenario (and sim #2 for the comparison).
-pub fn simulate(progress: Progress) -> Result<Outcome, String> {
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let wrong = planar_arm(SIM3_MASSES_KG, SIM3_COM_M).map_err(|e| e.to_string())?;
     let setup = Setup { name: NAME, controller_model: wrong, duration_s: DURATION_S, ..multilevel_sim2::setup(NAME)? };
-    let series = run(&setup, progress)?;
-    let reference = run(&multilevel_sim2::setup(multilevel_sim2::NAME)?, Progress::Silent)?;
+    let series = run(&setup, options)?;
+    let reference = run(&multilevel_sim2::setup(multilevel_sim2::NAME)?, &options.silent())?;
     let mut summary = Summary::new(NAME);
     let t = column(&series, "t")?;
     for level in 1..=3 {

@@ -48,10 +48,10 @@ use kernel::tasks::collision::{
     evaluate_pair, proximity, self_collision_rows, CollisionData, CollisionModel, CollisionModelBuilder,
     CollisionParameters, SweptSphere,
 };
-use kernel::tasks::TaskRows;
+use kernel::tasks::{TaskError, TaskRows};
 use nalgebra::{SMatrix, SVector, Unit, Vector3};
 
-use super::{Outcome, Progress};
+use super::{Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Summary, TimeSeries};
 use crate::sim::{run_loop, SimConfig, Simulator, CONTROL_PERIOD_S};
 
@@ -175,26 +175,26 @@ pub struct Run {
 }
 
 /// Simulates one throw with damping ratio `xi` and push `push_n` (N, towards the obstacle).
-pub fn throw(mass_kg: f64, speed: f64, xi: f64, push_n: f64) -> Result<Run, String> {
+pub fn throw(mass_kg: f64, speed: f64, xi: f64, push_n: f64, options: &RunOptions) -> Result<Run, String> {
     let model = hand_model(mass_kg)?;
     let collision_model = hand_collision_model(&model)?;
     let parameters = CollisionParameters::try_new(MAX_FORCE_N, INFLUENCE_DISTANCE_M, xi, 0.0, INFLUENCE_DISTANCE_M)
         .map_err(|e| e.to_string())?;
     let mut collision = CollisionData::new(&collision_model);
     let mut data = Data::new(&model);
-    let mut sim = Sim::new(model.clone(), SimConfig::default()).map_err(|e| e.to_string())?;
+    let mut sim: Sim = options.simulator(model.clone(), SimConfig::default())?;
     sim.set_state(SVector::zeros(), SVector::from([speed])).map_err(|e| e.to_string())?;
     if push_n != 0.0 {
         sim.push(HAND, Vector3::new(push_n, 0.0, 0.0), 0.0, DURATION_S + 1.0).map_err(|e| e.to_string())?;
     }
     let mut run = Run { reflected_mass_kg: f64::NAN, ..Run::default() };
-    run_loop(&mut sim, DURATION_S, CONTROL_PERIOD_S, |sim, info| {
+    run_loop(&mut sim, DURATION_S, CONTROL_PERIOD_S, |sim, info| -> Result<(), String> {
         let sample = sim.read()?;
         let (q, v) = (SVector::from(sample.position), SVector::from(sample.velocity));
-        let fail = |_| crate::sim::SimError::NonFinite { what: "collision rows" };
-        forward_kinematics(&model, &mut data, &q, &v).map_err(crate::sim::SimError::Dynamics)?;
+        let fail = |e: TaskError| format!("collision rows: {e}");
+        forward_kinematics(&model, &mut data, &q, &v).map_err(|e| e.to_string())?;
         crba(&model, &mut data);
-        let factor = mass_matrix_cholesky(&data).map_err(crate::sim::SimError::Dynamics)?;
+        let factor = mass_matrix_cholesky(&data).map_err(|e| e.to_string())?;
         let mut rows = TaskRows::<f64, 1, 1>::new();
         self_collision_rows(&collision_model, &mut collision, &model, &data, &factor, &parameters, &mut rows)
             .map_err(fail)?;
@@ -221,8 +221,7 @@ pub fn throw(mass_kg: f64, speed: f64, xi: f64, push_n: f64) -> Result<Run, Stri
         run.damping.push(total - repulsive);
         run.activation.push(activation);
         Ok(())
-    })
-    .map_err(|e| e.to_string())?;
+    })?;
     Ok(run)
 }
 
@@ -309,17 +308,17 @@ fn approach_speed(mass_kg: f64) -> f64 {
 }
 
 /// Runs the scenario.
-pub fn simulate(progress: Progress) -> Result<Outcome, String> {
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let (mass, palm_distance) = left_hand_reflected_mass()?;
     let speed = approach_speed(mass);
     let mut throws = Vec::new();
     let mut holds = Vec::new();
     for (k, &xi) in DAMPING_RATIOS.iter().enumerate() {
-        progress.report(NAME, k as f64, DAMPING_RATIOS.len() as f64);
-        throws.push(throw(mass, speed, xi, 0.0)?);
-        holds.push(throw(mass, speed, xi, HOLD_FORCE_N)?);
+        options.progress.report(NAME, k as f64, DAMPING_RATIOS.len() as f64);
+        throws.push(throw(mass, speed, xi, 0.0, options)?);
+        holds.push(throw(mass, speed, xi, HOLD_FORCE_N, options)?);
     }
-    progress.finish();
+    options.progress.finish();
 
     let mut summary = Summary::new(NAME);
     summary

@@ -11,7 +11,8 @@
 //!   [`PUSH_DURATION_S`].
 //!
 //! All intervals are uniform in their ranges, drawn from a xorshift generator seeded with
-//! `SOAK_SEED` (environment, default [`SEED`]). The simulated duration is `SOAK_SECONDS`
+//! `SOAK_SEED` (environment, default [`SEED`]); with `--plant realistic` the same seed drives the
+//! plant's sensor noise. The simulated duration is `SOAK_SECONDS`
 //! (environment, default [`DEFAULT_SECONDS`]); `SOAK_SECONDS=3600` is the one-hour soak.
 //!
 //! Reported: the largest torque rate (absolute and relative to its limit), the largest
@@ -31,9 +32,9 @@ use kernel::controller::config::Hand;
 use kernel::controller::messages::{Command, Pose};
 use nalgebra::{UnitQuaternion, Vector3};
 
-use super::{Outcome, Progress};
+use super::{Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Summary, TimeSeries};
-use crate::sim::{CycleInfo, CONTROL_PERIOD_S};
+use crate::sim::{run_loop, CONTROL_PERIOD_S};
 use crate::wbc;
 
 /// Registry name.
@@ -150,15 +151,17 @@ pub struct SoakMetrics {
 }
 
 /// Runs the soak for [`duration_s`] (see the module docs).
-pub fn simulate(progress: Progress) -> Result<Outcome, String> {
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let duration = duration_s()?;
-    let (metrics, series) = run(duration, seed()?, progress)?;
+    let (metrics, series) = run(duration, seed()?, options)?;
     evaluate(&metrics, series)
 }
 
-/// The soak of `duration` simulated seconds with disturbances from `seed`.
-pub fn run(duration: f64, seed: u64, progress: Progress) -> Result<(SoakMetrics, TimeSeries), String> {
-    let mut rig = wbc::chapter_6_rig(Hand::Right, &[])?;
+/// The soak of `duration` simulated seconds with disturbances (and, on the realistic plant,
+/// sensor noise) from `seed`.
+pub fn run(duration: f64, seed: u64, options: &RunOptions) -> Result<(SoakMetrics, TimeSeries), String> {
+    let mut rig = wbc::chapter_6_rig(Hand::Right, &[], options)?;
+    rig.sim.set_plant_model(options.plant_model(seed))?;
     let mut rng = Rng(seed.max(1));
     let mut columns = wbc::columns();
     columns.extend(["tau_ratio_max", "rate_ratio_max", "energy_j"].iter().map(|s| (*s).to_string()));
@@ -191,12 +194,9 @@ pub fn run(duration: f64, seed: u64, progress: Progress) -> Result<(SoakMetrics,
     let mut next_push = rng.uniform(PUSH_INTERVAL_S);
     let mut previous = [0.0; justin::UPPER_DOF];
     let mut window = [0.0_f64; 3];
-    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss, reason = "finite, positive")]
-    let cycles = (duration / CONTROL_PERIOD_S).round().max(0.0) as u64;
-    for cycle in 0..cycles {
-        let info = CycleInfo { cycle, time_s: rig.sim.time_s() };
-        let t = info.time_s;
-        rig.cycle(&info).map_err(|e| format!("cycle {cycle}: {e}"))?;
+    run_loop(&mut rig, duration, CONTROL_PERIOD_S, |rig, info| -> Result<(), String> {
+        let (cycle, t) = (info.cycle, info.time_s);
+        rig.cycle(info).map_err(|e| format!("cycle {cycle}: {e}"))?;
         let output = *rig.controller.output();
         let telemetry = rig.controller.telemetry();
         let finite = output
@@ -244,7 +244,7 @@ pub fn run(duration: f64, seed: u64, progress: Progress) -> Result<(SoakMetrics,
         }
         previous = output.torque;
         if cycle % RECORD_EVERY == 0 {
-            let mut row = rig.record(&info).map_err(|e| format!("cycle {cycle}: {e}"))?;
+            let mut row = rig.record(info).map_err(|e| format!("cycle {cycle}: {e}"))?;
             row.extend(window);
             series.push(row)?;
             window = [0.0; 3];
@@ -273,11 +273,11 @@ pub fn run(duration: f64, seed: u64, progress: Progress) -> Result<(SoakMetrics,
             next_push = t + rng.uniform(PUSH_INTERVAL_S);
         }
         if cycle % 1000 == 0 {
-            progress.report(NAME, t, duration);
+            options.progress.report(NAME, t, duration);
         }
-        rig.sim.advance(CONTROL_PERIOD_S).map_err(|e| format!("physics after cycle {cycle}: {e}"))?;
-    }
-    progress.finish();
+        Ok(())
+    })?;
+    options.progress.finish();
     m.min_distance_m = rig.min_distance_m;
     Ok((m, series))
 }
@@ -362,7 +362,7 @@ mod tests {
 
     #[test]
     fn a_short_soak_holds_its_claims() {
-        let (metrics, series) = run(4.0, SEED, Progress::Silent).unwrap();
+        let (metrics, series) = run(4.0, SEED, &RunOptions::default()).unwrap();
         let outcome = evaluate(&metrics, series).unwrap();
         assert!(outcome.summary.failed_claims().is_empty(), "{:?} {metrics:?}", outcome.summary.failed_claims());
         assert!(metrics.goals >= 1 && metrics.pushes >= 1, "{metrics:?}");

@@ -28,7 +28,7 @@ use kernel::tasks::collision::SweptSphere;
 use nalgebra::{Rotation3, Vector3};
 
 use super::wbc_step::{col, common_claims, distance_to, line, points, pose_of, tcp_columns};
-use super::{Outcome, Progress};
+use super::{Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Span, Summary};
 use crate::wbc;
 
@@ -89,15 +89,15 @@ pub fn table() -> [SweptSphere<f64>; 4] {
 }
 
 /// Runs the scenario.
-pub fn simulate(progress: Progress) -> Result<Outcome, String> {
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let config = whole_body::controller_config::<f64>().map_err(|e| format!("config: {e}"))?;
     let mut rig =
-        wbc::rig(&justin::home_configuration(), &table(), config, &whole_body::fig_6_3_hierarchy(Hand::Left))?;
+        wbc::rig(&justin::home_configuration(), &table(), config, &whole_body::fig_6_3_hierarchy(Hand::Left), options)?;
     let mut start = None;
     let mut goal = None;
     let series = rig.run(DURATION_S, |rig, info| {
         if info.cycle % 100 == 0 {
-            progress.report(NAME, info.time_s, DURATION_S);
+            options.progress.report(NAME, info.time_s, DURATION_S);
         }
         let begin = *start.get_or_insert(rig.controller.tcp_target(Hand::Left).pose);
         let mut object = begin;
@@ -115,7 +115,7 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         }
         Ok(())
     })?;
-    progress.finish();
+    options.progress.finish();
     let start = start.ok_or("no cycle ran")?.translation.vector;
     let goal = goal.ok_or("no cycle ran")?;
     let t = col(&series, "t")?;
@@ -284,7 +284,7 @@ mod tests {
 
     #[test]
     fn wbc_grasp_reaches_the_object_and_the_base_stops_short() {
-        let outcome = simulate(Progress::Silent).unwrap();
+        let outcome = simulate(&RunOptions::default()).unwrap();
         let s = &outcome.summary;
         assert!(s.failed_claims().is_empty(), "failed: {:?}", s.failed_claims());
         assert!(s.get("goal_error_m").unwrap() < GOAL_TOLERANCE_M);

@@ -20,7 +20,7 @@ use kernel::controller::config::Hand;
 use nalgebra::Vector3;
 
 use super::wbc_step::{col, common_claims, distance_to, line, max_in, tcp_columns, PUSH_FRAME};
-use super::{Outcome, Progress};
+use super::{Outcome, RunOptions};
 use crate::output::{Figure, Panel, Span, Summary};
 use crate::wbc;
 
@@ -45,20 +45,20 @@ pub const ORIENTATION_TOLERANCE_RAD: f64 = core::f64::consts::PI / 180.0;
 pub const YIELD_SPEED_M_S: f64 = 0.01;
 
 /// Runs the scenario.
-pub fn simulate(progress: Progress) -> Result<Outcome, String> {
-    let mut rig = wbc::chapter_6_rig(Hand::Right, &[])?;
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
+    let mut rig = wbc::chapter_6_rig(Hand::Right, &[], options)?;
     for (at, direction) in PUSHES {
         rig.sim.push(PUSH_FRAME, Vector3::from(direction) * PUSH_N, at, PUSH_S).map_err(|e| format!("push: {e}"))?;
     }
     let mut start = None;
     let series = rig.run(DURATION_S, |rig, info| {
         if info.cycle % 100 == 0 {
-            progress.report(NAME, info.time_s, DURATION_S);
+            options.progress.report(NAME, info.time_s, DURATION_S);
         }
         start.get_or_insert(rig.controller.tcp_target(Hand::Right).pose.translation.vector);
         Ok(())
     })?;
-    progress.finish();
+    options.progress.finish();
     let start = start.ok_or("no cycle ran")?;
     let t = col(&series, "t")?;
     let tcp = tcp_columns(&series, Hand::Right)?;
@@ -192,7 +192,7 @@ mod tests {
 
     #[test]
     fn wbc_phri_base_compensates_and_hand_returns() {
-        let outcome = simulate(Progress::Silent).unwrap();
+        let outcome = simulate(&RunOptions::default()).unwrap();
         let s = &outcome.summary;
         assert!(s.failed_claims().is_empty(), "failed: {:?}", s.failed_claims());
         assert!(s.get("final_error_m").unwrap() < RETURN_TOLERANCE_M);

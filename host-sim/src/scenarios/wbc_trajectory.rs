@@ -17,7 +17,7 @@ use kernel::controller::messages::Command;
 use nalgebra::Vector3;
 
 use super::wbc_step::{col, common_claims, distance_to, line, points, pose_of, subtask_lines, tcp_columns};
-use super::{Outcome, Progress};
+use super::{Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Span, Summary};
 use crate::wbc;
 
@@ -42,15 +42,15 @@ pub const MAX_TRACKING_M: f64 = 0.2;
 pub const RETURN_TOLERANCE_M: f64 = 0.01;
 
 /// Runs the scenario.
-pub fn simulate(progress: Progress) -> Result<Outcome, String> {
-    let mut rig = wbc::chapter_6_rig(Hand::Right, &[])?;
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
+    let mut rig = wbc::chapter_6_rig(Hand::Right, &[], options)?;
     let mut start = None;
     let mut desired: Vec<Vector3<f64>> = Vec::new();
     let mut levels: Vec<[f64; MAX_LEVELS]> = Vec::new();
     let mut q0 = None;
     let series = rig.run(DURATION_S, |rig, info| {
         if info.cycle % 100 == 0 {
-            progress.report(NAME, info.time_s, DURATION_S);
+            options.progress.report(NAME, info.time_s, DURATION_S);
         }
         let target = rig.controller.tcp_target(Hand::Right).pose;
         let begin = *start.get_or_insert(target);
@@ -68,7 +68,7 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         levels.push(rig.controller.telemetry().level_torque_norm);
         Ok(())
     })?;
-    progress.finish();
+    options.progress.finish();
     let start = start.ok_or("no cycle ran")?.translation.vector;
     let q0 = q0.ok_or("no cycle ran")?;
     let t = col(&series, "t")?;
@@ -195,7 +195,7 @@ mod tests {
 
     #[test]
     fn wbc_trajectory_tracks_and_returns() {
-        let outcome = simulate(Progress::Silent).unwrap();
+        let outcome = simulate(&RunOptions::default()).unwrap();
         let s = &outcome.summary;
         assert!(s.failed_claims().is_empty(), "failed: {:?}", s.failed_claims());
         assert!(s.get("max_tracking_error_m").unwrap() < MAX_TRACKING_M);
