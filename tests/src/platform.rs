@@ -272,11 +272,6 @@ fn quintic_bezier_trajectory_is_c2_and_follows_the_design() {
     );
 }
 
-#[test]
-fn kernel_and_hal_agree_on_the_legs() {
-    assert_eq!(kernel::platform::LEGS, LEGS);
-}
-
 // ---------------------------------------------------------------------------------------------
 // No NaN for any base twist (proptest).
 
