@@ -34,8 +34,9 @@ pub const PAIRS: usize = collision::PAIRS + 27 * MAX_ENVIRONMENT;
 
 /// The Justin-like simulator.
 pub type JustinSim = Simulator<{ justin::N }, { justin::BODIES }, { justin::FRAMES }, { justin::UPPER_DOF }>;
-/// The whole-body controller of the Justin-like robot, `f64`.
-pub type JustinController = justin::whole_body::WholeBodyController<f64, VOLUMES, PAIRS>;
+/// The whole-body controller of the Justin-like robot in `f64`, with room for the rig's environment
+/// volumes (`fixtures::justin::whole_body::JustinController` has the robot's volumes only).
+pub type RigController = justin::whole_body::WholeBodyController<f64, VOLUMES, PAIRS>;
 
 /// Base velocity-loop lag of the simulated platform (s): an imperfect velocity loop, as in the
 /// `mobile_impedance` scenarios.
@@ -46,7 +47,7 @@ pub struct Rig {
     /// The simulated robot.
     pub sim: JustinSim,
     /// The controller.
-    pub controller: JustinController,
+    pub controller: RigController,
     /// Faults seen so far (cycles with a safe output).
     pub faulty_cycles: u64,
     /// Smallest collision distance seen (m) over all pairs.
@@ -81,7 +82,7 @@ pub fn rig(
     let model = justin::model::<f64>().map_err(|e| format!("model: {e}"))?;
     let collision_model = collision::collision_model_with_environment::<f64, VOLUMES, PAIRS>(&model, environment)
         .map_err(|e| format!("collision model: {e}"))?;
-    let controller = JustinController::try_new(model.clone(), collision_model, config, hierarchy)
+    let controller = RigController::try_new(model.clone(), collision_model, config, hierarchy)
         .map_err(|e| format!("controller: {e}"))?;
     let mut sim: JustinSim = options
         .simulator(model, SimConfig { base_lag_s: BASE_LAG_S, ..SimConfig::default() })
