@@ -34,7 +34,7 @@ pub enum PlantKind {
     /// Torques act exactly and at once; sensors are exact; no friction.
     #[default]
     Ideal,
-    /// Friction, torque-loop lag, one cycle of delay, noisy sensors ([`PlantModel::justin`]).
+    /// Friction, torque-loop lag, one cycle of delay, noisy sensors (magnitudes: `PlantModel::justin`).
     Realistic,
 }
 

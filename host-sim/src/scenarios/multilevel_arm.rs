@@ -497,17 +497,25 @@ pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let start = settle(&model, tcp, &options.silent())?;
     let series = record(&model, tcp, &start, true, options)?;
     let without = record(&model, tcp, &start, false, &options.silent())?;
-    let t = column(&series, "t")?;
     let mut summary = Summary::new(NAME);
     summary.metric("settled_kinetic_energy_j", start.kinetic_j).metric("duration_s", DURATION_S);
+    storage_claims(&mut summary, &series)?;
+    constrained_minimum_claims(&mut summary, &series)?;
+    decoupling_claims(&mut summary, &series, &without)?;
+    let figures = figures(&series, &without)?;
+    Ok(Outcome { summary, series, figures })
+}
 
-    // Ṡ₁ ≤ 0 after the step, model-based and sampled.
+/// Level 1 and 2 storage: Ṡ₁ ≤ 0 after the step (model-based and sampled); S2 converges,
+/// possibly after temporary rises.
+fn storage_claims(summary: &mut Summary, series: &TimeSeries) -> Result<(), String> {
+    let t = column(series, "t")?;
     let after = |values: &[f64]| -> Vec<f64> {
         t.iter().zip(values).filter(|(time, _)| **time >= STEP_TIME_S).map(|(_, v)| *v).collect()
     };
-    let s1 = column(&series, "S1")?;
+    let s1 = column(series, "S1")?;
     let s1_peak = s1.iter().copied().fold(0.0, f64::max);
-    let sdot1_max = after(&column(&series, "Sdot1")?).into_iter().fold(f64::NEG_INFINITY, f64::max);
+    let sdot1_max = after(&column(series, "Sdot1")?).into_iter().fold(f64::NEG_INFINITY, f64::max);
     let s1_rise = largest_rise(&t, &s1, STEP_TIME_S + 1e-9);
     summary
         .metric("s1_peak_j", s1_peak)
@@ -518,9 +526,7 @@ pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
         &format!("sampled S1 does not rise after the step (largest rise {s1_rise:.2e} J ≤ {S1_RISE_TOLERANCE_REL} × {s1_peak:.3} J)"),
         s1_rise <= S1_RISE_TOLERANCE_REL * s1_peak,
     );
-
-    // S2 converges, possibly after temporary rises.
-    let s2 = column(&series, "S2")?;
+    let s2 = column(series, "S2")?;
     let s2_peak = s2.iter().copied().fold(0.0, f64::max);
     let s2_final = s2.last().copied().unwrap_or(f64::NAN);
     let rises = rising_intervals(&t, &s2, 1e-3 * s2_peak);
@@ -539,11 +545,14 @@ pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
         ),
         late.is_some(),
     );
+    Ok(())
+}
 
-    // Level 3 at a constrained minimum.
-    let last = |name: &str| column(&series, name).map(|v| v.last().copied().unwrap_or(f64::NAN));
+/// Level 3 ends at a constrained minimum.
+fn constrained_minimum_claims(summary: &mut Summary, series: &TimeSeries) -> Result<(), String> {
+    let last = |name: &str| column(series, name).map(|v| v.last().copied().unwrap_or(f64::NAN));
     let (v3_final, t3_final, residual3_final) = (last("V3")?, last("T3")?, last("residual3")?);
-    let residual3_peak = peak(&column(&series, "residual3")?);
+    let residual3_peak = peak(&column(series, "residual3")?);
     let in_a2 = last("in_A2")? > 0.5;
     summary
         .metric("v3_final_j", v3_final)
@@ -560,9 +569,13 @@ pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
         ),
         in_a2 && t3_final < 1e-4 && residual3_final < 0.01 * residual3_peak && v3_final > 0.1,
     );
+    Ok(())
+}
 
-    // τ_μ against the level-1 torque (experiment #2).
-    let (tau_mu_peak, tau1_peak) = (peak_over(&series, "tau_mu")?, peak_over(&series, "tau1p")?);
+/// `τ_μ` against the level-1 torque, and the run without it (experiment #2).
+fn decoupling_claims(summary: &mut Summary, series: &TimeSeries, without: &TimeSeries) -> Result<(), String> {
+    let t = column(series, "t")?;
+    let (tau_mu_peak, tau1_peak) = (peak_over(series, "tau_mu")?, peak_over(series, "tau1p")?);
     let ratio = tau_mu_peak / tau1_peak;
     summary
         .metric("tau_mu_peak_nm", tau_mu_peak)
@@ -576,21 +589,19 @@ pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     );
     let mut worst: f64 = 0.0;
     for level in 1..=3 {
-        let (on, off) = (column(&series, &format!("S{level}"))?, column(&without, &format!("S{level}"))?);
+        let (on, off) = (column(series, &format!("S{level}"))?, column(without, &format!("S{level}"))?);
         let top = on.iter().copied().fold(0.0, f64::max);
         let deviation = on.iter().zip(off.iter()).fold(0.0_f64, |m, (a, b)| m.max((a - b).abs())) / top;
         worst = worst.max(deviation);
         summary.metric(&format!("s{level}_on_off_deviation_rel"), deviation);
     }
-    let s1_rise_off = largest_rise(&t, &column(&without, "S1")?, STEP_TIME_S + 1e-9);
+    let s1_rise_off = largest_rise(&t, &column(without, "S1")?, STEP_TIME_S + 1e-9);
     summary.metric("s1_largest_rise_after_step_without_tau_mu_j", s1_rise_off);
     summary.claim(
         &format!("without τ_μ the storage functions are very similar: largest deviation {worst:.3} of the peak < {ON_OFF_DEVIATION_BOUND}"),
         worst < ON_OFF_DEVIATION_BOUND,
     );
-
-    let figures = figures(&series, &without)?;
-    Ok(Outcome { summary, series, figures })
+    Ok(())
 }
 
 fn figures(series: &TimeSeries, without: &TimeSeries) -> Result<Vec<(&'static str, Figure)>, String> {

@@ -319,7 +319,17 @@ pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
         holds.push(throw(mass, speed, xi, HOLD_FORCE_N, options)?);
     }
     options.progress.finish();
+    let hold_numbers: Vec<HoldMetrics> = holds.iter().map(|r| hold_metrics(r, HOLD_FORCE_N)).collect();
+    let equilibrium = hold_numbers.first().map_or(f64::NAN, |h| h.equilibrium_m);
+    let summary = claims([mass, palm_distance, speed], &throws, &hold_numbers);
+    let series = time_series(&throws, &holds)?;
+    let figures = vec![("sca_damping.svg", figure(&throws, &holds, equilibrium))];
+    Ok(Outcome { summary, series, figures })
+}
 
+/// Metrics and claims of the throws and holds (module docs); `[mass, palm_distance, speed]`
+/// of the hand (kg, m, m/s).
+fn claims([mass, palm_distance, speed]: [f64; 3], throws: &[Run], hold_numbers: &[HoldMetrics]) -> Summary {
     let mut summary = Summary::new(NAME);
     summary
         .metric("max_force_n", MAX_FORCE_N)
@@ -329,8 +339,7 @@ pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
         .metric("approach_speed_mps", speed)
         .metric("hold_force_n", HOLD_FORCE_N);
     let throw_numbers: Vec<ThrowMetrics> = throws.iter().map(throw_metrics).collect();
-    let hold_numbers: Vec<HoldMetrics> = holds.iter().map(|r| hold_metrics(r, HOLD_FORCE_N)).collect();
-    for ((xi, t), (h, run)) in DAMPING_RATIOS.iter().zip(&throw_numbers).zip(hold_numbers.iter().zip(&throws)) {
+    for ((xi, t), (h, run)) in DAMPING_RATIOS.iter().zip(&throw_numbers).zip(hold_numbers.iter().zip(throws)) {
         let s = xi_suffix(*xi);
         summary
             .metric(&format!("penetration_depth_m_{s}"), t.penetration_depth_m)
@@ -360,7 +369,7 @@ pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     );
     summary
         .claim(&format!("the returning speed decreases with xi: {rebounds:.3?} m/s"), strictly_decreasing(&rebounds));
-    for (xi, h) in DAMPING_RATIOS.iter().zip(&hold_numbers).filter(|(xi, _)| **xi >= 1.0) {
+    for (xi, h) in DAMPING_RATIOS.iter().zip(hold_numbers).filter(|(xi, _)| **xi >= 1.0) {
         summary.claim(
             &format!(
                 "hold, xi = {xi:.1}: no rebound oscillation (overshoot of d_eq {:.2e} m <= {OVERSHOOT_TOLERANCE_M:.0e} m, one minimum)",
@@ -396,10 +405,7 @@ pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let peak = throw_numbers.iter().map(|t| t.peak_repulsive_force_n).fold(0.0, f64::max);
     summary
         .claim(&format!("the repulsive force stays below F_max ({peak:.2} N <= {MAX_FORCE_N} N)"), peak <= MAX_FORCE_N);
-
-    let series = time_series(&throws, &holds)?;
-    let figures = vec![("sca_damping.svg", figure(&throws, &holds, equilibrium))];
-    Ok(Outcome { summary, series, figures })
+    summary
 }
 
 fn millimetres(values: &[f64]) -> String {
