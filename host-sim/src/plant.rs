@@ -7,7 +7,8 @@
 //! ([`PlantModel::justin`] gives the magnitudes and where each comes from):
 //!
 //! - **Friction** at the link: `τ_f = −τ_c tanh(q̇/v_s) − d q̇`, Coulomb friction smoothed over
-//!   `v_s` plus viscous friction, both proportional to the joint's peak torque. It acts in
+//!   `v_s` plus viscous friction, both proportional to the joint's peak torque (none on a joint
+//!   without an effort limit, such as those of the thesis' planar models). It acts in
 //!   every Runge–Kutta stage like the dynamics; the torque sensor does not see it (the sensor
 //!   sits between gear and link, the friction of the output bearing after it).
 //! - **Torque loop**: the applied torque follows its set point through a first-order lag `T`
@@ -149,14 +150,17 @@ pub(crate) struct RealisticJoints<const U: usize> {
 }
 
 impl<const U: usize> RealisticJoints<U> {
-    /// The plant of joints with peak torques `effort`; draws the torque-sensor offsets.
+    /// The plant of joints with peak torques `effort`; draws the torque-sensor offsets. A joint
+    /// without an effort limit (`f64::MAX` from `Limits::unlimited`, as in the thesis' planar
+    /// models, or infinite) has no friction: the fractions have no peak torque to scale.
     pub(crate) fn new(model: PlantModel, effort: &SVector<f64, U>) -> Self {
         let mut rng = Xoshiro256PlusPlus::seed_from_u64(model.seed);
         let offsets = SVector::from_fn(|_, _| model.torque_offset_nm * rng.random_range(-1.0..=1.0));
+        let peak = effort.map(|e| if e < f64::MAX { e } else { 0.0 });
         Self {
             model,
-            coulomb: effort * model.coulomb_fraction,
-            viscous: effort * model.viscous_fraction_s,
+            coulomb: peak * model.coulomb_fraction,
+            viscous: peak * model.viscous_fraction_s,
             offsets,
             set_point: SVector::zeros(),
             pending: SVector::zeros(),
@@ -305,6 +309,15 @@ mod tests {
         let step = model.encoder_resolution_rad;
         assert!(((q[0] / step).round() - q[0] / step).abs() < 1e-6);
         assert!((q[0] - 0.3).abs() < 1e-4 && (q[1] + 1.2).abs() < 1e-4);
+    }
+
+    #[test]
+    fn a_joint_without_an_effort_limit_has_no_friction() {
+        let p = RealisticJoints::<3>::new(PlantModel::justin(1), &SVector::from([100.0, f64::MAX, f64::INFINITY]));
+        let friction = p.friction(&SVector::from([1.0, 1.0, 1.0]));
+        // 1 % Coulomb (tanh(1/0.05) = 1 − 8e-18) plus 0.5 %/(rad/s) viscous of 100 Nm at 1 rad/s.
+        assert!((friction[0] + 1.5).abs() < 1e-12, "{friction}");
+        assert_eq!((friction[1], friction[2]), (0.0, 0.0));
     }
 
     #[test]

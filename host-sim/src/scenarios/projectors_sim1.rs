@@ -64,7 +64,6 @@
 //! the same columns prefixed with `<variant>.` (e.g. `succ_static.e3.rz`).
 
 use fixtures::planar::{four_dof, four_dof_configuration, Planar4, PLANAR4_TCP};
-use hal::JointTorqueInterface;
 use kernel::dynamics::{crba, forward_kinematics, frame_jacobian, gravity, mass_matrix_cholesky};
 use kernel::hierarchy::{project, HierarchyConfig, HierarchyData, Recursion, Shaping, Stack, Weighting};
 use kernel::model::Data;
@@ -72,7 +71,7 @@ use kernel::tasks::joint_impedance::{joint_impedance, JointImpedance, JointImped
 use kernel::tasks::{TaskRow, TaskRows};
 use nalgebra::{RowSVector, SMatrix, SVector};
 
-use super::hierarchy_common::{column, points, prefixed, settle_time};
+use super::hierarchy_common::{column, control_cycle, points, prefixed, series_with_time, settle_time};
 use super::{joint_columns, Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Summary, TimeSeries};
 use crate::sim::{run_loop, SimConfig, Simulator, CONTROL_PERIOD_S};
@@ -292,18 +291,13 @@ pub fn run_variant(variant: Variant, duration_s: f64, options: &RunOptions) -> R
     let mut sim: Sim = options.simulator(model, SimConfig::default())?;
     sim.set_state(initial_configuration()?, SVector::zeros()).map_err(|e| e.to_string())?;
     let mut controller = Controller::new(variant)?;
-    let mut columns = vec!["t".to_owned()];
-    columns.extend(signal_columns());
-    let mut series = TimeSeries::new(columns);
+    let mut series = series_with_time(signal_columns());
     run_loop(&mut sim, duration_s, CONTROL_PERIOD_S, |sim, info| -> Result<(), String> {
-        let sample = JointTorqueInterface::read(sim)?;
-        let (q, v) = (SVector::from(sample.position), SVector::from(sample.velocity));
-        let step = controller.step(&q, &v)?;
-        JointTorqueInterface::write_torque(sim, &step.torque.into())?;
-        let mut row = vec![info.time_s];
-        row.extend(q.iter().chain(v.iter()).chain(sim.applied_torque().iter()));
-        row.extend(step.errors);
-        row.push(step.errors.iter().skip(3).map(|e| e * e).sum::<f64>().sqrt());
+        let row = control_cycle(sim, info.time_s, |q, v| {
+            let step = controller.step(q, v)?;
+            let norm = step.errors.iter().skip(3).map(|e| e * e).sum::<f64>().sqrt();
+            Ok((step.torque, step.errors.into_iter().chain([norm])))
+        })?;
         series.push(row)
     })?;
     Ok(VariantRun { variant, series, min_ratio: controller.min_ratio })

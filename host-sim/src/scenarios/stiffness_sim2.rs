@@ -51,14 +51,13 @@
 //! `e2.q1` = `q₁ − q₁,ref`, `q1_ref`), every variant's run prefixed with `<variant>.`.
 
 use fixtures::planar::{fig_4_3_springs, four_dof, four_dof_gravity, ParallelSprings, Planar4, PLANAR4_TCP};
-use hal::JointTorqueInterface;
 use kernel::dynamics::{crba, forward_kinematics, frame_jacobian, mass_matrix_cholesky};
 use kernel::hierarchy::{project, HierarchyConfig, HierarchyData, Recursion, Shaping, Stack, Weighting};
 use kernel::model::Data;
 use kernel::tasks::TaskRow;
 use nalgebra::{Cholesky, Matrix4, RowSVector, SMatrix, SVector, Vector3};
 
-use super::hierarchy_common::{column, max_abs, points, prefixed, settle_time};
+use super::hierarchy_common::{column, control_cycle, max_abs, points, prefixed, series_with_time, settle_time};
 use super::{joint_columns, Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
 use crate::sim::{run_loop, PassiveJoints, SimConfig, Simulator, CONTROL_PERIOD_S};
@@ -233,18 +232,9 @@ pub fn run_variant(
         integral: 0.0,
         hierarchy: HierarchyData::default(),
     };
-    let mut columns = vec!["t".to_owned()];
-    columns.extend(signal_columns());
-    let mut series = TimeSeries::new(columns);
+    let mut series = series_with_time(signal_columns());
     run_loop(&mut sim, duration_s, CONTROL_PERIOD_S, |sim, info| -> Result<(), String> {
-        let sample = JointTorqueInterface::read(sim)?;
-        let (q, v) = (SVector::from(sample.position), SVector::from(sample.velocity));
-        let (tau, signals) = controller.step(info.time_s, &q, &v)?;
-        JointTorqueInterface::write_torque(sim, &tau.into())?;
-        let mut row = vec![info.time_s];
-        row.extend(q.iter().chain(v.iter()).chain(sim.applied_torque().iter()));
-        row.extend(signals);
-        series.push(row)
+        series.push(control_cycle(sim, info.time_s, |q, v| controller.step(info.time_s, q, v))?)
     })?;
     Ok(VariantRun { name, label, series })
 }

@@ -58,7 +58,6 @@
 //! (claim 1); the classical run in the same columns prefixed `discontinuous.`.
 
 use fixtures::planar::{three_dof, Planar3, PLANAR3_TCP};
-use hal::JointTorqueInterface;
 use kernel::dynamics::forward_kinematics;
 use kernel::hierarchy::{project, HierarchyConfig, HierarchyData, Recursion, Shaping, Stack, Weighting};
 use kernel::math::switching::band_start_for_max_slope;
@@ -70,7 +69,7 @@ use kernel::tasks::manipulability::{manipulability_avoidance, Manipulability, Ma
 use kernel::tasks::TaskRows;
 use nalgebra::{Matrix3, SVector, Vector3, Vector6};
 
-use super::hierarchy_common::{column, max_abs, points, prefixed};
+use super::hierarchy_common::{column, control_cycle, max_abs, points, prefixed, series_with_time};
 use super::{joint_columns, Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
 use crate::sim::{run_loop, PassiveJoints, SimConfig, Simulator, CONTROL_PERIOD_S};
@@ -310,47 +309,43 @@ pub fn run(projection: Projection, duration_s: f64, options: &RunOptions) -> Res
         projection,
         hierarchy: HierarchyData::default(),
     };
-    let mut columns = vec!["t".to_owned()];
-    columns.extend(signal_columns());
-    let mut series = TimeSeries::new(columns);
+    let mut series = series_with_time(signal_columns());
     let mut previous: Option<Step> = None;
     run_loop(&mut sim, duration_s, CONTROL_PERIOD_S, |sim, info| -> Result<(), String> {
-        let sample = JointTorqueInterface::read(sim)?;
-        let (q, v) = (SVector::from(sample.position), SVector::from(sample.velocity));
-        let step = controller.step(info.time_s, &q, &v)?;
-        JointTorqueInterface::write_torque(sim, &step.tau.into())?;
-        // |Δτ| ≤ |Δτ₁| + |Δτ₂| + 2|Δĵ||τ₂| (smooth part) + N'max|Δϑ||τ₂| (activation), from
-        // τ = τ₁ + (I − a ĵĵᵀ)τ₂ with |∂a/∂ϑ| ≤ N'max, ‖I − a ĵĵᵀ‖ ≤ 1.
-        let (dtau, smooth, bound) = previous.map_or((0.0, 0.0, 0.0), |p| {
-            let turn = (step.direction - p.direction).norm().min((step.direction + p.direction).norm());
-            let tau2 = p.tau2.norm();
-            let smooth = (step.tau1 - p.tau1).norm() + (step.tau2 - p.tau2).norm() + 2.0 * turn * tau2;
-            ((step.tau - p.tau).norm(), smooth, smooth + MAX_SLOPE * (step.theta - p.theta).abs() * tau2)
-        });
-        previous = Some(step);
-        let mut row = vec![info.time_s];
-        row.extend(q.iter().chain(v.iter()).chain(sim.applied_torque().iter()));
-        row.extend([
-            step.theta - THRESHOLD,
-            step.error.x,
-            step.error.y,
-            step.activation,
-            step.theta,
-            1.0 - step.activation,
-        ]);
-        row.extend(step.tau1.iter().chain(step.tau2.iter()).chain(step.tau2p.iter()));
-        row.extend([
-            step.constraint_force,
-            step.direction.dot(&step.tau2),
-            step.desired.x,
-            step.desired.y,
-            dtau,
-            smooth,
-            bound,
-        ]);
+        let row = control_cycle(sim, info.time_s, |q, v| {
+            let step = controller.step(info.time_s, q, v)?;
+            let signals = signals(&step, previous.as_ref());
+            previous = Some(step);
+            Ok((step.tau, signals))
+        })?;
         series.push(row)
     })?;
     Ok(Run { projection, series })
+}
+
+/// The row's signals of `step` after `previous` (columns of [`signal_columns`] after the joints).
+fn signals(step: &Step, previous: Option<&Step>) -> Vec<f64> {
+    // |Δτ| ≤ |Δτ₁| + |Δτ₂| + 2|Δĵ||τ₂| (smooth part) + N'max|Δϑ||τ₂| (activation), from
+    // τ = τ₁ + (I − a ĵĵᵀ)τ₂ with |∂a/∂ϑ| ≤ N'max, ‖I − a ĵĵᵀ‖ ≤ 1.
+    let (dtau, smooth, bound) = previous.map_or((0.0, 0.0, 0.0), |p| {
+        let turn = (step.direction - p.direction).norm().min((step.direction + p.direction).norm());
+        let tau2 = p.tau2.norm();
+        let smooth = (step.tau1 - p.tau1).norm() + (step.tau2 - p.tau2).norm() + 2.0 * turn * tau2;
+        ((step.tau - p.tau).norm(), smooth, smooth + MAX_SLOPE * (step.theta - p.theta).abs() * tau2)
+    });
+    let mut row =
+        vec![step.theta - THRESHOLD, step.error.x, step.error.y, step.activation, step.theta, 1.0 - step.activation];
+    row.extend(step.tau1.iter().chain(step.tau2.iter()).chain(step.tau2p.iter()));
+    row.extend([
+        step.constraint_force,
+        step.direction.dot(&step.tau2),
+        step.desired.x,
+        step.desired.y,
+        dtau,
+        smooth,
+        bound,
+    ]);
+    row
 }
 
 /// Runs the scenario with the full duration.
