@@ -2,7 +2,7 @@
 //! three-level hierarchy of Table 5.6 (TCP translation, TCP orientation, joint compliance on
 //! every coordinate):
 //! - `arm7`: the 7-DOF right arm of the Justin-like robot
-//!   (`host_sim::scenario::multilevel_arm::right_arm_model`, 3 + 3 + 7 rows, a one-dimensional
+//!   (`host_sim::scenarios::multilevel_arm::right_arm_model`, 3 + 3 + 7 rows, a one-dimensional
 //!   last level);
 //! - `justin20`: the whole 20-DOF Justin-like robot (`fixtures::justin`), right TCP, 3 + 3 + 20
 //!   rows, a 14-dimensional last level.
@@ -22,7 +22,7 @@
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use host_sim::scenario::multilevel_arm::{arm_home, right_arm_model, ArmHierarchy};
+use host_sim::scenarios::multilevel_arm::{arm_home, right_arm_model, ArmHierarchy};
 use kernel::dynamics::{coriolis_matrix, crba, forward_kinematics, gravity, mass_matrix_cholesky};
 use kernel::hierarchy::multilevel::{
     coriolis_decoupling, decompose, multilevel_control, Decomposition, DynamicsTerms, MultilevelConfig, MultilevelData,

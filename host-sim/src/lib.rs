@@ -12,7 +12,7 @@
 //! - [`plant`]: the realistic plant's friction, torque lag, delay and sensor noise.
 //! - [`controllers`]: controllers run in the loop by scenarios.
 //! - [`output`]: the scenario output convention (CSV, summary JSON, SVG plots).
-//! - [`scenario`]: the registry of named scenarios.
+//! - [`scenarios`]: the registry of named scenarios, their run options, one module per scenario.
 //! - [`replay`]: `replay.html`, the 3-D replay of a run of the Justin robot.
 //! - [`wbc`]: the simulated Justin under the kernel's whole-body controller.
 //! - [`pil`]: processor-in-the-loop: the firmware image under QEMU as the rig's controller.
@@ -27,7 +27,7 @@ pub mod output;
 pub mod pil;
 pub mod plant;
 pub mod replay;
-pub mod scenario;
+pub mod scenarios;
 pub mod sim;
 pub mod urdf;
 pub mod wbc;

@@ -4,7 +4,8 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-use host_sim::scenario::{OutputOptions, DEFAULT_RECORD_EVERY};
+use host_sim::plant::PlantKind;
+use host_sim::scenarios::{Progress, RunOptions, DEFAULT_RECORD_EVERY};
 
 /// Simulated Rollin' Justin under whole-body impedance control.
 #[derive(Parser)]
@@ -31,6 +32,10 @@ enum Command {
         /// Write every N-th control cycle into timeseries.csv (1: every cycle, 1 kHz).
         #[arg(long, value_name = "N", default_value_t = DEFAULT_RECORD_EVERY, value_parser = clap::value_parser!(u64).range(1..))]
         record_every: u64,
+        /// The simulated robot: `ideal` (exact torques and sensors, the thesis' figures) or
+        /// `realistic` (joint friction, torque-loop lag, one cycle of delay, sensor noise).
+        #[arg(long, value_enum, default_value_t = PlantKind::Ideal)]
+        plant: PlantKind,
         /// Run the whole-body controller on the firmware image under QEMU (processor in the loop).
         #[arg(long, value_enum)]
         pil: Option<host_sim::pil::Target>,
@@ -54,25 +59,18 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Run { scenario, out, record_every, pil } => {
-            let output = OutputOptions { dir: out, record_every };
-            match pil {
-                None => host_sim::scenario::run(&scenario, &output),
-                Some(target) => host_sim::pil::select(target)
-                    .and_then(|()| host_sim::scenario::run(&scenario, &output))
-                    .and_then(|()| {
-                        if host_sim::pil::started() {
-                            Ok(())
-                        } else {
-                            Err(format!(
-                                "--pil: {scenario} does not run the whole-body rig; its controller ran on the host"
-                            ))
-                        }
-                    }),
-            }
+        Command::Run { scenario, out, record_every, plant, pil } => {
+            let options = RunOptions { dir: out, record_every, plant, pil, progress: Progress::Stderr };
+            host_sim::scenarios::run(&scenario, &options).and_then(|()| {
+                if pil.is_none() || host_sim::pil::started() {
+                    Ok(())
+                } else {
+                    Err(format!("--pil: {scenario} does not run the whole-body rig; its controller ran on the host"))
+                }
+            })
         }
         Command::List => {
-            let scenarios = host_sim::scenario::list();
+            let scenarios = host_sim::scenarios::list();
             let width = scenarios.iter().map(|(name, _)| name.len()).max().unwrap_or(0);
             for (name, description) in scenarios {
                 println!("{name:width$}  {description}");

@@ -15,8 +15,8 @@
 //! markers) into `step-counts.txt` beside the image ([`Firmware::step_counts`]). Dropping the
 //! [`Firmware`] kills QEMU.
 //!
-//! The run selects a target once ([`select`], the `--pil` option); [`crate::wbc::rig`] then
-//! attaches the firmware to the rig it builds.
+//! The run's options name the target ([`crate::scenarios::RunOptions::pil`], the `--pil`
+//! option); [`crate::wbc::rig`] then attaches the firmware to the rig it builds.
 
 use std::fs::File;
 use std::io::{BufReader, Read, Write};
@@ -24,7 +24,7 @@ use std::net::{TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdout, Command as Process, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use embedded_io_adapters::std::FromStd;
@@ -83,22 +83,11 @@ impl Target {
     }
 }
 
-static SELECTED: OnceLock<Target> = OnceLock::new();
 /// Whether a firmware was started in this process.
 static STARTED: AtomicBool = AtomicBool::new(false);
 
-/// Selects the firmware target for every whole-body rig of this process (once).
-pub fn select(target: Target) -> Result<(), String> {
-    SELECTED.set(target).map_err(|_| "the PIL target is already selected".to_string())
-}
-
-/// The selected firmware target, if any.
-pub fn selected() -> Option<Target> {
-    SELECTED.get().copied()
-}
-
 /// Whether a [`Firmware`] was started in this process (a scenario without the whole-body rig
-/// never starts one, and ignores the selection).
+/// never starts one, and ignores the `--pil` option).
 pub fn started() -> bool {
     STARTED.load(Ordering::Relaxed)
 }

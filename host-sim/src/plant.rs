@@ -7,7 +7,8 @@
 //! ([`PlantModel::justin`] gives the magnitudes and where each comes from):
 //!
 //! - **Friction** at the link: `τ_f = −τ_c tanh(q̇/v_s) − d q̇`, Coulomb friction smoothed over
-//!   `v_s` plus viscous friction, both proportional to the joint's peak torque. It acts in
+//!   `v_s` plus viscous friction, both proportional to the joint's peak torque (none on a joint
+//!   without an effort limit, such as those of the thesis' planar models). It acts in
 //!   every Runge–Kutta stage like the dynamics; the torque sensor does not see it (the sensor
 //!   sits between gear and link, the friction of the output bearing after it).
 //! - **Torque loop**: the applied torque follows its set point through a first-order lag `T`
@@ -29,12 +30,12 @@ use rand::{RngExt, SeedableRng};
 use rand_distr::{Distribution, StandardNormal};
 
 /// Which plant the simulator drives.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum PlantKind {
     /// Torques act exactly and at once; sensors are exact; no friction.
     #[default]
     Ideal,
-    /// Friction, torque-loop lag, one cycle of delay, noisy sensors ([`PlantModel::justin`]).
+    /// Friction, torque-loop lag, one cycle of delay, noisy sensors (magnitudes: `PlantModel::justin`).
     Realistic,
 }
 
@@ -44,15 +45,6 @@ impl PlantKind {
         match self {
             Self::Ideal => "ideal",
             Self::Realistic => "realistic",
-        }
-    }
-
-    /// Parses a command-line name.
-    pub fn from_name(name: &str) -> Result<Self, String> {
-        match name {
-            "ideal" => Ok(Self::Ideal),
-            "realistic" => Ok(Self::Realistic),
-            other => Err(format!("unknown plant `{other}` (expected `ideal` or `realistic`)")),
         }
     }
 }
@@ -158,14 +150,17 @@ pub(crate) struct RealisticJoints<const U: usize> {
 }
 
 impl<const U: usize> RealisticJoints<U> {
-    /// The plant of joints with peak torques `effort`; draws the torque-sensor offsets.
+    /// The plant of joints with peak torques `effort`; draws the torque-sensor offsets. A joint
+    /// without an effort limit (`f64::MAX` from `Limits::unlimited`, as in the thesis' planar
+    /// models, or infinite) has no friction: the fractions have no peak torque to scale.
     pub(crate) fn new(model: PlantModel, effort: &SVector<f64, U>) -> Self {
         let mut rng = Xoshiro256PlusPlus::seed_from_u64(model.seed);
         let offsets = SVector::from_fn(|_, _| model.torque_offset_nm * rng.random_range(-1.0..=1.0));
+        let peak = effort.map(|e| if e < f64::MAX { e } else { 0.0 });
         Self {
             model,
-            coulomb: effort * model.coulomb_fraction,
-            viscous: effort * model.viscous_fraction_s,
+            coulomb: peak * model.coulomb_fraction,
+            viscous: peak * model.viscous_fraction_s,
             offsets,
             set_point: SVector::zeros(),
             pending: SVector::zeros(),
@@ -317,6 +312,15 @@ mod tests {
     }
 
     #[test]
+    fn a_joint_without_an_effort_limit_has_no_friction() {
+        let p = RealisticJoints::<3>::new(PlantModel::justin(1), &SVector::from([100.0, f64::MAX, f64::INFINITY]));
+        let friction = p.friction(&SVector::from([1.0, 1.0, 1.0]));
+        // 1 % Coulomb (tanh(1/0.05) = 1 − 8e-18) plus 0.5 %/(rad/s) viscous of 100 Nm at 1 rad/s.
+        assert!((friction[0] + 1.5).abs() < 1e-12, "{friction}");
+        assert_eq!((friction[1], friction[2]), (0.0, 0.0));
+    }
+
+    #[test]
     fn the_seed_decides_the_noise() {
         let draw = |seed| {
             let mut p = RealisticJoints::<2>::new(PlantModel::justin(seed), &SVector::from([100.0, 20.0]));
@@ -335,7 +339,11 @@ mod tests {
         m = PlantModel::justin(1);
         m.delay_cycles = 2;
         assert_eq!(m.validate(), Err("delay_cycles"));
-        assert_eq!(PlantKind::from_name("realistic"), Ok(PlantKind::Realistic));
-        assert!(PlantKind::from_name("ideal ").is_err());
+        use clap::ValueEnum;
+        assert_eq!(PlantKind::from_str("realistic", false), Ok(PlantKind::Realistic));
+        assert!(PlantKind::from_str("ideal ", false).is_err());
+        for kind in PlantKind::value_variants() {
+            assert_eq!(kind.to_possible_value().map(|v| v.get_name().to_owned()), Some(kind.name().to_owned()));
+        }
     }
 }

@@ -111,7 +111,7 @@ fn body_placements(series: &TimeSeries, rows: &[usize]) -> Result<Vec<Vec<Value>
     let mut data = Data::new(&model);
     let columns = justin::JOINT_NAMES
         .iter()
-        .map(|j| crate::scenario::column_index(series, &format!("q.{j}")))
+        .map(|j| crate::scenarios::column_index(series, &format!("q.{j}")))
         .collect::<Result<Vec<_>, _>>()?;
     let mut frames = Vec::with_capacity(rows.len());
     for &row in rows {

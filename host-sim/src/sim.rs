@@ -950,33 +950,66 @@ pub struct LoopReport {
     pub saturated_steps: u64,
 }
 
-/// Runs a controller in the loop for `duration_s` of simulated time.
+/// What [`run_loop`] drives: a simulated robot whose physics advances in fixed steps between
+/// control cycles (a [`Simulator`], or a rig that owns one, such as [`crate::wbc::Rig`]).
+pub trait Physics {
+    /// Simulated time (s).
+    fn time_s(&self) -> f64;
+    /// The physics step (s).
+    fn physics_step_s(&self) -> f64;
+    /// Advances the physics by one step.
+    fn step_physics(&mut self) -> Result<StepReport, SimError>;
+}
+
+impl<const N: usize, const B: usize, const F: usize, const U: usize> Physics for Simulator<N, B, F, U> {
+    fn time_s(&self) -> f64 {
+        Simulator::time_s(self)
+    }
+
+    fn physics_step_s(&self) -> f64 {
+        self.config.physics_step_s
+    }
+
+    fn step_physics(&mut self) -> Result<StepReport, SimError> {
+        self.step()
+    }
+}
+
+/// The scenarios' errors are one-line messages; a simulator error becomes its message.
+impl From<SimError> for String {
+    fn from(e: SimError) -> Self {
+        e.to_string()
+    }
+}
+
+/// The scenario loop: runs a controller in the loop for `duration_s` of simulated time.
 ///
 /// Every `control_period_s` (rounded to a whole number of physics steps; 1 ms = 6 steps by
-/// default) `cycle(sim, &info)` is called once: it runs the controller (read the sensors,
-/// compute, write the commands through the `hal` traits) and records whatever the scenario
-/// logs (the state at the call and the command just written). Then the physics advances to
-/// the next call with the commands held (zero-order hold).
+/// default) `cycle(robot, &info)` is called once: it runs the controller (read the sensors,
+/// compute, write the commands through the `hal` traits), records whatever the scenario logs
+/// (the state at the call and the command just written) and applies the scenario's events
+/// (goals, pushes). Then the physics advances to the next call with the commands held
+/// (zero-order hold).
 ///
-/// Errors: the first error of `cycle` or of the physics.
-pub fn run_loop<const N: usize, const B: usize, const F: usize, const U: usize, C>(
-    sim: &mut Simulator<N, B, F, U>,
-    duration_s: f64,
-    control_period_s: f64,
-    mut cycle: C,
-) -> Result<LoopReport, SimError>
+/// Errors: the first error of `cycle` or of the physics; the loop stops there. The error type
+/// is the scenario's: a message (`String`, what most scenarios use) or any type a [`SimError`]
+/// converts into (e.g. one that tells an intended early stop from a failure).
+pub fn run_loop<P, C, E>(robot: &mut P, duration_s: f64, control_period_s: f64, mut cycle: C) -> Result<LoopReport, E>
 where
-    C: FnMut(&mut Simulator<N, B, F, U>, &CycleInfo) -> Result<(), SimError>,
+    P: Physics,
+    C: FnMut(&mut P, &CycleInfo) -> Result<(), E>,
+    E: From<SimError>,
 {
-    let substeps = whole_periods(control_period_s, sim.config.physics_step_s, 1, "period_s")?;
+    let step_s = robot.physics_step_s();
+    let substeps = whole_periods(control_period_s, step_s, 1, "period_s")?;
     #[allow(clippy::cast_precision_loss, reason = "a handful of substeps")]
-    let period = sim.config.physics_step_s * substeps as f64;
+    let period = step_s * substeps as f64;
     let cycles = whole_periods(duration_s, period, 0, "duration_s")?;
     let mut report = LoopReport { control_cycles: 0, physics_steps: 0, saturated_steps: 0 };
     for index in 0..cycles {
-        cycle(sim, &CycleInfo { cycle: index, time_s: sim.time_s() })?;
+        cycle(robot, &CycleInfo { cycle: index, time_s: robot.time_s() })?;
         for _ in 0..substeps {
-            let step = sim.step()?;
+            let step = robot.step_physics()?;
             report.physics_steps += 1;
             report.saturated_steps += u64::from(step.torque_saturated);
         }

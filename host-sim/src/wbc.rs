@@ -20,7 +20,10 @@ use nalgebra::SVector;
 
 use crate::output::{Summary, TimeSeries};
 use crate::pil::Firmware;
-use crate::sim::{CycleInfo, JointStops, SimConfig, SimError, Simulator, CONTROL_PERIOD_S};
+use crate::scenarios::RunOptions;
+use crate::sim::{
+    run_loop, CycleInfo, JointStops, Physics, SimConfig, SimError, Simulator, StepReport, CONTROL_PERIOD_S,
+};
 
 /// Collision volumes: the robot's 28 plus up to four environment volumes (table, wall, …).
 pub const VOLUMES: usize = collision::VOLUMES + MAX_ENVIRONMENT;
@@ -31,8 +34,9 @@ pub const PAIRS: usize = collision::PAIRS + 27 * MAX_ENVIRONMENT;
 
 /// The Justin-like simulator.
 pub type JustinSim = Simulator<{ justin::N }, { justin::BODIES }, { justin::FRAMES }, { justin::UPPER_DOF }>;
-/// The whole-body controller of the Justin-like robot, `f64`.
-pub type JustinController = justin::whole_body::WholeBodyController<f64, VOLUMES, PAIRS>;
+/// The whole-body controller of the Justin-like robot in `f64`, with room for the rig's environment
+/// volumes (`fixtures::justin::whole_body::JustinController` has the robot's volumes only).
+pub type RigController = justin::whole_body::WholeBodyController<f64, VOLUMES, PAIRS>;
 
 /// Base velocity-loop lag of the simulated platform (s): an imperfect velocity loop, as in the
 /// `mobile_impedance` scenarios.
@@ -43,12 +47,12 @@ pub struct Rig {
     /// The simulated robot.
     pub sim: JustinSim,
     /// The controller.
-    pub controller: JustinController,
+    pub controller: RigController,
     /// Faults seen so far (cycles with a safe output).
     pub faulty_cycles: u64,
     /// Smallest collision distance seen (m) over all pairs.
     pub min_distance_m: f64,
-    /// The firmware under QEMU, when a PIL target is selected ([`crate::pil::select`]): its
+    /// The firmware under QEMU, when the run's options name a PIL target: its
     /// output drives the robot; `controller` runs alongside on the same frames for the
     /// telemetry and the comparison.
     pub firmware: Option<Firmware>,
@@ -62,13 +66,15 @@ pub struct Rig {
 /// The span over which the firmware's torques are compared with the host controller's (s).
 pub const COMPARISON_S: f64 = 0.5;
 
-/// Builds the rig: the robot at `q0` at rest, the collision model with `environment` volumes
-/// (world frame), the controller with `config` and `hierarchy`.
+/// Builds the rig: the robot at `q0` at rest on the plant of `options`, the collision model with
+/// `environment` volumes (world frame), the controller with `config` and `hierarchy`, and the
+/// firmware under QEMU when `options` name a PIL target.
 pub fn rig(
     q0: &SVector<f64, { justin::N }>,
     environment: &[SweptSphere<f64>],
     config: ControllerConfig<f64, { justin::N }>,
     hierarchy: &[TaskSpec],
+    options: &RunOptions,
 ) -> Result<Rig, String> {
     if environment.len() > MAX_ENVIRONMENT {
         return Err(format!("at most {MAX_ENVIRONMENT} environment volumes"));
@@ -76,13 +82,14 @@ pub fn rig(
     let model = justin::model::<f64>().map_err(|e| format!("model: {e}"))?;
     let collision_model = collision::collision_model_with_environment::<f64, VOLUMES, PAIRS>(&model, environment)
         .map_err(|e| format!("collision model: {e}"))?;
-    let controller = JustinController::try_new(model.clone(), collision_model, config, hierarchy)
+    let controller = RigController::try_new(model.clone(), collision_model, config, hierarchy)
         .map_err(|e| format!("controller: {e}"))?;
-    let mut sim = Simulator::new(model, SimConfig { base_lag_s: BASE_LAG_S, ..SimConfig::default() })
+    let mut sim: JustinSim = options
+        .simulator(model, SimConfig { base_lag_s: BASE_LAG_S, ..SimConfig::default() })
         .map_err(|e| format!("simulator: {e}"))?;
     sim.set_state(*q0, SVector::zeros()).map_err(|e| format!("initial state: {e}"))?;
     sim.set_joint_stops(Some(JointStops::JUSTIN)).map_err(|e| format!("joint stops: {e}"))?;
-    let firmware = match crate::pil::selected() {
+    let firmware = match options.pil {
         Some(target) => Some(firmware_for(target, environment, &config, hierarchy)?),
         None => None,
     };
@@ -120,9 +127,9 @@ fn firmware_for(
 
 /// The default rig of Ch. 6: Justin at its home pose, the configuration of
 /// [`whole_body::controller_config`] and the Fig. 6.3 hierarchy for `hand`.
-pub fn chapter_6_rig(hand: Hand, environment: &[SweptSphere<f64>]) -> Result<Rig, String> {
+pub fn chapter_6_rig(hand: Hand, environment: &[SweptSphere<f64>], options: &RunOptions) -> Result<Rig, String> {
     let config = whole_body::controller_config::<f64>().map_err(|e| format!("config: {e}"))?;
-    rig(&justin::home_configuration(), environment, config, &whole_body::fig_6_3_hierarchy(hand))
+    rig(&justin::home_configuration(), environment, config, &whole_body::fig_6_3_hierarchy(hand), options)
 }
 
 /// A short name of a task for column headers.
@@ -167,9 +174,9 @@ pub fn all_tasks() -> Vec<TaskKind> {
 /// The columns [`Rig::record`] writes, in order.
 pub fn columns() -> Vec<String> {
     let mut columns = vec!["t".to_string()];
-    columns.extend(crate::scenario::joint_columns(&justin::JOINT_NAMES));
-    columns.extend(crate::scenario::pose_error_columns(0));
-    columns.extend(crate::scenario::pose_error_columns(1));
+    columns.extend(crate::scenarios::joint_columns(&justin::JOINT_NAMES));
+    columns.extend(crate::scenarios::pose_error_columns(0));
+    columns.extend(crate::scenarios::pose_error_columns(1));
     columns.extend((0..MAX_LEVELS).map(|l| format!("S{l}")));
     columns.extend((0..MAX_LEVELS).map(|l| format!("dS{l}")));
     columns.extend(all_tasks().into_iter().map(|k| format!("a.{}", task_name(k))));
@@ -339,24 +346,34 @@ impl Rig {
         Ok(force)
     }
 
-    /// Runs `duration_s` of simulated time: per control cycle [`Rig::cycle`], [`Rig::record`]
-    /// into a new time series, then `each` (goals, pushes, progress, checks), then the physics
-    /// up to the next cycle. Stops at the first error.
+    /// Runs `duration_s` of simulated time in the scenario loop ([`run_loop`]): per control
+    /// cycle [`Rig::cycle`], [`Rig::record`] into a new time series, then `each` (goals, pushes,
+    /// progress, checks), then the physics up to the next cycle. Stops at the first error.
     pub fn run<E>(&mut self, duration_s: f64, mut each: E) -> Result<TimeSeries, String>
     where
         E: FnMut(&mut Rig, &CycleInfo) -> Result<(), String>,
     {
         let mut series = TimeSeries::new(columns());
-        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss, reason = "finite, positive, small")]
-        let cycles = (duration_s / CONTROL_PERIOD_S).round().max(0.0) as u64;
-        for cycle in 0..cycles {
-            let info = CycleInfo { cycle, time_s: self.sim.time_s() };
-            self.cycle(&info).map_err(|e| format!("cycle {cycle}: {e}"))?;
-            let row = self.record(&info).map_err(|e| format!("cycle {cycle}: {e}"))?;
-            series.push(row)?;
-            each(self, &info)?;
-            self.sim.advance(CONTROL_PERIOD_S).map_err(|e| format!("physics after cycle {cycle}: {e}"))?;
-        }
+        run_loop(self, duration_s, CONTROL_PERIOD_S, |rig, info| {
+            rig.cycle(info).map_err(|e| format!("cycle {}: {e}", info.cycle))?;
+            series.push(rig.record(info)?)?;
+            each(rig, info)
+        })?;
         Ok(series)
+    }
+}
+
+/// The rig's physics is its simulator's.
+impl Physics for Rig {
+    fn time_s(&self) -> f64 {
+        self.sim.time_s()
+    }
+
+    fn physics_step_s(&self) -> f64 {
+        self.sim.config().physics_step_s
+    }
+
+    fn step_physics(&mut self) -> Result<StepReport, SimError> {
+        self.sim.step()
     }
 }

@@ -10,6 +10,7 @@ use std::time::{Duration, Instant};
 use fixtures::justin;
 use hal::{JointTorqueInterface, PlatformVelocityInterface};
 use host_sim::pil::{sensor_message, Firmware, Target};
+use host_sim::scenarios::RunOptions;
 use host_sim::wbc::{chapter_6_rig, Rig};
 use kernel::controller::config::Hand;
 use kernel::controller::faults::SafeOutput;
@@ -45,7 +46,7 @@ fn bad_link_input_gives_a_typed_fault_and_the_safe_output() {
     // The only thread of this test binary that touches the environment.
     std::env::set_var("PIL_TIMEOUT_S", "3");
     let mut firmware = Firmware::start(Target::CortexM7).unwrap();
-    let mut rig = chapter_6_rig(Hand::Right, &[]).unwrap();
+    let mut rig = chapter_6_rig(Hand::Right, &[], &RunOptions::default()).unwrap();
 
     let normal = firmware.step(&frame(&mut rig, 1)).unwrap();
     assert_eq!(normal.mode, SafeOutput::Normal);

@@ -7,7 +7,8 @@
 
 use std::time::Duration;
 
-use host_sim::pil::{select, Target};
+use host_sim::pil::Target;
+use host_sim::scenarios::RunOptions;
 use host_sim::wbc::chapter_6_rig;
 use kernel::controller::config::Hand;
 
@@ -19,8 +20,8 @@ fn the_firmware_controls_the_robot_like_the_host_controller() {
     let script = concat!(env!("CARGO_MANIFEST_DIR"), "/../firmware/wcet/build_plugin.sh");
     assert!(std::process::Command::new("bash").arg(script).arg(&plugin).status().unwrap().success());
     std::env::set_var("PIL_PLUGIN", &plugin);
-    select(Target::CortexM7).unwrap();
-    let mut rig = chapter_6_rig(Hand::Right, &[]).unwrap();
+    let options = RunOptions { pil: Some(Target::CortexM7), ..RunOptions::default() };
+    let mut rig = chapter_6_rig(Hand::Right, &[], &options).unwrap();
     let series = rig.run(0.3, |_, _| Ok(())).unwrap();
     assert_eq!(series.rows().len(), 300);
     assert_eq!(rig.faulty_cycles, 0);

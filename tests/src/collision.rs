@@ -643,8 +643,8 @@ fn justin_fast_rows_match_the_reference_f32() {
 /// Fig. 3.5 / Table 3.1 on the one-dimensional collision-direction model (`sca_damping`).
 #[test]
 fn sca_damping_reproduces_fig_3_5() {
-    use host_sim::scenario::{sca_damping, Progress};
-    let outcome = sca_damping::simulate(Progress::Silent).unwrap();
+    use host_sim::scenarios::{sca_damping, RunOptions};
+    let outcome = sca_damping::simulate(&RunOptions::default()).unwrap();
     let s = &outcome.summary;
     assert!(s.failed_claims().is_empty(), "failed: {:?}", s.failed_claims());
     assert!(s.passed_claims().len() >= 9);

@@ -41,7 +41,7 @@
 
 use fixtures::{justin, planar};
 use host_sim::output::Summary;
-use host_sim::scenario::{projectors_sim1, stiffness_sim2, unilateral_sim, Progress};
+use host_sim::scenarios::{projectors_sim1, stiffness_sim2, unilateral_sim, RunOptions};
 use kernel::dynamics::{crba, forward_kinematics, frame_jacobian};
 use kernel::hierarchy::{
     project, push_transitioning, HierarchyConfig, HierarchyData, LevelDiagnostics, Recursion, RowDiagnostics, Shaping,
@@ -781,7 +781,7 @@ fn metric(summary: &Summary, name: &str) -> f64 {
 #[test]
 fn projectors_sim1_reproduces_fig_4_2() {
     // 2 s instead of 3 s: every variant is in its steady state after 0.6 s.
-    let outcome = projectors_sim1::simulate_for(2.0, Progress::Silent).unwrap();
+    let outcome = projectors_sim1::simulate_for(2.0, &RunOptions::default()).unwrap();
     let s = &outcome.summary;
     assert!(s.failed_claims().is_empty(), "failed: {:?}", s.failed_claims());
     let variants = ["succ_static", "succ_dynamic", "aug_static", "aug_dynamic", "aug_dynamic_accel", "none"];
@@ -828,7 +828,7 @@ fn projectors_sim1_reproduces_fig_4_2() {
 
 #[test]
 fn stiffness_sim2_stiffness_consistency_wins_on_level_1() {
-    let outcome = stiffness_sim2::simulate(Progress::Silent).unwrap();
+    let outcome = stiffness_sim2::simulate(&RunOptions::default()).unwrap();
     let s = &outcome.summary;
     assert!(s.failed_claims().is_empty(), "failed: {:?}", s.failed_claims());
     let variants = ["stiffness", "static", "dynamic", "accel", "none"];
@@ -858,7 +858,7 @@ fn stiffness_sim2_stiffness_consistency_wins_on_level_1() {
 
 #[test]
 fn unilateral_sim_is_continuous_and_locks_the_constraint_direction() {
-    let outcome = unilateral_sim::simulate(Progress::Silent).unwrap();
+    let outcome = unilateral_sim::simulate(&RunOptions::default()).unwrap();
     let s = &outcome.summary;
     assert!(s.failed_claims().is_empty(), "failed: {:?}", s.failed_claims());
     let smooth = metric(s, "max_dtau_per_cycle_nm_continuous");

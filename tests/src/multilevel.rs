@@ -12,7 +12,7 @@
 )]
 
 use fixtures::{justin, planar};
-use host_sim::scenario::{multilevel_arm, multilevel_sim1, multilevel_sim2, multilevel_sim3, Progress};
+use host_sim::scenarios::{multilevel_arm, multilevel_sim1, multilevel_sim2, multilevel_sim3, RunOptions};
 use kernel::dynamics::{coriolis_matrix, crba, forward_kinematics, frame_jacobian, frame_jacobian_derivative, gravity};
 use kernel::hierarchy::multilevel::{
     coriolis_decoupling, decompose, task_space_coriolis, ComplianceRow, ComplianceStack, Decomposition, DynamicsTerms,
@@ -326,7 +326,7 @@ fn columns_present(series: &host_sim::output::TimeSeries, names: &[&str]) {
 
 #[test]
 fn simulation_1_converges_within_half_a_second_with_a_strict_hierarchy() {
-    let outcome = multilevel_sim1::simulate(Progress::Silent).unwrap();
+    let outcome = multilevel_sim1::simulate(&RunOptions::default()).unwrap();
     let s = &outcome.summary;
     assert!(s.failed_claims().is_empty(), "{:?}", s.failed_claims());
     assert!(s.get("settle_time_max_s").unwrap() < 0.5);
@@ -340,7 +340,7 @@ fn simulation_1_converges_within_half_a_second_with_a_strict_hierarchy() {
 
 #[test]
 fn simulation_2_energies_converge_in_priority_order() {
-    let outcome = multilevel_sim2::simulate(Progress::Silent).unwrap();
+    let outcome = multilevel_sim2::simulate(&RunOptions::default()).unwrap();
     let s = &outcome.summary;
     assert!(s.failed_claims().is_empty(), "{:?}", s.failed_claims());
     let (t1, t2, t3) = (
@@ -360,7 +360,7 @@ fn simulation_2_energies_converge_in_priority_order() {
 
 #[test]
 fn simulation_3_is_robust_to_the_wrong_inertia() {
-    let outcome = multilevel_sim3::simulate(Progress::Silent).unwrap();
+    let outcome = multilevel_sim3::simulate(&RunOptions::default()).unwrap();
     let s = &outcome.summary;
     assert!(s.failed_claims().is_empty(), "{:?}", s.failed_claims());
     assert!(s.get("deviation_from_sim2_max_rel").unwrap() < 0.25);
@@ -371,7 +371,7 @@ fn simulation_3_is_robust_to_the_wrong_inertia() {
 
 #[test]
 fn arm_experiment_reaches_a_constrained_minimum_and_tau_mu_is_small() {
-    let outcome = multilevel_arm::simulate(Progress::Silent).unwrap();
+    let outcome = multilevel_arm::simulate(&RunOptions::default()).unwrap();
     let s = &outcome.summary;
     assert!(s.failed_claims().is_empty(), "{:?}", s.failed_claims());
     assert!(s.get("tau_mu_over_tau1p").unwrap() < 0.2);

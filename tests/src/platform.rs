@@ -13,7 +13,7 @@
 
 use fixtures::justin::{self, N, RIGHT_TCP, UPPER_DOF};
 use hal::{PlatformSample, LEGS};
-use host_sim::scenario::{icr_avoidance, mobile_impedance, mobile_impedance_critical, stability_map, Progress};
+use host_sim::scenarios::{icr_avoidance, mobile_impedance, mobile_impedance_critical, stability_map, RunOptions};
 use host_sim::wheels::{WheelConfig, Wheels};
 use kernel::dynamics::{coriolis_matrix, crba, forward_kinematics, gravity, rnea};
 use kernel::platform::admittance::{Admittance, AdmittanceConfig};
@@ -28,7 +28,7 @@ use kernel::Data;
 use nalgebra::{Cholesky, DMatrix, DVector, Matrix3, SVector, Vector3, Vector6};
 use proptest::prelude::*;
 
-fn assert_claims(outcome: &host_sim::scenario::Outcome) {
+fn assert_claims(outcome: &host_sim::scenarios::Outcome) {
     let failed = outcome.summary.failed_claims();
     assert!(failed.is_empty(), "failed claims: {failed:#?}");
     for claim in outcome.summary.passed_claims() {
@@ -36,7 +36,7 @@ fn assert_claims(outcome: &host_sim::scenario::Outcome) {
     }
 }
 
-fn metric(outcome: &host_sim::scenario::Outcome, name: &str) -> f64 {
+fn metric(outcome: &host_sim::scenarios::Outcome, name: &str) -> f64 {
     outcome.summary.get(name).expect("metric recorded")
 }
 
@@ -89,7 +89,7 @@ fn stability_map_agrees_with_the_characteristic_polynomials() {
 
 #[test]
 fn stability_map_scenario_has_an_unstable_region_only_without_compensation() {
-    let outcome = stability_map::simulate(Progress::Silent).unwrap();
+    let outcome = stability_map::simulate(&RunOptions::default()).unwrap();
     assert_claims(&outcome);
     assert_eq!(outcome.series.columns(), ["m_adm", "d_adm", "max_real_eig_uncompensated", "max_real_eig_compensated"]);
     assert_eq!(outcome.series.rows().len(), 150 * 100);
@@ -104,7 +104,7 @@ fn stability_map_scenario_has_an_unstable_region_only_without_compensation() {
 
 #[test]
 fn mobile_impedance_energy_decays_with_compensation_and_oscillates_without() {
-    let outcome = mobile_impedance::simulate(Progress::Silent).unwrap();
+    let outcome = mobile_impedance::simulate(&RunOptions::default()).unwrap();
     assert_claims(&outcome);
     let settle = |tag: &str| metric(&outcome, &format!("{tag}_energy_settle_forward_s"));
     assert!(settle("on") < settle("off"));
@@ -118,8 +118,8 @@ fn mobile_impedance_critical_set_is_stable_only_with_compensation() {
         mobile_impedance_critical::DURATION_S,
         host_sim::sim::DEFAULT_PHYSICS_STEP_S,
     );
-    let on = mobile_impedance::run(&on, Progress::Silent, "ON").unwrap();
-    let off = mobile_impedance::run(&off, Progress::Silent, "OFF").unwrap();
+    let on = mobile_impedance::run(&on, &RunOptions::default(), "ON").unwrap();
+    let off = mobile_impedance::run(&off, &RunOptions::default(), "OFF").unwrap();
     let outcome = mobile_impedance_critical::evaluate(&on, &off).unwrap();
     assert_claims(&outcome);
     assert!(off.stopped_at_s.is_some() && on.stopped_at_s.is_none());
@@ -235,7 +235,7 @@ fn linearised_justin_loop_explains_the_critical_experiment() {
 
 #[test]
 fn icr_avoidance_reduces_the_steering_rates_and_legs_reduce_the_deviation() {
-    let outcome = icr_avoidance::simulate(Progress::Silent).unwrap();
+    let outcome = icr_avoidance::simulate(&RunOptions::default()).unwrap();
     assert_claims(&outcome);
     assert!(metric(&outcome, "steering_rate_ratio_on_off") < 1.0 / 3.0);
     assert!(metric(&outcome, "on_max_translation_error_m") <= 0.07);
@@ -270,11 +270,6 @@ fn quintic_bezier_trajectory_is_c2_and_follows_the_design() {
             && (l.velocity - r.velocity).amax() < 1e-7
             && (l.acceleration - r.acceleration).amax() < 1e-6
     );
-}
-
-#[test]
-fn kernel_and_hal_agree_on_the_legs() {
-    assert_eq!(kernel::platform::LEGS, LEGS);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -35,6 +35,7 @@
 
 use fixtures::justin::{self, collision as jc, whole_body};
 use hal::{JointSample, JointTorqueInterface, PlatformSample, PlatformVelocityInterface};
+use host_sim::scenarios::RunOptions;
 use host_sim::sim::CONTROL_PERIOD_S;
 use host_sim::wbc;
 use kernel::controller::config::{ControllerConfig, Field, Hand, JointGroup, TaskKind, TaskSpec, MAX_LEVELS};
@@ -621,7 +622,7 @@ fn a_huge_goal_step_stays_within_the_limits_in_f32() {
 /// The same in closed loop with the simulator: 1.5 m goal step of the right TCP.
 #[test]
 fn a_huge_goal_step_in_closed_loop_stays_within_the_limits() {
-    let mut rig = wbc::chapter_6_rig(Hand::Right, &[]).unwrap();
+    let mut rig = wbc::chapter_6_rig(Hand::Right, &[], &RunOptions::default()).unwrap();
     let mut previous = ([0.0; U], [0.0; 3]);
     let (mut saturated, mut held) = (0, 0);
     rig.run(2.0, |rig, info| {
@@ -656,7 +657,7 @@ fn a_huge_goal_step_in_closed_loop_stays_within_the_limits() {
 /// frames; the robot holds, stays finite and collision-free, and resumes.
 #[test]
 fn faults_in_closed_loop_hold_the_robot_and_recover() {
-    let mut rig = wbc::chapter_6_rig(Hand::Right, &[]).unwrap();
+    let mut rig = wbc::chapter_6_rig(Hand::Right, &[], &RunOptions::default()).unwrap();
     let mut cycle = 0_u64;
     let mut modes = Vec::new();
     for k in 0..2500_u64 {
@@ -941,7 +942,7 @@ fn commands_roundtrip_through_bytes_and_apply() {
 /// change of any joint torque between consecutive cycles during the transition and the torque
 /// at its end.
 fn blend_run(hierarchy: Option<&[TaskSpec]>) -> (f64, SVector<f64, U>) {
-    let mut rig = wbc::chapter_6_rig(Hand::Right, &[]).unwrap();
+    let mut rig = wbc::chapter_6_rig(Hand::Right, &[], &RunOptions::default()).unwrap();
     let change_at = 1500;
     let transition = (rig.controller.config().transition_s * 1000.0).round() as u64;
     let mut previous = SVector::<f64, U>::zeros();

@@ -17,7 +17,7 @@
 )]
 
 use hal::{CycleClock, Error as _, ErrorKind, JointTorqueInterface, PlatformCommand, PlatformVelocityInterface, LEGS};
-use host_sim::scenario::{cartesian_step, energy_planar4, Progress};
+use host_sim::scenarios::{cartesian_step, energy_planar4, RunOptions};
 use host_sim::sim::{run_loop, SimConfig, SimError, Simulator, CONTROL_PERIOD_S};
 use kernel::model::{Inertia, JointDrive, JointKind, JointLimits, ModelBuilder, Placement};
 use kernel::Model;
@@ -101,7 +101,7 @@ fn mobile_arm() -> Model<f64, 5, 5, 2> {
 
 #[test]
 fn planar4_energy_is_conserved_without_input() {
-    let outcome = energy_planar4::simulate(Progress::Silent).unwrap();
+    let outcome = energy_planar4::simulate(&RunOptions::default()).unwrap();
     let drift = outcome.summary.get("energy_drift_rel").unwrap();
     let duration = outcome.summary.get("duration_s").unwrap();
     println!("energy_planar4: relative drift {drift:.3e} over {duration} s");
@@ -147,7 +147,7 @@ fn base_velocity_follows_the_command_with_the_configured_lag() {
     let desired = [0.2, -0.1, 0.3];
     sim.write_velocity(&PlatformCommand { velocity: desired, leg_rates: [0.05, 0.0, -0.05, 2.0] }).unwrap();
     // The arm swings under zero torque; the base motion must not care.
-    let report = run_loop(&mut sim, lag, CONTROL_PERIOD_S, |_, _| Ok(())).unwrap();
+    let report = run_loop(&mut sim, lag, CONTROL_PERIOD_S, |_, _| Ok::<(), SimError>(())).unwrap();
     assert_eq!((report.control_cycles, report.physics_steps), (100, 600));
     let sample = PlatformVelocityInterface::read(&mut sim).unwrap();
     let expected = 1.0 - (-1.0_f64).exp();
@@ -230,7 +230,7 @@ fn non_finite_commands_are_refused_with_the_safe_reaction() {
 
 #[test]
 fn cartesian_impedance_steps_the_justin_tcp_to_steady_state() {
-    let outcome = cartesian_step::simulate(Progress::Silent).unwrap();
+    let outcome = cartesian_step::simulate(&RunOptions::default()).unwrap();
     let s = &outcome.summary;
     let (settle, final_error) = (s.get("settle_time_s").unwrap(), s.get("final_error_m").unwrap());
     println!(

@@ -11,7 +11,7 @@
 )]
 
 use fixtures::justin;
-use host_sim::scenario::{torso_workspace as scenario, Progress};
+use host_sim::scenarios::{torso_workspace as scenario, RunOptions};
 use kernel::dynamics::{crba, forward_kinematics, mass_matrix_cholesky};
 use kernel::tasks::torso_workspace::{
     torso_workspace, RepulsionGains, TorqueLimits, TorsoLoad, TorsoWorkspace, TorsoWorkspaceConfig, BOUNDARIES,
@@ -147,7 +147,7 @@ fn torso_plane_is_that_of_the_robot_model() {
 /// map written for inspection.
 #[test]
 fn torso_workspace_scenario_reproduces_fig_3_16() {
-    let outcome = scenario::simulate(Progress::Silent).unwrap();
+    let outcome = scenario::simulate(&RunOptions::default()).unwrap();
     let s = &outcome.summary;
     assert!(s.failed_claims().is_empty(), "{:?}", s.failed_claims());
     assert_eq!(s.passed_claims().len(), 7);

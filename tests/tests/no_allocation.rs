@@ -274,7 +274,7 @@ fn self_collision_rows_do_not_allocate() {
 /// torques, `τ_μ` and storage functions. The task stack is built before counting.
 #[test]
 fn multilevel_control_does_not_allocate() {
-    use host_sim::scenario::multilevel_arm::ArmHierarchy;
+    use host_sim::scenarios::multilevel_arm::ArmHierarchy;
     use kernel::hierarchy::multilevel::{multilevel_control, DynamicsTerms, MultilevelConfig, MultilevelData};
     use kernel::model::Placement;
     use nalgebra::{Translation3, Vector3};

@@ -17,7 +17,7 @@ use fixtures::justin::{self, JustinModel, BODIES, FRAMES, JOINT_NAMES, N, RIGHT_
 use kernel::model::Placement;
 use nalgebra::{Translation3, Vector3};
 
-use super::{column_index, joint_columns, pose_error_columns, Outcome, Progress};
+use super::{column_index, joint_columns, pose_error_columns, Outcome, RunOptions};
 use crate::controllers::{CartesianJointGains, CartesianJointImpedance};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
 use crate::sim::{run_loop, SimConfig, Simulator, CONTROL_PERIOD_S};
@@ -48,13 +48,13 @@ type Sim = Simulator<N, BODIES, FRAMES, UPPER_DOF>;
 type Controller = CartesianJointImpedance<N, BODIES, FRAMES, UPPER_DOF>;
 
 /// Runs the scenario.
-pub fn simulate(progress: Progress) -> Result<Outcome, String> {
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let model: JustinModel<f64> = justin::model::<f64>().map_err(|e| format!("Justin model: {e}"))?;
     let home = justin::home_configuration::<f64>();
     let base_dof = N - UPPER_DOF;
     let rest = home.fixed_rows::<UPPER_DOF>(base_dof).into_owned();
 
-    let mut sim = Sim::new(model.clone(), SimConfig::default()).map_err(|e| e.to_string())?;
+    let mut sim: Sim = options.simulator(model.clone(), SimConfig::default())?;
     sim.set_state(home, nalgebra::SVector::zeros()).map_err(|e| e.to_string())?;
     sim.push(RIGHT_TCP, Vector3::new(0.0, PUSH_N, 0.0), PUSH_START_S, PUSH_DURATION_S).map_err(|e| e.to_string())?;
     let start = sim.frame_placement(RIGHT_TCP).map_err(|e| e.to_string())?;
@@ -75,11 +75,10 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
     );
     columns.extend(["base.x", "base.y", "base.theta"].map(String::from));
     let mut series = TimeSeries::new(columns);
-    let mut failure: Option<String> = None;
 
     let report = run_loop(&mut sim, DURATION_S, CONTROL_PERIOD_S, |sim, info| {
         if info.cycle % 100 == 0 {
-            progress.report(NAME, info.time_s, DURATION_S);
+            options.progress.report(NAME, info.time_s, DURATION_S);
         }
         if info.time_s >= STEP_TIME_S - 1e-9 {
             controller.set_target(stepped);
@@ -94,16 +93,9 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         row.extend(target.iter().chain(tcp.iter()).chain(push.iter()));
         row.push(telemetry.torque_ratio);
         row.extend(sim.q().iter().take(base_dof));
-        if let Err(e) = series.push(row) {
-            failure.get_or_insert(e);
-        }
-        Ok(())
-    })
-    .map_err(|e| e.to_string())?;
-    progress.finish();
-    if let Some(e) = failure {
-        return Err(e);
-    }
+        series.push(row)
+    })?;
+    options.progress.finish();
     evaluate(&series, report.saturated_steps, sim.time_s())
 }
 

@@ -14,7 +14,7 @@
 use fixtures::planar::{four_dof, four_dof_configuration};
 use nalgebra::SVector;
 
-use super::{joint_columns, Outcome, Progress};
+use super::{joint_columns, Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Summary, TimeSeries};
 use crate::sim::{run_loop, SimConfig, Simulator, CONTROL_PERIOD_S, DEFAULT_PHYSICS_STEP_S};
 
@@ -46,10 +46,10 @@ struct Run {
 }
 
 /// Releases the arm from the Table 5.4 pose and records every control period (1 ms).
-fn release(physics_step_s: f64, progress: Progress) -> Result<Run, String> {
+fn release(physics_step_s: f64, options: &RunOptions) -> Result<Run, String> {
     let model = four_dof::<f64>().map_err(|e| format!("planar model: {e}"))?;
     let config = SimConfig { physics_step_s, ..SimConfig::default() };
-    let mut sim = Simulator::<4, 4, 5, 4>::new(model, config).map_err(|e| e.to_string())?;
+    let mut sim: Simulator<4, 4, 5, 4> = options.simulator(model, config)?;
     let q0 = four_dof_configuration(0.84, 0.96, -1.37, 0.40, false).ok_or("Table 5.4 pose unreachable")?;
     sim.set_state(q0, SVector::zeros()).map_err(|e| e.to_string())?;
 
@@ -58,7 +58,6 @@ fn release(physics_step_s: f64, progress: Progress) -> Result<Run, String> {
     columns.extend(joint_columns(&names));
     columns.extend(["kinetic_energy_j", "potential_energy_j", "total_energy_j"].map(String::from));
     let mut series = TimeSeries::new(columns);
-    let mut failure: Option<String> = None;
 
     let report = run_loop(
         &mut sim,
@@ -67,23 +66,16 @@ fn release(physics_step_s: f64, progress: Progress) -> Result<Run, String> {
         // τ = 0: no controller, only the recording.
         |sim, info| {
             if info.cycle % 250 == 0 {
-                progress.report(NAME, info.time_s, DURATION_S);
+                options.progress.report(NAME, info.time_s, DURATION_S);
             }
             let energies = sim.energies()?;
             let mut row = vec![info.time_s];
             row.extend(sim.q().iter().chain(sim.v().iter()).chain(sim.applied_torque().iter()));
             row.extend([energies.kinetic, energies.potential, energies.total]);
-            if let Err(e) = series.push(row) {
-                failure.get_or_insert(e);
-            }
-            Ok(())
+            series.push(row)
         },
-    )
-    .map_err(|e| e.to_string())?;
-    progress.finish();
-    if let Some(e) = failure {
-        return Err(e);
-    }
+    )?;
+    options.progress.finish();
     let last = sim.energies().map_err(|e| e.to_string())?;
     let kinetic = series.column("kinetic_energy_j").unwrap_or_default();
     let mut total = series.column("total_energy_j").unwrap_or_default();
@@ -101,9 +93,9 @@ fn release(physics_step_s: f64, progress: Progress) -> Result<Run, String> {
 
 /// Runs the scenario: the claim at [`PHYSICS_STEP_S`], the drift at the default step for
 /// comparison.
-pub fn simulate(progress: Progress) -> Result<Outcome, String> {
-    let run = release(PHYSICS_STEP_S, progress)?;
-    let coarse = release(DEFAULT_PHYSICS_STEP_S, Progress::Silent)?;
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
+    let run = release(PHYSICS_STEP_S, options)?;
+    let coarse = release(DEFAULT_PHYSICS_STEP_S, &options.silent())?;
     let drift_rel = run.drift_j / run.scale_j;
     let coarse_rel = coarse.drift_j / coarse.scale_j;
 

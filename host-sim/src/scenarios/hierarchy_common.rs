@@ -1,8 +1,40 @@
 //! Pieces shared by the Chapter 4 scenarios (`projectors_sim1`, `stiffness_sim2`,
-//! `unilateral_sim`): the settling-time criterion, wide time-series columns for compared
-//! variants, and plot helpers.
+//! `unilateral_sim`): their control cycle, the settling-time criterion, wide time-series columns
+//! for compared variants, and plot helpers.
+
+use hal::JointTorqueInterface;
+use nalgebra::SVector;
 
 use crate::output::TimeSeries;
+use crate::sim::Simulator;
+
+/// A time series with the columns `t` and `signals`.
+pub fn series_with_time(signals: Vec<String>) -> TimeSeries {
+    let mut columns = vec!["t".to_owned()];
+    columns.extend(signals);
+    TimeSeries::new(columns)
+}
+
+/// One control cycle of a fixed-base arm at `time_s`: reads the joints, runs `control`
+/// (positions, velocities → torque and the row's signals), writes the torque and returns the
+/// row `t, q, q̇, τ (applied), signals…`.
+pub fn control_cycle<const N: usize, const B: usize, const F: usize, S>(
+    sim: &mut Simulator<N, B, F, N>,
+    time_s: f64,
+    control: impl FnOnce(&SVector<f64, N>, &SVector<f64, N>) -> Result<(SVector<f64, N>, S), String>,
+) -> Result<Vec<f64>, String>
+where
+    S: IntoIterator<Item = f64>,
+{
+    let sample = JointTorqueInterface::read(sim)?;
+    let (q, v) = (SVector::from(sample.position), SVector::from(sample.velocity));
+    let (torque, signals) = control(&q, &v)?;
+    JointTorqueInterface::write_torque(sim, &torque.into())?;
+    let mut row = vec![time_s];
+    row.extend(q.iter().chain(v.iter()).chain(sim.applied_torque().iter()));
+    row.extend(signals);
+    Ok(row)
+}
 
 /// Settling time (s) of `signal` towards its final value: the earliest sample time `t_k` after
 /// which `|e(t) − e(T)| ≤ fraction · max_t |e(t) − e(T)|` holds up to the end `T`, i.e. the

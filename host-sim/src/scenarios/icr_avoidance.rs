@@ -58,7 +58,7 @@ use kernel::platform::legs::{LegAdmittanceConfig, ReturnGains};
 use nalgebra::{Matrix3, Vector2, Vector3};
 use plotters::prelude::*;
 
-use super::{Outcome, Progress};
+use super::{Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
 use crate::sim::{run_loop, SimConfig, Simulator, CONTROL_PERIOD_S};
 use crate::wheels::{WheelConfig, Wheels};
@@ -398,8 +398,13 @@ fn platform_model() -> Result<Model<f64, 4, 4, 1>, String> {
 }
 
 /// Runs one mode for `duration_s`.
-pub fn run(mode: Mode, trajectory: &BezierSpline, duration_s: f64, progress: Progress) -> Result<Vec<Sample>, String> {
-    run_with(avoidance_config(mode), trajectory, duration_s, progress)
+pub fn run(
+    mode: Mode,
+    trajectory: &BezierSpline,
+    duration_s: f64,
+    options: &RunOptions,
+) -> Result<Vec<Sample>, String> {
+    run_with(avoidance_config(mode), trajectory, duration_s, options)
 }
 
 /// Runs the loop with the parameters `avoidance` for `duration_s`.
@@ -407,7 +412,7 @@ pub fn run_with(
     avoidance: AvoidanceConfig<f64>,
     trajectory: &BezierSpline,
     duration_s: f64,
-    progress: Progress,
+    options: &RunOptions,
 ) -> Result<Vec<Sample>, String> {
     let mode = match (avoidance.icr_avoidance, avoidance.leg_motion) {
         (false, _) => Mode::Off,
@@ -416,16 +421,15 @@ pub fn run_with(
     };
     let config =
         SimConfig { physics_step_s: CONTROL_PERIOD_S, initial_leg_length_m: NOMINAL_LEG_M, ..SimConfig::default() };
-    let mut sim = Simulator::<4, 4, 1, 1>::new(platform_model()?, config).map_err(|e| e.to_string())?;
+    let mut sim: Simulator<4, 4, 1, 1> = options.simulator(platform_model()?, config)?;
     let mut avoidance = PlatformAvoidance::try_new(avoidance).map_err(|e| e.to_string())?;
     avoidance.reset(&Vector3::zeros(), &[NOMINAL_LEG_M; LEGS]).map_err(|e| e.to_string())?;
     let mut wheels = Wheels::new(WheelConfig::default());
     let mut samples = Vec::new();
-    let mut failure = None;
     let label = format!("{NAME} ({mode:?})");
-    run_loop(&mut sim, duration_s, CONTROL_PERIOD_S, |sim, info| {
+    run_loop(&mut sim, duration_s, CONTROL_PERIOD_S, |sim, info| -> Result<(), String> {
         if info.cycle % 500 == 0 {
-            progress.report(&label, info.time_s, duration_s);
+            options.progress.report(&label, info.time_s, duration_s);
         }
         let joint = JointTorqueInterface::read(sim)?;
         let base = PlatformVelocityInterface::read(sim)?;
@@ -434,13 +438,9 @@ pub fn run_with(
         sim.write_torque(&[-20.0 * q - 5.0 * dq])?;
         let reference = trajectory.evaluate(info.time_s);
         let pose = Vector3::from(base.pose);
-        let output = match avoidance.step(&reference, &pose, &Vector3::from(base.velocity), CONTROL_PERIOD_S) {
-            Ok(o) => o,
-            Err(e) => {
-                failure.get_or_insert(format!("{label}: {e} at t = {:.3} s", info.time_s));
-                return Ok(());
-            }
-        };
+        let output = avoidance
+            .step(&reference, &pose, &Vector3::from(base.velocity), CONTROL_PERIOD_S)
+            .map_err(|e| format!("{label}: {e} at t = {:.3} s", info.time_s))?;
         sim.write_velocity(&PlatformCommand { velocity: output.velocity.into(), leg_rates: output.leg_rates })?;
         let states = wheels.update(&base, &output.leg_rates, CONTROL_PERIOD_S);
         let twist = BaseTwist::from_world(&Vector3::from(base.velocity), base.pose[2]);
@@ -461,13 +461,9 @@ pub fn run_with(
             legs: base.leg_lengths,
         });
         Ok(())
-    })
-    .map_err(|e| e.to_string())?;
-    progress.finish();
-    match failure {
-        Some(f) => Err(f),
-        None => Ok(samples),
-    }
+    })?;
+    options.progress.finish();
+    Ok(samples)
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -541,9 +537,9 @@ pub fn metrics(samples: &[Sample]) -> Metrics {
 }
 
 /// Runs the scenario.
-pub fn simulate(progress: Progress) -> Result<Outcome, String> {
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let trajectory = nominal_trajectory(&DESIGN);
-    let runs = [Mode::Off, Mode::On, Mode::Legs].map(|m| run(m, &trajectory, DURATION_S, progress));
+    let runs = [Mode::Off, Mode::On, Mode::Legs].map(|m| run(m, &trajectory, DURATION_S, options));
     let [off, on, legs] = runs;
     evaluate(&off?, &on?, &legs?)
 }

@@ -44,7 +44,7 @@ use kernel::platform::coupling_compensation::CompensationSwitch;
 use kernel::platform::{PlatformAxis, PlatformLayout};
 use nalgebra::{Matrix3, SVector, Translation3, Vector3};
 
-use super::{joint_columns, pose_error_columns, Outcome, Progress};
+use super::{joint_columns, pose_error_columns, Outcome, RunOptions};
 use crate::mobile_controller::{MobileImpedance, MobileImpedanceSettings};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
 use crate::sim::{run_loop, SimConfig, SimError, Simulator, CONTROL_PERIOD_S, DEFAULT_PHYSICS_STEP_S};
@@ -239,12 +239,12 @@ pub fn settings(
 }
 
 /// Runs one experiment from rest at the home pose.
-pub fn run(experiment: &Experiment, progress: Progress, label: &str) -> Result<Run, String> {
+pub fn run(experiment: &Experiment, options: &RunOptions, label: &str) -> Result<Run, String> {
     let model: JustinModel<f64> = justin::model::<f64>().map_err(|e| format!("Justin model: {e}"))?;
     let home = justin::home_configuration::<f64>();
     let config =
         SimConfig { physics_step_s: experiment.physics_step_s, base_lag_s: BASE_LAG_S, ..SimConfig::default() };
-    let mut sim = Sim::new(model.clone(), config).map_err(|e| e.to_string())?;
+    let mut sim: Sim = options.simulator(model.clone(), config)?;
     sim.set_state(home, SVector::zeros()).map_err(|e| e.to_string())?;
     if let Disturbance::Push { force_n, start_s, duration_s } = experiment.disturbance {
         sim.push(RIGHT_TCP, force_n, start_s, duration_s).map_err(|e| e.to_string())?;
@@ -254,11 +254,9 @@ pub fn run(experiment: &Experiment, progress: Progress, label: &str) -> Result<R
         Controller::new(model, settings(experiment.admittance, experiment.compensation)?, start, CONTROL_PERIOD_S)
             .map_err(|e| e.to_string())?;
     let mut samples = Vec::new();
-    let mut stopped_at_s = None;
-    let mut failure = None;
-    let report = run_loop(&mut sim, experiment.duration_s, CONTROL_PERIOD_S, |sim, info| {
+    let report = run_loop(&mut sim, experiment.duration_s, CONTROL_PERIOD_S, |sim, info| -> Result<(), Stop> {
         if info.cycle % 200 == 0 {
-            progress.report(label, info.time_s, experiment.duration_s);
+            options.progress.report(label, info.time_s, experiment.duration_s);
         }
         let (offset, rate) = match experiment.disturbance {
             Disturbance::Trajectory => trajectory(info.time_s),
@@ -270,8 +268,8 @@ pub fn run(experiment: &Experiment, progress: Progress, label: &str) -> Result<R
         );
         controller.set_target(desired, Vector3::new(rate, 0.0, 0.0));
         let t = *controller.step(sim)?;
-        if t.fault.is_some() && failure.is_none() {
-            failure = Some(format!("{label}: controller fault {:?} at t = {:.3} s", t.fault, info.time_s));
+        if t.fault.is_some() {
+            return Err(Stop::Failed(format!("{label}: controller fault {:?} at t = {:.3} s", t.fault, info.time_s)));
         }
         let tcp = sim.frame_placement(RIGHT_TCP)?.translation.vector;
         let torso2 = justin::TORSO_COORDINATES.start + 1 - (N - UPPER_DOF);
@@ -297,26 +295,43 @@ pub fn run(experiment: &Experiment, progress: Progress, label: &str) -> Result<R
             coupling_torso2: t.coupling.get(torso2).copied().unwrap_or(f64::NAN),
         });
         if t.storage.total.is_nan() || t.storage.total > experiment.stop_energy_j {
-            // Emergency stop: end the run here.
-            stopped_at_s = Some(info.time_s);
-            return Err(SimError::InvalidConfig { field: "emergency stop" });
+            return Err(Stop::Emergency { t_s: info.time_s });
         }
         Ok(())
     });
-    let report = match report {
-        Ok(report) => report,
+    match report {
+        Ok(report) => Ok(Run { samples, stopped_at_s: None, saturated_steps: report.saturated_steps }),
+        Err(Stop::Emergency { t_s }) => Ok(Run { samples, stopped_at_s: Some(t_s), saturated_steps: 0 }),
         // A diverging state (the physics refuses it) also counts as a stop.
-        Err(e) if stopped_at_s.is_none() && matches!(e, SimError::Dynamics(_)) && !samples.is_empty() => {
+        Err(Stop::Diverged(_)) if !samples.is_empty() => {
             let stopped_at_s = samples.last().map(|s| s.t);
-            return Ok(Run { samples, stopped_at_s, saturated_steps: 0 });
+            Ok(Run { samples, stopped_at_s, saturated_steps: 0 })
         }
-        Err(_) if stopped_at_s.is_some() => return Ok(Run { samples, stopped_at_s, saturated_steps: 0 }),
-        Err(e) => return Err(e.to_string()),
-    };
-    if let Some(f) = failure {
-        return Err(f);
+        Err(Stop::Diverged(e)) => Err(e.to_string()),
+        Err(Stop::Failed(message)) => Err(message),
     }
-    Ok(Run { samples, stopped_at_s, saturated_steps: report.saturated_steps })
+}
+
+/// Why an experiment's loop ended before its duration.
+enum Stop {
+    /// The emergency stop: the storage exceeded the experiment's bound (or is NaN) at `t_s`.
+    Emergency {
+        /// Simulated time of the stop (s).
+        t_s: f64,
+    },
+    /// The physics refused the state: it diverged.
+    Diverged(SimError),
+    /// Any other error.
+    Failed(String),
+}
+
+impl From<SimError> for Stop {
+    fn from(e: SimError) -> Self {
+        match e {
+            SimError::Dynamics(_) => Self::Diverged(e),
+            other => Self::Failed(other.to_string()),
+        }
+    }
 }
 
 /// Metrics of one run of the trajectory experiment.
@@ -409,12 +424,12 @@ pub fn trajectory_experiments(duration_s: f64, physics_step_s: f64) -> [Experime
 }
 
 /// Runs the scenario.
-pub fn simulate(progress: Progress) -> Result<Outcome, String> {
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let [on, off] = trajectory_experiments(DURATION_S, DEFAULT_PHYSICS_STEP_S);
-    let on = run(&on, progress, "mobile_impedance (compensation ON)")?;
-    progress.finish();
-    let off = run(&off, progress, "mobile_impedance (compensation OFF)")?;
-    progress.finish();
+    let on = run(&on, options, "mobile_impedance (compensation ON)")?;
+    options.progress.finish();
+    let off = run(&off, options, "mobile_impedance (compensation OFF)")?;
+    options.progress.finish();
     evaluate(&on, &off)
 }
 

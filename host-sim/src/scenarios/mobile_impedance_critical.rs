@@ -18,7 +18,7 @@
 use nalgebra::Vector3;
 
 use super::mobile_impedance::{critical_admittance, run, Disturbance, Experiment, Run, Sample};
-use super::{Outcome, Progress};
+use super::{Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
 use crate::sim::DEFAULT_PHYSICS_STEP_S;
 use kernel::platform::coupling_compensation::CompensationSwitch;
@@ -62,12 +62,12 @@ pub fn experiments(duration_s: f64, physics_step_s: f64) -> [Experiment; 2] {
 }
 
 /// Runs the scenario.
-pub fn simulate(progress: Progress) -> Result<Outcome, String> {
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let [on, off] = experiments(DURATION_S, DEFAULT_PHYSICS_STEP_S);
-    let on = run(&on, progress, "mobile_impedance_critical (compensation ON)")?;
-    progress.finish();
-    let off = run(&off, progress, "mobile_impedance_critical (compensation OFF)")?;
-    progress.finish();
+    let on = run(&on, options, "mobile_impedance_critical (compensation ON)")?;
+    options.progress.finish();
+    let off = run(&off, options, "mobile_impedance_critical (compensation OFF)")?;
+    options.progress.finish();
     evaluate(&on, &off)
 }
 

@@ -64,9 +64,9 @@ use kernel::tasks::TaskRows;
 use nalgebra::{Matrix3, RowSVector, SMatrix, SVector, Translation3, Unit, UnitQuaternion, Vector3, Vector6};
 
 use super::multilevel_planar::{column, largest_rise, peak, points};
-use super::{joint_columns, Outcome, Progress};
+use super::{joint_columns, Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
-use crate::sim::{run_loop, SimConfig, SimError, Simulator, CONTROL_PERIOD_S};
+use crate::sim::{run_loop, SimConfig, Simulator, CONTROL_PERIOD_S};
 
 /// Registry name.
 pub const NAME: &str = "multilevel_arm";
@@ -80,6 +80,8 @@ pub const ARM_DOF: usize = 7;
 pub const ARM_FRAMES: usize = 9;
 /// The 7-DOF arm model type.
 pub type ArmModel = Model<f64, ARM_DOF, ARM_DOF, ARM_FRAMES>;
+/// The simulated right arm.
+type ArmSim = Simulator<ARM_DOF, ARM_DOF, ARM_FRAMES, ARM_DOF>;
 /// Row capacity of [`ArmHierarchy`]: 3 + 3 Cartesian rows and up to 26 joint rows.
 pub const ROW_CAPACITY: usize = 32;
 
@@ -395,26 +397,18 @@ struct Start {
     kinetic_j: f64,
 }
 
-fn settle(model: &ArmModel, tcp: FrameId) -> Result<Start, String> {
-    let mut sim = Simulator::<ARM_DOF, ARM_DOF, ARM_FRAMES, ARM_DOF>::new(model.clone(), SimConfig::default())
-        .map_err(|e| e.to_string())?;
+fn settle(model: &ArmModel, tcp: FrameId, options: &RunOptions) -> Result<Start, String> {
+    let mut sim: ArmSim = options.simulator(model.clone(), SimConfig::default())?;
     let home = arm_home();
     sim.set_state(home, SVector::zeros()).map_err(|e| e.to_string())?;
     let start = sim.frame_placement(tcp).map_err(|e| e.to_string())?;
     let equilibrium = home + SVector::from(JOINT_EQUILIBRIUM_OFFSET);
     let mut controller = ArmHierarchy::new(model.clone(), tcp, start, equilibrium)?;
-    let mut failure = None;
-    run_loop(&mut sim, SETTLE_S, CONTROL_PERIOD_S, |sim, _| {
+    run_loop(&mut sim, SETTLE_S, CONTROL_PERIOD_S, |sim, _| -> Result<(), String> {
         let (q, v) = (*sim.q(), *sim.v());
-        match controller.step(&q, &v) {
-            Ok(torque) => JointTorqueInterface::<f64, ARM_DOF>::write_torque(sim, &(*torque).into()),
-            Err(e) => {
-                failure.get_or_insert(e);
-                Err(SimError::NonFinite { what: "controller output" })
-            }
-        }
-    })
-    .map_err(|e| failure.clone().unwrap_or_else(|| e.to_string()))?;
+        let torque = *controller.step(&q, &v)?;
+        Ok(JointTorqueInterface::<f64, ARM_DOF>::write_torque(sim, &torque.into())?)
+    })?;
     let energies = sim.energies().map_err(|e| e.to_string())?;
     Ok(Start { q: *sim.q(), v: *sim.v(), kinetic_j: energies.kinetic })
 }
@@ -425,10 +419,9 @@ fn record(
     tcp: FrameId,
     start: &Start,
     decoupling: bool,
-    progress: Progress,
+    options: &RunOptions,
 ) -> Result<TimeSeries, String> {
-    let mut sim = Simulator::<ARM_DOF, ARM_DOF, ARM_FRAMES, ARM_DOF>::new(model.clone(), SimConfig::default())
-        .map_err(|e| e.to_string())?;
+    let mut sim: ArmSim = options.simulator(model.clone(), SimConfig::default())?;
     sim.set_state(arm_home(), SVector::zeros()).map_err(|e| e.to_string())?;
     let home_pose = sim.frame_placement(tcp).map_err(|e| e.to_string())?;
     sim.set_state(start.q, start.v).map_err(|e| e.to_string())?;
@@ -437,8 +430,7 @@ fn record(
     controller.config.coriolis_decoupling = decoupling;
     let stepped = stepped_target(&home_pose);
     let mut series = TimeSeries::new(columns());
-    let mut failure = None;
-    let mut cycle = |sim: &mut Simulator<ARM_DOF, ARM_DOF, ARM_FRAMES, ARM_DOF>, t: f64| -> Result<Vec<f64>, String> {
+    let mut cycle = |sim: &mut ArmSim, t: f64| -> Result<Vec<f64>, String> {
         if t >= STEP_TIME_S - 1e-9 {
             controller.target = stepped;
         }
@@ -464,18 +456,11 @@ fn record(
     };
     run_loop(&mut sim, DURATION_S, CONTROL_PERIOD_S, |sim, info| {
         if info.cycle % 200 == 0 {
-            progress.report(NAME, info.time_s, DURATION_S);
+            options.progress.report(NAME, info.time_s, DURATION_S);
         }
-        match cycle(sim, info.time_s).and_then(|row| series.push(row)) {
-            Ok(()) => Ok(()),
-            Err(e) => {
-                failure.get_or_insert(e);
-                Err(SimError::NonFinite { what: "controller output" })
-            }
-        }
-    })
-    .map_err(|e| failure.clone().unwrap_or_else(|| e.to_string()))?;
-    progress.finish();
+        series.push(cycle(sim, info.time_s)?)
+    })?;
+    options.progress.finish();
     Ok(series)
 }
 
@@ -507,22 +492,30 @@ fn rising_intervals(t: &[f64], s: &[f64], threshold: f64) -> Vec<(f64, f64)> {
 }
 
 /// Runs the scenario: settle, then the step with `τ_μ` (recorded) and without (compared).
-pub fn simulate(progress: Progress) -> Result<Outcome, String> {
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let (model, tcp) = right_arm_model()?;
-    let start = settle(&model, tcp)?;
-    let series = record(&model, tcp, &start, true, progress)?;
-    let without = record(&model, tcp, &start, false, Progress::Silent)?;
-    let t = column(&series, "t")?;
+    let start = settle(&model, tcp, &options.silent())?;
+    let series = record(&model, tcp, &start, true, options)?;
+    let without = record(&model, tcp, &start, false, &options.silent())?;
     let mut summary = Summary::new(NAME);
     summary.metric("settled_kinetic_energy_j", start.kinetic_j).metric("duration_s", DURATION_S);
+    storage_claims(&mut summary, &series)?;
+    constrained_minimum_claims(&mut summary, &series)?;
+    decoupling_claims(&mut summary, &series, &without)?;
+    let figures = figures(&series, &without)?;
+    Ok(Outcome { summary, series, figures })
+}
 
-    // Ṡ₁ ≤ 0 after the step, model-based and sampled.
+/// Level 1 and 2 storage: Ṡ₁ ≤ 0 after the step (model-based and sampled); S2 converges,
+/// possibly after temporary rises.
+fn storage_claims(summary: &mut Summary, series: &TimeSeries) -> Result<(), String> {
+    let t = column(series, "t")?;
     let after = |values: &[f64]| -> Vec<f64> {
         t.iter().zip(values).filter(|(time, _)| **time >= STEP_TIME_S).map(|(_, v)| *v).collect()
     };
-    let s1 = column(&series, "S1")?;
+    let s1 = column(series, "S1")?;
     let s1_peak = s1.iter().copied().fold(0.0, f64::max);
-    let sdot1_max = after(&column(&series, "Sdot1")?).into_iter().fold(f64::NEG_INFINITY, f64::max);
+    let sdot1_max = after(&column(series, "Sdot1")?).into_iter().fold(f64::NEG_INFINITY, f64::max);
     let s1_rise = largest_rise(&t, &s1, STEP_TIME_S + 1e-9);
     summary
         .metric("s1_peak_j", s1_peak)
@@ -533,9 +526,7 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         &format!("sampled S1 does not rise after the step (largest rise {s1_rise:.2e} J ≤ {S1_RISE_TOLERANCE_REL} × {s1_peak:.3} J)"),
         s1_rise <= S1_RISE_TOLERANCE_REL * s1_peak,
     );
-
-    // S2 converges, possibly after temporary rises.
-    let s2 = column(&series, "S2")?;
+    let s2 = column(series, "S2")?;
     let s2_peak = s2.iter().copied().fold(0.0, f64::max);
     let s2_final = s2.last().copied().unwrap_or(f64::NAN);
     let rises = rising_intervals(&t, &s2, 1e-3 * s2_peak);
@@ -554,11 +545,14 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         ),
         late.is_some(),
     );
+    Ok(())
+}
 
-    // Level 3 at a constrained minimum.
-    let last = |name: &str| column(&series, name).map(|v| v.last().copied().unwrap_or(f64::NAN));
+/// Level 3 ends at a constrained minimum.
+fn constrained_minimum_claims(summary: &mut Summary, series: &TimeSeries) -> Result<(), String> {
+    let last = |name: &str| column(series, name).map(|v| v.last().copied().unwrap_or(f64::NAN));
     let (v3_final, t3_final, residual3_final) = (last("V3")?, last("T3")?, last("residual3")?);
-    let residual3_peak = peak(&column(&series, "residual3")?);
+    let residual3_peak = peak(&column(series, "residual3")?);
     let in_a2 = last("in_A2")? > 0.5;
     summary
         .metric("v3_final_j", v3_final)
@@ -575,9 +569,13 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         ),
         in_a2 && t3_final < 1e-4 && residual3_final < 0.01 * residual3_peak && v3_final > 0.1,
     );
+    Ok(())
+}
 
-    // τ_μ against the level-1 torque (experiment #2).
-    let (tau_mu_peak, tau1_peak) = (peak_over(&series, "tau_mu")?, peak_over(&series, "tau1p")?);
+/// `τ_μ` against the level-1 torque, and the run without it (experiment #2).
+fn decoupling_claims(summary: &mut Summary, series: &TimeSeries, without: &TimeSeries) -> Result<(), String> {
+    let t = column(series, "t")?;
+    let (tau_mu_peak, tau1_peak) = (peak_over(series, "tau_mu")?, peak_over(series, "tau1p")?);
     let ratio = tau_mu_peak / tau1_peak;
     summary
         .metric("tau_mu_peak_nm", tau_mu_peak)
@@ -591,21 +589,19 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
     );
     let mut worst: f64 = 0.0;
     for level in 1..=3 {
-        let (on, off) = (column(&series, &format!("S{level}"))?, column(&without, &format!("S{level}"))?);
+        let (on, off) = (column(series, &format!("S{level}"))?, column(without, &format!("S{level}"))?);
         let top = on.iter().copied().fold(0.0, f64::max);
         let deviation = on.iter().zip(off.iter()).fold(0.0_f64, |m, (a, b)| m.max((a - b).abs())) / top;
         worst = worst.max(deviation);
         summary.metric(&format!("s{level}_on_off_deviation_rel"), deviation);
     }
-    let s1_rise_off = largest_rise(&t, &column(&without, "S1")?, STEP_TIME_S + 1e-9);
+    let s1_rise_off = largest_rise(&t, &column(without, "S1")?, STEP_TIME_S + 1e-9);
     summary.metric("s1_largest_rise_after_step_without_tau_mu_j", s1_rise_off);
     summary.claim(
         &format!("without τ_μ the storage functions are very similar: largest deviation {worst:.3} of the peak < {ON_OFF_DEVIATION_BOUND}"),
         worst < ON_OFF_DEVIATION_BOUND,
     );
-
-    let figures = figures(&series, &without)?;
-    Ok(Outcome { summary, series, figures })
+    Ok(())
 }
 
 fn figures(series: &TimeSeries, without: &TimeSeries) -> Result<Vec<(&'static str, Figure)>, String> {

@@ -42,9 +42,9 @@ use kernel::hierarchy::multilevel::{
 use kernel::model::{Data, Inertia, JointDrive, JointKind, ModelBuilder, ModelError, Placement};
 use nalgebra::{RowSVector, SMatrix, SVector, Vector3};
 
-use super::{joint_columns, Progress};
+use super::{joint_columns, RunOptions};
 use crate::output::{Figure, Line, Panel, TimeSeries};
-use crate::sim::{run_loop, SimConfig, SimError, Simulator};
+use crate::sim::{run_loop, SimConfig, Simulator};
 
 /// Coordinates of the planar arm.
 pub const N: usize = 4;
@@ -196,10 +196,10 @@ fn stack_rows(
 }
 
 /// The time series of one run (columns in [`columns`]).
-pub fn run(setup: &Setup, progress: Progress) -> Result<TimeSeries, String> {
+pub fn run(setup: &Setup, options: &RunOptions) -> Result<TimeSeries, String> {
     let plant = four_dof::<f64>().map_err(|e| format!("planar model: {e}"))?;
     let model = &setup.controller_model;
-    let mut sim = Simulator::<4, 4, 5, 4>::new(plant.clone(), SimConfig::default()).map_err(|e| e.to_string())?;
+    let mut sim: Simulator<4, 4, 5, 4> = options.simulator(plant.clone(), SimConfig::default())?;
     let q0 = four_dof_configuration(TCP_INITIAL_M[0], TCP_INITIAL_M[1], ORIENTATION_INITIAL_RAD, Q1_INITIAL_RAD, false)
         .ok_or("Table 5.4 initial configuration unreachable")?;
     sim.set_state(q0, SVector::zeros()).map_err(|e| e.to_string())?;
@@ -210,7 +210,6 @@ pub fn run(setup: &Setup, progress: Progress) -> Result<TimeSeries, String> {
     let mut stack = ComplianceStack::<f64, N, 8>::new();
     let mut out = MultilevelData::<f64, N, 3>::default();
     let mut series = TimeSeries::new(columns());
-    let mut failure: Option<String> = None;
     let gains = setup.gains;
 
     let mut cycle = |sim: &mut Simulator<4, 4, 5, 4>, t: f64| -> Result<Vec<f64>, String> {
@@ -249,18 +248,11 @@ pub fn run(setup: &Setup, progress: Progress) -> Result<TimeSeries, String> {
     };
     run_loop(&mut sim, setup.duration_s, setup.control_period_s, |sim, info| {
         if info.cycle % 500 == 0 {
-            progress.report(setup.name, info.time_s, setup.duration_s);
+            options.progress.report(setup.name, info.time_s, setup.duration_s);
         }
-        match cycle(sim, info.time_s).and_then(|row| series.push(row)) {
-            Ok(()) => Ok(()),
-            Err(e) => {
-                failure.get_or_insert(e);
-                Err(SimError::NonFinite { what: "controller output" })
-            }
-        }
-    })
-    .map_err(|e| failure.clone().unwrap_or_else(|| e.to_string()))?;
-    progress.finish();
+        series.push(cycle(sim, info.time_s)?)
+    })?;
+    options.progress.finish();
     Ok(series)
 }
 

@@ -16,7 +16,7 @@
 //! ticks about −50…150, −400…200, −100…200 Nm).
 
 use super::multilevel_planar::{column, figures, peak, run, settle_time, Setup, SIM1_GAINS, THESIS_CONTROL_PERIOD_S};
-use super::{Outcome, Progress};
+use super::{Outcome, RunOptions};
 use crate::output::Summary;
 
 /// Registry name.
@@ -36,7 +36,7 @@ pub const CROSS_ACCELERATION_BOUND: f64 = 1e-9;
 pub use super::multilevel_planar::CROSS_COLUMNS;
 
 /// Runs the scenario.
-pub fn simulate(progress: Progress) -> Result<Outcome, String> {
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let setup = Setup {
         name: NAME,
         gains: SIM1_GAINS,
@@ -45,7 +45,7 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         duration_s: DURATION_S,
         control_period_s: THESIS_CONTROL_PERIOD_S,
     };
-    let series = run(&setup, progress)?;
+    let series = run(&setup, options)?;
     let t = column(&series, "t")?;
     let mut summary = Summary::new(NAME);
     let mut worst_settle: f64 = 0.0;

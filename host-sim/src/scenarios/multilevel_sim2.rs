@@ -31,7 +31,7 @@
 use super::multilevel_planar::{
     column, figures, largest_rise, settle_time, Setup, CONTROL_PERIOD_S, SIM2_GAINS, THESIS_CONTROL_PERIOD_S,
 };
-use super::{Outcome, Progress};
+use super::{Outcome, RunOptions};
 use crate::output::{Summary, TimeSeries};
 
 /// Registry name.
@@ -153,13 +153,13 @@ const COMPARED_AT_1KHZ: [&str; 6] = [
 ];
 
 /// Runs the scenario, and the same at the 1 kHz main-loop rate for comparison.
-pub fn simulate(progress: Progress) -> Result<Outcome, String> {
-    let series = super::multilevel_planar::run(&setup(NAME)?, progress)?;
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
+    let series = super::multilevel_planar::run(&setup(NAME)?, options)?;
     let mut summary = Summary::new(NAME);
     energy_claims(&series, &mut summary)?;
     let slow = Setup { control_period_s: CONTROL_PERIOD_S, ..setup(NAME)? };
     let mut compared = Summary::new(NAME);
-    energy_claims(&super::multilevel_planar::run(&slow, Progress::Silent)?, &mut compared)?;
+    energy_claims(&super::multilevel_planar::run(&slow, &options.silent())?, &mut compared)?;
     for key in COMPARED_AT_1KHZ {
         summary.metric(&format!("{key}_1khz"), compared.get(key).unwrap_or(f64::NAN));
     }

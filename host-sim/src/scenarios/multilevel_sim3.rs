@@ -22,8 +22,8 @@
 use super::multilevel_planar::{
     column, figures, peak, planar_arm, points, run, settle_time, Setup, SIM3_COM_M, SIM3_MASSES_KG,
 };
-use super::{multilevel_sim2, Outcome, Progress};
-use crate::output::{Figure, Line, Panel, Summary};
+use super::{multilevel_sim2, Outcome, RunOptions};
+use crate::output::{Figure, Line, Panel, Summary, TimeSeries};
 
 /// Registry name.
 pub const NAME: &str = "multilevel_sim3";
@@ -36,15 +36,34 @@ pub const DURATION_S: f64 = 1.0;
 pub const TRANSIENT_DEVIATION_BOUND: f64 = 0.25;
 
 /// Runs the scenario (and sim #2 for the comparison).
-pub fn simulate(progress: Progress) -> Result<Outcome, String> {
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let wrong = planar_arm(SIM3_MASSES_KG, SIM3_COM_M).map_err(|e| e.to_string())?;
     let setup = Setup { name: NAME, controller_model: wrong, duration_s: DURATION_S, ..multilevel_sim2::setup(NAME)? };
-    let series = run(&setup, progress)?;
-    let reference = run(&multilevel_sim2::setup(multilevel_sim2::NAME)?, Progress::Silent)?;
+    let series = run(&setup, options)?;
+    let reference = run(&multilevel_sim2::setup(multilevel_sim2::NAME)?, &options.silent())?;
+    let summary = claims(&series, &reference)?;
+    let mut figures = figures(&series, NAME)?;
+    figures.push(("disturbing_accelerations.svg", accelerations_figure(&series)?));
+    figures.push(("comparison.svg", comparison_figure(&series, &reference)?));
+    Ok(Outcome { summary, series, figures })
+}
+
+/// The errors compared with sim #2: column, metric key, unit.
+const COMPARED: [(&str, &str, &str); 4] =
+    [("e1.x", "e1_x", "m"), ("e1.y", "e1_y", "m"), ("e2.rot", "e2_rot", "rad"), ("e3.q1", "e3_q1", "rad")];
+
+/// Largest deviation of `ours` from `theirs` relative to `theirs`' initial value.
+fn deviation(ours: &[f64], theirs: &[f64]) -> f64 {
+    let initial = theirs.first().copied().unwrap_or(1.0).abs();
+    ours.iter().zip(theirs.iter()).fold(0.0_f64, |m, (a, b)| m.max((a - b).abs())) / initial
+}
+
+/// Metrics and claims (module docs).
+fn claims(series: &TimeSeries, reference: &TimeSeries) -> Result<Summary, String> {
     let mut summary = Summary::new(NAME);
-    let t = column(&series, "t")?;
+    let t = column(series, "t")?;
     for level in 1..=3 {
-        let s = column(&series, &format!("S{level}"))?;
+        let s = column(series, &format!("S{level}"))?;
         let top = s.iter().copied().fold(0.0, f64::max);
         let last = s.last().copied().unwrap_or(f64::NAN);
         summary.metric(&format!("s{level}_peak_j"), top).metric(&format!("s{level}_final_j"), last).metric(
@@ -60,34 +79,23 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         );
     }
     let mut worst: f64 = 0.0;
-    let mut panels = Vec::new();
-    for (name, key, unit) in
-        [("e1.x", "e1_x", "m"), ("e1.y", "e1_y", "m"), ("e2.rot", "e2_rot", "rad"), ("e3.q1", "e3_q1", "rad")]
-    {
-        let (ours, theirs) = (column(&series, name)?, column(&reference, name)?);
-        let initial = theirs.first().copied().unwrap_or(1.0).abs();
-        let deviation = ours.iter().zip(theirs.iter()).fold(0.0_f64, |m, (a, b)| m.max((a - b).abs())) / initial;
+    for (name, key, _) in COMPARED {
+        let deviation = deviation(&column(series, name)?, &column(reference, name)?);
         worst = worst.max(deviation);
         summary.metric(&format!("deviation_from_sim2_{key}_rel"), deviation);
-        panels.push(Panel {
-            title: format!("{name}: sim #3 (wrong inertia) vs sim #2 (exact)"),
-            y_label: format!("error ({unit})"),
-            lines: vec![Line::new("sim #3", points(&t, &ours)), Line::dashed("sim #2", points(&t, &theirs))],
-            spans: vec![],
-        });
     }
     summary.claim(
         &format!("transient close to sim #2: largest error deviation {worst:.3} of the initial error < {TRANSIENT_DEVIATION_BOUND}"),
         worst < TRANSIENT_DEVIATION_BOUND,
     );
     let by3: Vec<f64> =
-        ["acc1.x_by3", "acc1.y_by3"].iter().map(|c| column(&series, c).map(|v| peak(&v))).collect::<Result<_, _>>()?;
+        ["acc1.x_by3", "acc1.y_by3"].iter().map(|c| column(series, c).map(|v| peak(&v))).collect::<Result<_, _>>()?;
     let level1 = by3.iter().copied().fold(0.0, f64::max);
-    let level2 = peak(&column(&series, "acc2_by3")?);
+    let level2 = peak(&column(series, "acc2_by3")?);
     summary
         .metric("max_acc_level1_by_level3_mps2", level1)
         .metric("max_acc_level2_by_level3_radps2", level2)
-        .metric("max_acc_level2_operational_by_level3_radps2", peak(&column(&series, "acc2_op_by3")?))
+        .metric("max_acc_level2_operational_by_level3_radps2", peak(&column(series, "acc2_op_by3")?))
         .metric("thesis_acc_level1_by_level3_mps2", 6.0)
         .metric("thesis_acc_level2_by_level3_radps2", 1.5)
         .metric("deviation_from_sim2_max_rel", worst)
@@ -96,36 +104,49 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         &format!("no full decoupling: level 3 accelerates level 1 by up to {level1:.2} m/s² and level 2 by {level2:.2} rad/s² (thesis ±6, ±1.5)"),
         level1 > 1e-3 && level2 > 1e-3,
     );
-    let mut figures = figures(&series, NAME)?;
-    let acc = |c: &str| column(&series, c).map(|v| points(&t, &v));
-    figures.push((
-        "disturbing_accelerations.svg",
-        Figure {
-            title: format!("{NAME}: accelerations caused by the level-3 torque (Fig. 5.19)"),
-            x_label: "time (s)".into(),
-            panels: vec![
-                Panel {
-                    title: "level 1, operational space (= decoupled coordinates v₁ = ẋ₁)".into(),
-                    y_label: "acceleration (m/s²)".into(),
-                    lines: vec![Line::new("x", acc("acc1.x_by3")?), Line::new("y", acc("acc1.y_by3")?)],
-                    spans: vec![],
-                },
-                Panel {
-                    title: "level 2, decoupled coordinates v₂ of (5.62)".into(),
-                    y_label: "acceleration (rad/s²)".into(),
-                    lines: vec![Line::new("v̇₂", acc("acc2_by3")?)],
-                    spans: vec![],
-                },
-            ],
-        },
-    ));
-    figures.push((
-        "comparison.svg",
-        Figure {
-            title: format!("{NAME} vs multilevel_sim2 (Fig. 5.20 vs Fig. 5.18)"),
-            x_label: "time (s)".into(),
-            panels,
-        },
-    ));
-    Ok(Outcome { summary, series, figures })
+    Ok(summary)
+}
+
+/// The accelerations the level-3 torque causes on levels 1 and 2 (Fig. 5.19).
+fn accelerations_figure(series: &TimeSeries) -> Result<Figure, String> {
+    let t = column(series, "t")?;
+    let acc = |c: &str| column(series, c).map(|v| points(&t, &v));
+    Ok(Figure {
+        title: format!("{NAME}: accelerations caused by the level-3 torque (Fig. 5.19)"),
+        x_label: "time (s)".into(),
+        panels: vec![
+            Panel {
+                title: "level 1, operational space (= decoupled coordinates v₁ = ẋ₁)".into(),
+                y_label: "acceleration (m/s²)".into(),
+                lines: vec![Line::new("x", acc("acc1.x_by3")?), Line::new("y", acc("acc1.y_by3")?)],
+                spans: vec![],
+            },
+            Panel {
+                title: "level 2, decoupled coordinates v₂ of (5.62)".into(),
+                y_label: "acceleration (rad/s²)".into(),
+                lines: vec![Line::new("v̇₂", acc("acc2_by3")?)],
+                spans: vec![],
+            },
+        ],
+    })
+}
+
+/// The compared errors of sim #3 and sim #2 (Fig. 5.20 vs Fig. 5.18).
+fn comparison_figure(series: &TimeSeries, reference: &TimeSeries) -> Result<Figure, String> {
+    let t = column(series, "t")?;
+    let mut panels = Vec::new();
+    for (name, _, unit) in COMPARED {
+        let (ours, theirs) = (column(series, name)?, column(reference, name)?);
+        panels.push(Panel {
+            title: format!("{name}: sim #3 (wrong inertia) vs sim #2 (exact)"),
+            y_label: format!("error ({unit})"),
+            lines: vec![Line::new("sim #3", points(&t, &ours)), Line::dashed("sim #2", points(&t, &theirs))],
+            spans: vec![],
+        });
+    }
+    Ok(Figure {
+        title: format!("{NAME} vs multilevel_sim2 (Fig. 5.20 vs Fig. 5.18)"),
+        x_label: "time (s)".into(),
+        panels,
+    })
 }

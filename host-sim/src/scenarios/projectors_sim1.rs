@@ -64,7 +64,6 @@
 //! the same columns prefixed with `<variant>.` (e.g. `succ_static.e3.rz`).
 
 use fixtures::planar::{four_dof, four_dof_configuration, Planar4, PLANAR4_TCP};
-use hal::JointTorqueInterface;
 use kernel::dynamics::{crba, forward_kinematics, frame_jacobian, gravity, mass_matrix_cholesky};
 use kernel::hierarchy::{project, HierarchyConfig, HierarchyData, Recursion, Shaping, Stack, Weighting};
 use kernel::model::Data;
@@ -72,10 +71,10 @@ use kernel::tasks::joint_impedance::{joint_impedance, JointImpedance, JointImped
 use kernel::tasks::{TaskRow, TaskRows};
 use nalgebra::{RowSVector, SMatrix, SVector};
 
-use super::hierarchy_common::{column, points, prefixed, settle_time};
-use super::{joint_columns, Outcome, Progress};
+use super::hierarchy_common::{column, control_cycle, points, prefixed, series_with_time, settle_time};
+use super::{joint_columns, Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Summary, TimeSeries};
-use crate::sim::{run_loop, SimConfig, SimError, Simulator, CONTROL_PERIOD_S};
+use crate::sim::{run_loop, SimConfig, Simulator, CONTROL_PERIOD_S};
 
 /// Registry name.
 pub const NAME: &str = "projectors_sim1";
@@ -287,39 +286,20 @@ pub fn initial_configuration() -> Result<SVector<f64, 4>, String> {
 }
 
 /// Simulates one variant for `duration_s`.
-pub fn run_variant(variant: Variant, duration_s: f64) -> Result<VariantRun, String> {
+pub fn run_variant(variant: Variant, duration_s: f64, options: &RunOptions) -> Result<VariantRun, String> {
     let model = four_dof::<f64>().map_err(|e| format!("planar model: {e}"))?;
-    let mut sim = Sim::new(model, SimConfig::default()).map_err(|e| e.to_string())?;
+    let mut sim: Sim = options.simulator(model, SimConfig::default())?;
     sim.set_state(initial_configuration()?, SVector::zeros()).map_err(|e| e.to_string())?;
     let mut controller = Controller::new(variant)?;
-    let mut columns = vec!["t".to_owned()];
-    columns.extend(signal_columns());
-    let mut series = TimeSeries::new(columns);
-    let mut failure: Option<String> = None;
-    run_loop(&mut sim, duration_s, CONTROL_PERIOD_S, |sim, info| {
-        let sample = JointTorqueInterface::read(sim)?;
-        let (q, v) = (SVector::from(sample.position), SVector::from(sample.velocity));
-        let step = match controller.step(&q, &v) {
-            Ok(step) => step,
-            Err(e) => {
-                failure.get_or_insert(e);
-                return Err(SimError::NonFinite { what: "controller output" });
-            }
-        };
-        JointTorqueInterface::write_torque(sim, &step.torque.into())?;
-        let mut row = vec![info.time_s];
-        row.extend(q.iter().chain(v.iter()).chain(sim.applied_torque().iter()));
-        row.extend(step.errors);
-        row.push(step.errors.iter().skip(3).map(|e| e * e).sum::<f64>().sqrt());
-        if let Err(e) = series.push(row) {
-            failure.get_or_insert(e);
-        }
-        Ok(())
-    })
-    .map_err(|e| failure.clone().unwrap_or_else(|| e.to_string()))?;
-    if let Some(e) = failure {
-        return Err(e);
-    }
+    let mut series = series_with_time(signal_columns());
+    run_loop(&mut sim, duration_s, CONTROL_PERIOD_S, |sim, info| -> Result<(), String> {
+        let row = control_cycle(sim, info.time_s, |q, v| {
+            let step = controller.step(q, v)?;
+            let norm = step.errors.iter().skip(3).map(|e| e * e).sum::<f64>().sqrt();
+            Ok((step.torque, step.errors.into_iter().chain([norm])))
+        })?;
+        series.push(row)
+    })?;
     Ok(VariantRun { variant, series, min_ratio: controller.min_ratio })
 }
 
@@ -334,19 +314,19 @@ fn level_column(level: usize) -> &'static str {
 }
 
 /// Runs the scenario with the full duration.
-pub fn simulate(progress: Progress) -> Result<Outcome, String> {
-    simulate_for(DURATION_S, progress)
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
+    simulate_for(DURATION_S, options)
 }
 
 /// Runs all six variants for `duration_s` and evaluates the claims.
-pub fn simulate_for(duration_s: f64, progress: Progress) -> Result<Outcome, String> {
+pub fn simulate_for(duration_s: f64, options: &RunOptions) -> Result<Outcome, String> {
     let mut runs = Vec::new();
     for (k, variant) in VARIANTS.iter().enumerate() {
         #[allow(clippy::cast_precision_loss, reason = "six variants")]
-        progress.report(NAME, duration_s * k as f64 / VARIANTS.len() as f64, duration_s);
-        runs.push(run_variant(*variant, duration_s)?);
+        options.progress.report(NAME, duration_s * k as f64 / VARIANTS.len() as f64, duration_s);
+        runs.push(run_variant(*variant, duration_s, options)?);
     }
-    progress.finish();
+    options.progress.finish();
     let summary = summarize(&runs, duration_s)?;
     let series = combine(&runs)?;
     let figures = figures(&runs)?;

@@ -48,10 +48,10 @@ use kernel::tasks::collision::{
     evaluate_pair, proximity, self_collision_rows, CollisionData, CollisionModel, CollisionModelBuilder,
     CollisionParameters, SweptSphere,
 };
-use kernel::tasks::TaskRows;
+use kernel::tasks::{TaskError, TaskRows};
 use nalgebra::{SMatrix, SVector, Unit, Vector3};
 
-use super::{Outcome, Progress};
+use super::{Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Summary, TimeSeries};
 use crate::sim::{run_loop, SimConfig, Simulator, CONTROL_PERIOD_S};
 
@@ -175,26 +175,26 @@ pub struct Run {
 }
 
 /// Simulates one throw with damping ratio `xi` and push `push_n` (N, towards the obstacle).
-pub fn throw(mass_kg: f64, speed: f64, xi: f64, push_n: f64) -> Result<Run, String> {
+pub fn throw(mass_kg: f64, speed: f64, xi: f64, push_n: f64, options: &RunOptions) -> Result<Run, String> {
     let model = hand_model(mass_kg)?;
     let collision_model = hand_collision_model(&model)?;
     let parameters = CollisionParameters::try_new(MAX_FORCE_N, INFLUENCE_DISTANCE_M, xi, 0.0, INFLUENCE_DISTANCE_M)
         .map_err(|e| e.to_string())?;
     let mut collision = CollisionData::new(&collision_model);
     let mut data = Data::new(&model);
-    let mut sim = Sim::new(model.clone(), SimConfig::default()).map_err(|e| e.to_string())?;
+    let mut sim: Sim = options.simulator(model.clone(), SimConfig::default())?;
     sim.set_state(SVector::zeros(), SVector::from([speed])).map_err(|e| e.to_string())?;
     if push_n != 0.0 {
         sim.push(HAND, Vector3::new(push_n, 0.0, 0.0), 0.0, DURATION_S + 1.0).map_err(|e| e.to_string())?;
     }
     let mut run = Run { reflected_mass_kg: f64::NAN, ..Run::default() };
-    run_loop(&mut sim, DURATION_S, CONTROL_PERIOD_S, |sim, info| {
+    run_loop(&mut sim, DURATION_S, CONTROL_PERIOD_S, |sim, info| -> Result<(), String> {
         let sample = sim.read()?;
         let (q, v) = (SVector::from(sample.position), SVector::from(sample.velocity));
-        let fail = |_| crate::sim::SimError::NonFinite { what: "collision rows" };
-        forward_kinematics(&model, &mut data, &q, &v).map_err(crate::sim::SimError::Dynamics)?;
+        let fail = |e: TaskError| format!("collision rows: {e}");
+        forward_kinematics(&model, &mut data, &q, &v).map_err(|e| e.to_string())?;
         crba(&model, &mut data);
-        let factor = mass_matrix_cholesky(&data).map_err(crate::sim::SimError::Dynamics)?;
+        let factor = mass_matrix_cholesky(&data).map_err(|e| e.to_string())?;
         let mut rows = TaskRows::<f64, 1, 1>::new();
         self_collision_rows(&collision_model, &mut collision, &model, &data, &factor, &parameters, &mut rows)
             .map_err(fail)?;
@@ -221,8 +221,7 @@ pub fn throw(mass_kg: f64, speed: f64, xi: f64, push_n: f64) -> Result<Run, Stri
         run.damping.push(total - repulsive);
         run.activation.push(activation);
         Ok(())
-    })
-    .map_err(|e| e.to_string())?;
+    })?;
     Ok(run)
 }
 
@@ -309,18 +308,28 @@ fn approach_speed(mass_kg: f64) -> f64 {
 }
 
 /// Runs the scenario.
-pub fn simulate(progress: Progress) -> Result<Outcome, String> {
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let (mass, palm_distance) = left_hand_reflected_mass()?;
     let speed = approach_speed(mass);
     let mut throws = Vec::new();
     let mut holds = Vec::new();
     for (k, &xi) in DAMPING_RATIOS.iter().enumerate() {
-        progress.report(NAME, k as f64, DAMPING_RATIOS.len() as f64);
-        throws.push(throw(mass, speed, xi, 0.0)?);
-        holds.push(throw(mass, speed, xi, HOLD_FORCE_N)?);
+        options.progress.report(NAME, k as f64, DAMPING_RATIOS.len() as f64);
+        throws.push(throw(mass, speed, xi, 0.0, options)?);
+        holds.push(throw(mass, speed, xi, HOLD_FORCE_N, options)?);
     }
-    progress.finish();
+    options.progress.finish();
+    let hold_numbers: Vec<HoldMetrics> = holds.iter().map(|r| hold_metrics(r, HOLD_FORCE_N)).collect();
+    let equilibrium = hold_numbers.first().map_or(f64::NAN, |h| h.equilibrium_m);
+    let summary = claims([mass, palm_distance, speed], &throws, &hold_numbers);
+    let series = time_series(&throws, &holds)?;
+    let figures = vec![("sca_damping.svg", figure(&throws, &holds, equilibrium))];
+    Ok(Outcome { summary, series, figures })
+}
 
+/// Metrics and claims of the throws and holds (module docs); `[mass, palm_distance, speed]`
+/// of the hand (kg, m, m/s).
+fn claims([mass, palm_distance, speed]: [f64; 3], throws: &[Run], hold_numbers: &[HoldMetrics]) -> Summary {
     let mut summary = Summary::new(NAME);
     summary
         .metric("max_force_n", MAX_FORCE_N)
@@ -330,8 +339,7 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         .metric("approach_speed_mps", speed)
         .metric("hold_force_n", HOLD_FORCE_N);
     let throw_numbers: Vec<ThrowMetrics> = throws.iter().map(throw_metrics).collect();
-    let hold_numbers: Vec<HoldMetrics> = holds.iter().map(|r| hold_metrics(r, HOLD_FORCE_N)).collect();
-    for ((xi, t), (h, run)) in DAMPING_RATIOS.iter().zip(&throw_numbers).zip(hold_numbers.iter().zip(&throws)) {
+    for ((xi, t), (h, run)) in DAMPING_RATIOS.iter().zip(&throw_numbers).zip(hold_numbers.iter().zip(throws)) {
         let s = xi_suffix(*xi);
         summary
             .metric(&format!("penetration_depth_m_{s}"), t.penetration_depth_m)
@@ -361,7 +369,7 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
     );
     summary
         .claim(&format!("the returning speed decreases with xi: {rebounds:.3?} m/s"), strictly_decreasing(&rebounds));
-    for (xi, h) in DAMPING_RATIOS.iter().zip(&hold_numbers).filter(|(xi, _)| **xi >= 1.0) {
+    for (xi, h) in DAMPING_RATIOS.iter().zip(hold_numbers).filter(|(xi, _)| **xi >= 1.0) {
         summary.claim(
             &format!(
                 "hold, xi = {xi:.1}: no rebound oscillation (overshoot of d_eq {:.2e} m <= {OVERSHOOT_TOLERANCE_M:.0e} m, one minimum)",
@@ -397,10 +405,7 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
     let peak = throw_numbers.iter().map(|t| t.peak_repulsive_force_n).fold(0.0, f64::max);
     summary
         .claim(&format!("the repulsive force stays below F_max ({peak:.2} N <= {MAX_FORCE_N} N)"), peak <= MAX_FORCE_N);
-
-    let series = time_series(&throws, &holds)?;
-    let figures = vec![("sca_damping.svg", figure(&throws, &holds, equilibrium))];
-    Ok(Outcome { summary, series, figures })
+    summary
 }
 
 fn millimetres(values: &[f64]) -> String {

@@ -11,7 +11,8 @@
 //!   [`PUSH_DURATION_S`].
 //!
 //! All intervals are uniform in their ranges, drawn from a xorshift generator seeded with
-//! `SOAK_SEED` (environment, default [`SEED`]). The simulated duration is `SOAK_SECONDS`
+//! `SOAK_SEED` (environment, default [`SEED`]); with `--plant realistic` the same seed drives the
+//! plant's sensor noise. The simulated duration is `SOAK_SECONDS`
 //! (environment, default [`DEFAULT_SECONDS`]); `SOAK_SECONDS=3600` is the one-hour soak.
 //!
 //! Reported: the largest torque rate (absolute and relative to its limit), the largest
@@ -29,11 +30,13 @@
 use fixtures::justin;
 use kernel::controller::config::Hand;
 use kernel::controller::messages::{Command, Pose};
-use nalgebra::{UnitQuaternion, Vector3};
+use kernel::controller::PLATFORM_DOF;
+use kernel::model::{FrameId, Placement};
+use nalgebra::{SVector, UnitQuaternion, Vector3};
 
-use super::{Outcome, Progress};
+use super::{Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Summary, TimeSeries};
-use crate::sim::{CycleInfo, CONTROL_PERIOD_S};
+use crate::sim::{run_loop, CycleInfo, CONTROL_PERIOD_S};
 use crate::wbc;
 
 /// Registry name.
@@ -150,53 +153,143 @@ pub struct SoakMetrics {
 }
 
 /// Runs the soak for [`duration_s`] (see the module docs).
-pub fn simulate(progress: Progress) -> Result<Outcome, String> {
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let duration = duration_s()?;
-    let (metrics, series) = run(duration, seed()?, progress)?;
+    let (metrics, series) = run(duration, seed()?, options)?;
     evaluate(&metrics, series)
 }
 
-/// The soak of `duration` simulated seconds with disturbances from `seed`.
-pub fn run(duration: f64, seed: u64, progress: Progress) -> Result<(SoakMetrics, TimeSeries), String> {
-    let mut rig = wbc::chapter_6_rig(Hand::Right, &[])?;
+/// The soak of `duration` simulated seconds with disturbances (and, on the realistic plant,
+/// sensor noise) from `seed`.
+pub fn run(duration: f64, seed: u64, options: &RunOptions) -> Result<(SoakMetrics, TimeSeries), String> {
+    let mut rig = wbc::chapter_6_rig(Hand::Right, &[], options)?;
+    rig.sim.set_plant_model(options.plant_model(seed))?;
     let mut rng = Rng(seed.max(1));
+    let mut disturbances = Disturbances::new(&mut rng, &mut rig)?;
+    let mut observer = Observer::new(&rig, duration);
     let mut columns = wbc::columns();
     columns.extend(["tau_ratio_max", "rate_ratio_max", "energy_j"].iter().map(|s| (*s).to_string()));
     let mut series = TimeSeries::new(columns);
-    let effort = rig.controller.model().limits.effort;
-    let rate = rig.controller.config().output_limits.torque_rate;
-    let dt = rig.controller.config().period_s;
-    let home_tcp = rig.sim.frame_placement(justin::RIGHT_TCP).map_err(|e| e.to_string())?;
-    let home_rotation = UnitQuaternion::from_rotation_matrix(&home_tcp.rotation);
-    let push_frames = [justin::RIGHT_TCP, justin::LEFT_TCP, justin::TORSO_CENTER];
+    run_loop(&mut rig, duration, CONTROL_PERIOD_S, |rig, info| -> Result<(), String> {
+        let cycle = info.cycle;
+        rig.cycle(info).map_err(|e| format!("cycle {cycle}: {e}"))?;
+        observer.observe(rig, info);
+        if cycle % RECORD_EVERY == 0 {
+            let mut row = rig.record(info).map_err(|e| format!("cycle {cycle}: {e}"))?;
+            row.extend(observer.take_window());
+            series.push(row)?;
+        }
+        disturbances.apply(&mut rng, rig, info.time_s, &mut observer.metrics)?;
+        if cycle % 1000 == 0 {
+            options.progress.report(NAME, info.time_s, duration);
+        }
+        Ok(())
+    })?;
+    options.progress.finish();
+    let mut metrics = observer.metrics;
+    metrics.min_distance_m = rig.min_distance_m;
+    Ok((metrics, series))
+}
 
-    let mut m = SoakMetrics {
-        duration_s: duration,
-        max_torque_rate: 0.0,
-        max_torque_rate_ratio: 0.0,
-        max_torque_ratio: 0.0,
-        max_energy_j: 0.0,
-        min_distance_m: f64::INFINITY,
-        nan_count: 0,
-        fault_count: 0,
-        first_fault: None,
-        goals: 0,
-        pushes: 0,
-        saturated_cycles: 0,
-        max_velocity_ratio: 0.0,
-        max_velocity_at: (0, 0.0),
-    };
-    let speed_limit = rig.controller.model().limits.velocity;
-    let mut next_goal = rng.uniform(GOAL_INTERVAL_S);
-    let mut next_push = rng.uniform(PUSH_INTERVAL_S);
-    let mut previous = [0.0; justin::UPPER_DOF];
-    let mut window = [0.0_f64; 3];
-    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss, reason = "finite, positive")]
-    let cycles = (duration / CONTROL_PERIOD_S).round().max(0.0) as u64;
-    for cycle in 0..cycles {
-        let info = CycleInfo { cycle, time_s: rig.sim.time_s() };
-        let t = info.time_s;
-        rig.cycle(&info).map_err(|e| format!("cycle {cycle}: {e}"))?;
+/// The seeded goals and pushes: when the next of each is due, and the home pose they are drawn
+/// around.
+struct Disturbances {
+    next_goal: f64,
+    next_push: f64,
+    home_tcp: Placement<f64>,
+    home_rotation: UnitQuaternion<f64>,
+}
+
+/// The frames a push acts on.
+const PUSH_FRAMES: [FrameId; 3] = [justin::RIGHT_TCP, justin::LEFT_TCP, justin::TORSO_CENTER];
+
+impl Disturbances {
+    fn new(rng: &mut Rng, rig: &mut wbc::Rig) -> Result<Self, String> {
+        let home_tcp = rig.sim.frame_placement(justin::RIGHT_TCP)?;
+        let home_rotation = UnitQuaternion::from_rotation_matrix(&home_tcp.rotation);
+        let next_goal = rng.uniform(GOAL_INTERVAL_S);
+        let next_push = rng.uniform(PUSH_INTERVAL_S);
+        Ok(Self { next_goal, next_push, home_tcp, home_rotation })
+    }
+
+    /// Issues the goal and the push due at `t` (s), counting them in `m`.
+    fn apply(&mut self, rng: &mut Rng, rig: &mut wbc::Rig, t: f64, m: &mut SoakMetrics) -> Result<(), String> {
+        if t >= self.next_goal {
+            let offset = Vector3::from(GOAL_BOX_M.map(|h| rng.uniform((-h, h))));
+            let position = self.home_tcp.translation.vector + offset;
+            let yaw = rng.uniform((-GOAL_YAW_RAD, GOAL_YAW_RAD));
+            let q = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw) * self.home_rotation;
+            let pose = Pose { position: [position.x, position.y, position.z], orientation: [q.w, q.i, q.j, q.k] };
+            let duration_s = rng.uniform(GOAL_DURATION_S);
+            rig.apply(&Command::TcpGoal { hand: Hand::Right, pose, duration_s })
+                .map_err(|e| format!("goal at {t:.3} s: {e}"))?;
+            m.goals += 1;
+            self.next_goal = t + rng.uniform(GOAL_INTERVAL_S);
+        }
+        if t >= self.next_push {
+            let frame = PUSH_FRAMES.get((rng.next() * 3.0) as usize % 3).copied().unwrap_or(justin::RIGHT_TCP);
+            let direction = Vector3::new(rng.uniform((-1.0, 1.0)), rng.uniform((-1.0, 1.0)), rng.uniform((-1.0, 1.0)));
+            let direction = direction.try_normalize(1e-6).unwrap_or_else(Vector3::x);
+            let force = direction * rng.uniform(PUSH_FORCE_N);
+            rig.sim
+                .push(frame, force, t, rng.uniform(PUSH_DURATION_S))
+                .map_err(|e| format!("push at {t:.3} s: {e}"))?;
+            m.pushes += 1;
+            self.next_push = t + rng.uniform(PUSH_INTERVAL_S);
+        }
+        Ok(())
+    }
+}
+
+/// Accumulates the [`SoakMetrics`] cycle by cycle, and the maxima of the current recording
+/// window (`tau_ratio_max`, `rate_ratio_max`, `energy_j`).
+struct Observer {
+    metrics: SoakMetrics,
+    effort: SVector<f64, { justin::N }>,
+    rate: SVector<f64, { justin::N }>,
+    speed_limit: SVector<f64, { justin::N }>,
+    dt: f64,
+    previous: [f64; justin::UPPER_DOF],
+    window: [f64; 3],
+}
+
+impl Observer {
+    fn new(rig: &wbc::Rig, duration: f64) -> Self {
+        let metrics = SoakMetrics {
+            duration_s: duration,
+            max_torque_rate: 0.0,
+            max_torque_rate_ratio: 0.0,
+            max_torque_ratio: 0.0,
+            max_energy_j: 0.0,
+            min_distance_m: f64::INFINITY,
+            nan_count: 0,
+            fault_count: 0,
+            first_fault: None,
+            goals: 0,
+            pushes: 0,
+            saturated_cycles: 0,
+            max_velocity_ratio: 0.0,
+            max_velocity_at: (0, 0.0),
+        };
+        Self {
+            metrics,
+            effort: rig.controller.model().limits.effort,
+            rate: rig.controller.config().output_limits.torque_rate,
+            speed_limit: rig.controller.model().limits.velocity,
+            dt: rig.controller.config().period_s,
+            previous: [0.0; justin::UPPER_DOF],
+            window: [0.0; 3],
+        }
+    }
+
+    /// The window maxima since the last call; starts a new window.
+    fn take_window(&mut self) -> [f64; 3] {
+        core::mem::take(&mut self.window)
+    }
+
+    /// Folds the cycle just run into the metrics and the window.
+    fn observe(&mut self, rig: &wbc::Rig, info: &CycleInfo) {
+        let (m, t) = (&mut self.metrics, info.time_s);
         let output = *rig.controller.output();
         let telemetry = rig.controller.telemetry();
         let finite = output
@@ -217,7 +310,7 @@ pub fn run(duration: f64, seed: u64, progress: Progress) -> Result<(SoakMetrics,
         }
         m.saturated_cycles += u64::from(telemetry.saturation.any());
         for (i, v) in rig.sim.upper_v().iter().enumerate() {
-            let limit = speed_limit.get(i + kernel::controller::PLATFORM_DOF).copied().unwrap_or(f64::INFINITY);
+            let limit = self.speed_limit.get(i + PLATFORM_DOF).copied().unwrap_or(f64::INFINITY);
             if v.abs() / limit > m.max_velocity_ratio {
                 m.max_velocity_ratio = v.abs() / limit;
                 m.max_velocity_at = (i, t);
@@ -225,61 +318,24 @@ pub fn run(duration: f64, seed: u64, progress: Progress) -> Result<(SoakMetrics,
         }
         let energy = telemetry.kinetic_energy + telemetry.potential_energy;
         m.max_energy_j = m.max_energy_j.max(energy);
-        window[2] = window[2].max(energy);
-        for (i, (tau, prev)) in output.torque.iter().zip(previous.iter()).enumerate() {
-            let (Some(e), Some(r)) =
-                (effort.get(i + kernel::controller::PLATFORM_DOF), rate.get(i + kernel::controller::PLATFORM_DOF))
-            else {
+        self.window[2] = self.window[2].max(energy);
+        let dt = self.dt;
+        for (i, (tau, prev)) in output.torque.iter().zip(self.previous.iter()).enumerate() {
+            let (Some(e), Some(r)) = (self.effort.get(i + PLATFORM_DOF), self.rate.get(i + PLATFORM_DOF)) else {
                 continue;
             };
             let ratio = tau.abs() / e;
             m.max_torque_ratio = m.max_torque_ratio.max(ratio);
-            window[0] = window[0].max(ratio);
-            if cycle > 0 {
+            self.window[0] = self.window[0].max(ratio);
+            if info.cycle > 0 {
                 let step = (tau - prev).abs();
                 m.max_torque_rate = m.max_torque_rate.max(step / dt);
                 m.max_torque_rate_ratio = m.max_torque_rate_ratio.max(step / (r * dt));
-                window[1] = window[1].max(step / (r * dt));
+                self.window[1] = self.window[1].max(step / (r * dt));
             }
         }
-        previous = output.torque;
-        if cycle % RECORD_EVERY == 0 {
-            let mut row = rig.record(&info).map_err(|e| format!("cycle {cycle}: {e}"))?;
-            row.extend(window);
-            series.push(row)?;
-            window = [0.0; 3];
-        }
-        if t >= next_goal {
-            let offset = Vector3::from(GOAL_BOX_M.map(|h| rng.uniform((-h, h))));
-            let position = home_tcp.translation.vector + offset;
-            let yaw = rng.uniform((-GOAL_YAW_RAD, GOAL_YAW_RAD));
-            let q = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw) * home_rotation;
-            let pose = Pose { position: [position.x, position.y, position.z], orientation: [q.w, q.i, q.j, q.k] };
-            let duration_s = rng.uniform(GOAL_DURATION_S);
-            rig.apply(&Command::TcpGoal { hand: Hand::Right, pose, duration_s })
-                .map_err(|e| format!("goal at {t:.3} s: {e}"))?;
-            m.goals += 1;
-            next_goal = t + rng.uniform(GOAL_INTERVAL_S);
-        }
-        if t >= next_push {
-            let frame = push_frames.get((rng.next() * 3.0) as usize % 3).copied().unwrap_or(justin::RIGHT_TCP);
-            let direction = Vector3::new(rng.uniform((-1.0, 1.0)), rng.uniform((-1.0, 1.0)), rng.uniform((-1.0, 1.0)));
-            let direction = direction.try_normalize(1e-6).unwrap_or_else(Vector3::x);
-            let force = direction * rng.uniform(PUSH_FORCE_N);
-            rig.sim
-                .push(frame, force, t, rng.uniform(PUSH_DURATION_S))
-                .map_err(|e| format!("push at {t:.3} s: {e}"))?;
-            m.pushes += 1;
-            next_push = t + rng.uniform(PUSH_INTERVAL_S);
-        }
-        if cycle % 1000 == 0 {
-            progress.report(NAME, t, duration);
-        }
-        rig.sim.advance(CONTROL_PERIOD_S).map_err(|e| format!("physics after cycle {cycle}: {e}"))?;
+        self.previous = output.torque;
     }
-    progress.finish();
-    m.min_distance_m = rig.min_distance_m;
-    Ok((m, series))
 }
 
 /// Summary, claims and figure of a soak run.
@@ -362,7 +418,7 @@ mod tests {
 
     #[test]
     fn a_short_soak_holds_its_claims() {
-        let (metrics, series) = run(4.0, SEED, Progress::Silent).unwrap();
+        let (metrics, series) = run(4.0, SEED, &RunOptions::default()).unwrap();
         let outcome = evaluate(&metrics, series).unwrap();
         assert!(outcome.summary.failed_claims().is_empty(), "{:?} {metrics:?}", outcome.summary.failed_claims());
         assert!(metrics.goals >= 1 && metrics.pushes >= 1, "{metrics:?}");

@@ -42,7 +42,7 @@ use kernel::Data;
 use nalgebra::{Cholesky, Matrix3, SMatrix, SVector, Vector2, Vector3, Vector6};
 use plotters::prelude::*;
 
-use super::{Outcome, Progress};
+use super::{Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Summary, TimeSeries};
 
 /// Registry name.
@@ -191,7 +191,7 @@ pub fn grid(step: f64) -> Result<Vec<GridPoint>, String> {
 }
 
 /// Runs the scenario.
-pub fn simulate(_progress: Progress) -> Result<Outcome, String> {
+pub fn simulate(_options: &RunOptions) -> Result<Outcome, String> {
     let points = grid(GRID_STEP)?;
     evaluate(&points)
 }

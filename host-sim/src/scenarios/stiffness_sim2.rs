@@ -51,17 +51,16 @@
 //! `e2.q1` = `q₁ − q₁,ref`, `q1_ref`), every variant's run prefixed with `<variant>.`.
 
 use fixtures::planar::{fig_4_3_springs, four_dof, four_dof_gravity, ParallelSprings, Planar4, PLANAR4_TCP};
-use hal::JointTorqueInterface;
 use kernel::dynamics::{crba, forward_kinematics, frame_jacobian, mass_matrix_cholesky};
 use kernel::hierarchy::{project, HierarchyConfig, HierarchyData, Recursion, Shaping, Stack, Weighting};
 use kernel::model::Data;
 use kernel::tasks::TaskRow;
 use nalgebra::{Cholesky, Matrix4, RowSVector, SMatrix, SVector, Vector3};
 
-use super::hierarchy_common::{column, max_abs, points, prefixed, settle_time};
-use super::{joint_columns, Outcome, Progress};
+use super::hierarchy_common::{column, control_cycle, max_abs, points, prefixed, series_with_time, settle_time};
+use super::{joint_columns, Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
-use crate::sim::{run_loop, PassiveJoints, SimConfig, SimError, Simulator, CONTROL_PERIOD_S};
+use crate::sim::{run_loop, PassiveJoints, SimConfig, Simulator, CONTROL_PERIOD_S};
 
 /// Registry name.
 pub const NAME: &str = "stiffness_sim2";
@@ -208,11 +207,12 @@ pub fn run_variant(
     label: &'static str,
     projection: Projection,
     duration_s: f64,
+    options: &RunOptions,
 ) -> Result<VariantRun, String> {
     let model = four_dof::<f64>().map_err(|e| format!("planar model: {e}"))?;
     let springs = springs();
     let q0 = SVector::<f64, 4>::from(EQUILIBRIUM);
-    let mut sim = Sim::new(model.clone(), SimConfig::default()).map_err(|e| e.to_string())?;
+    let mut sim: Sim = options.simulator(model.clone(), SimConfig::default())?;
     sim.set_passive_joints(PassiveJoints {
         stiffness: springs.stiffness,
         rest: springs.rest,
@@ -232,50 +232,27 @@ pub fn run_variant(
         integral: 0.0,
         hierarchy: HierarchyData::default(),
     };
-    let mut columns = vec!["t".to_owned()];
-    columns.extend(signal_columns());
-    let mut series = TimeSeries::new(columns);
-    let mut failure: Option<String> = None;
-    run_loop(&mut sim, duration_s, CONTROL_PERIOD_S, |sim, info| {
-        let sample = JointTorqueInterface::read(sim)?;
-        let (q, v) = (SVector::from(sample.position), SVector::from(sample.velocity));
-        let (tau, signals) = match controller.step(info.time_s, &q, &v) {
-            Ok(out) => out,
-            Err(e) => {
-                failure.get_or_insert(e);
-                return Err(SimError::NonFinite { what: "controller output" });
-            }
-        };
-        JointTorqueInterface::write_torque(sim, &tau.into())?;
-        let mut row = vec![info.time_s];
-        row.extend(q.iter().chain(v.iter()).chain(sim.applied_torque().iter()));
-        row.extend(signals);
-        if let Err(e) = series.push(row) {
-            failure.get_or_insert(e);
-        }
-        Ok(())
-    })
-    .map_err(|e| failure.clone().unwrap_or_else(|| e.to_string()))?;
-    if let Some(e) = failure {
-        return Err(e);
-    }
+    let mut series = series_with_time(signal_columns());
+    run_loop(&mut sim, duration_s, CONTROL_PERIOD_S, |sim, info| -> Result<(), String> {
+        series.push(control_cycle(sim, info.time_s, |q, v| controller.step(info.time_s, q, v))?)
+    })?;
     Ok(VariantRun { name, label, series })
 }
 
 /// Runs the scenario with the full duration.
-pub fn simulate(progress: Progress) -> Result<Outcome, String> {
-    simulate_for(DURATION_S, progress)
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
+    simulate_for(DURATION_S, options)
 }
 
 /// Runs all variants for `duration_s` and evaluates the claims.
-pub fn simulate_for(duration_s: f64, progress: Progress) -> Result<Outcome, String> {
+pub fn simulate_for(duration_s: f64, options: &RunOptions) -> Result<Outcome, String> {
     let mut runs = Vec::new();
     for (k, (name, label, projection)) in VARIANTS.iter().enumerate() {
         #[allow(clippy::cast_precision_loss, reason = "five variants")]
-        progress.report(NAME, duration_s * k as f64 / VARIANTS.len() as f64, duration_s);
-        runs.push(run_variant(name, label, *projection, duration_s)?);
+        options.progress.report(NAME, duration_s * k as f64 / VARIANTS.len() as f64, duration_s);
+        runs.push(run_variant(name, label, *projection, duration_s, options)?);
     }
-    progress.finish();
+    options.progress.finish();
     let summary = summarize(&runs, duration_s)?;
     let series = combine(&runs)?;
     let figures = figures(&runs)?;

@@ -38,7 +38,7 @@ use super::wipe_window::{
     base_travel, force_claims, labelled_contact_metrics, measured_range, press_path, run_tool, tool_figures,
     tool_orientation, Contact, ToolPlan, ToolReference, Waypoints, HOLD_S,
 };
-use super::{Outcome, Progress};
+use super::{Outcome, RunOptions};
 use crate::output::{Span, Summary};
 use crate::sim::Surface;
 
@@ -128,9 +128,9 @@ fn plan(start: [Placement<f64>; 2]) -> ToolPlan {
 }
 
 /// Simulates and checks the claims (module docs).
-pub fn simulate(progress: Progress) -> Result<Outcome, String> {
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let config = whole_body::controller_config::<f64>().map_err(|e| format!("config: {e}"))?;
-    let run = run_tool(NAME, &SWEEP_FLOOR, &[], &justin::home_configuration(), config, DURATION_S, plan, progress)?;
+    let run = run_tool(NAME, &SWEEP_FLOOR, &[], &justin::home_configuration(), config, DURATION_S, plan, options)?;
     let limit = -SWEEP_FLOOR.force_lower[2];
     let travel = base_travel(&run.samples);
     let mut summary = Summary::new(NAME);
@@ -183,7 +183,7 @@ mod tests {
 
     #[test]
     fn sweep_floor_claims_hold() {
-        let outcome = simulate(Progress::Silent).unwrap();
+        let outcome = simulate(&RunOptions::default()).unwrap();
         let s = &outcome.summary;
         assert!(s.failed_claims().is_empty(), "{:?}", s.failed_claims());
         assert!(s.get("base_travel_m").unwrap() >= MIN_BASE_TRAVEL_M);

@@ -41,7 +41,7 @@ use kernel::tasks::torso_workspace::{
 use nalgebra::Vector2;
 use plotters::prelude::*;
 
-use super::{Outcome, Progress};
+use super::{Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
 
 /// Registry name.
@@ -273,9 +273,8 @@ fn centre_line_offset(task: &TorsoWorkspace<f64, 2>) -> f64 {
 }
 
 /// Runs the scenario (see the module docs).
-pub fn simulate(progress: Progress) -> Result<Outcome, String> {
-    // A static map: no simulated time to report.
-    let _ = progress;
+pub fn simulate(_options: &RunOptions) -> Result<Outcome, String> {
+    // A static map: no simulated time to report, no plant.
     let maps = CASES.iter().map(map_case).collect::<Result<Vec<_>, _>>()?;
     let summary = summarize(&maps);
     Ok(Outcome { summary, series: samples(&maps)?, figures: vec![("excluded_fraction.svg", sweep_figure()?)] })

@@ -58,7 +58,6 @@
 //! (claim 1); the classical run in the same columns prefixed `discontinuous.`.
 
 use fixtures::planar::{three_dof, Planar3, PLANAR3_TCP};
-use hal::JointTorqueInterface;
 use kernel::dynamics::forward_kinematics;
 use kernel::hierarchy::{project, HierarchyConfig, HierarchyData, Recursion, Shaping, Stack, Weighting};
 use kernel::math::switching::band_start_for_max_slope;
@@ -70,10 +69,10 @@ use kernel::tasks::manipulability::{manipulability_avoidance, Manipulability, Ma
 use kernel::tasks::TaskRows;
 use nalgebra::{Matrix3, SVector, Vector3, Vector6};
 
-use super::hierarchy_common::{column, max_abs, points, prefixed};
-use super::{joint_columns, Outcome, Progress};
+use super::hierarchy_common::{column, control_cycle, max_abs, points, prefixed, series_with_time};
+use super::{joint_columns, Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
-use crate::sim::{run_loop, PassiveJoints, SimConfig, SimError, Simulator, CONTROL_PERIOD_S};
+use crate::sim::{run_loop, PassiveJoints, SimConfig, Simulator, CONTROL_PERIOD_S};
 
 /// Registry name.
 pub const NAME: &str = "unilateral_sim";
@@ -271,10 +270,10 @@ pub fn full_activation() -> f64 {
 }
 
 /// Simulates one projection for `duration_s`.
-pub fn run(projection: Projection, duration_s: f64) -> Result<Run, String> {
+pub fn run(projection: Projection, duration_s: f64, options: &RunOptions) -> Result<Run, String> {
     let mut model = three_dof::<f64>().map_err(|e| format!("planar model: {e}"))?;
     model.gravity = Vector3::zeros();
-    let mut sim = Sim::new(decoupled_plant()?, SimConfig::default()).map_err(|e| e.to_string())?;
+    let mut sim: Sim = options.simulator(decoupled_plant()?, SimConfig::default())?;
     sim.set_passive_joints(PassiveJoints { damping: SVector::repeat(FRICTION), ..PassiveJoints::none() })
         .map_err(|e| e.to_string())?;
     sim.set_state(SVector::from(INITIAL_CONFIGURATION), SVector::zeros()).map_err(|e| e.to_string())?;
@@ -310,75 +309,57 @@ pub fn run(projection: Projection, duration_s: f64) -> Result<Run, String> {
         projection,
         hierarchy: HierarchyData::default(),
     };
-    let mut columns = vec!["t".to_owned()];
-    columns.extend(signal_columns());
-    let mut series = TimeSeries::new(columns);
-    let mut failure: Option<String> = None;
+    let mut series = series_with_time(signal_columns());
     let mut previous: Option<Step> = None;
-    run_loop(&mut sim, duration_s, CONTROL_PERIOD_S, |sim, info| {
-        let sample = JointTorqueInterface::read(sim)?;
-        let (q, v) = (SVector::from(sample.position), SVector::from(sample.velocity));
-        let step = match controller.step(info.time_s, &q, &v) {
-            Ok(step) => step,
-            Err(e) => {
-                failure.get_or_insert(e);
-                return Err(SimError::NonFinite { what: "controller output" });
-            }
-        };
-        JointTorqueInterface::write_torque(sim, &step.tau.into())?;
-        // |Δτ| ≤ |Δτ₁| + |Δτ₂| + 2|Δĵ||τ₂| (smooth part) + N'max|Δϑ||τ₂| (activation), from
-        // τ = τ₁ + (I − a ĵĵᵀ)τ₂ with |∂a/∂ϑ| ≤ N'max, ‖I − a ĵĵᵀ‖ ≤ 1.
-        let (dtau, smooth, bound) = previous.map_or((0.0, 0.0, 0.0), |p| {
-            let turn = (step.direction - p.direction).norm().min((step.direction + p.direction).norm());
-            let tau2 = p.tau2.norm();
-            let smooth = (step.tau1 - p.tau1).norm() + (step.tau2 - p.tau2).norm() + 2.0 * turn * tau2;
-            ((step.tau - p.tau).norm(), smooth, smooth + MAX_SLOPE * (step.theta - p.theta).abs() * tau2)
-        });
-        previous = Some(step);
-        let mut row = vec![info.time_s];
-        row.extend(q.iter().chain(v.iter()).chain(sim.applied_torque().iter()));
-        row.extend([
-            step.theta - THRESHOLD,
-            step.error.x,
-            step.error.y,
-            step.activation,
-            step.theta,
-            1.0 - step.activation,
-        ]);
-        row.extend(step.tau1.iter().chain(step.tau2.iter()).chain(step.tau2p.iter()));
-        row.extend([
-            step.constraint_force,
-            step.direction.dot(&step.tau2),
-            step.desired.x,
-            step.desired.y,
-            dtau,
-            smooth,
-            bound,
-        ]);
-        if let Err(e) = series.push(row) {
-            failure.get_or_insert(e);
-        }
-        Ok(())
-    })
-    .map_err(|e| failure.clone().unwrap_or_else(|| e.to_string()))?;
-    if let Some(e) = failure {
-        return Err(e);
-    }
+    run_loop(&mut sim, duration_s, CONTROL_PERIOD_S, |sim, info| -> Result<(), String> {
+        let row = control_cycle(sim, info.time_s, |q, v| {
+            let step = controller.step(info.time_s, q, v)?;
+            let signals = signals(&step, previous.as_ref());
+            previous = Some(step);
+            Ok((step.tau, signals))
+        })?;
+        series.push(row)
+    })?;
     Ok(Run { projection, series })
 }
 
+/// The row's signals of `step` after `previous` (columns of [`signal_columns`] after the joints).
+fn signals(step: &Step, previous: Option<&Step>) -> Vec<f64> {
+    // |Δτ| ≤ |Δτ₁| + |Δτ₂| + 2|Δĵ||τ₂| (smooth part) + N'max|Δϑ||τ₂| (activation), from
+    // τ = τ₁ + (I − a ĵĵᵀ)τ₂ with |∂a/∂ϑ| ≤ N'max, ‖I − a ĵĵᵀ‖ ≤ 1.
+    let (dtau, smooth, bound) = previous.map_or((0.0, 0.0, 0.0), |p| {
+        let turn = (step.direction - p.direction).norm().min((step.direction + p.direction).norm());
+        let tau2 = p.tau2.norm();
+        let smooth = (step.tau1 - p.tau1).norm() + (step.tau2 - p.tau2).norm() + 2.0 * turn * tau2;
+        ((step.tau - p.tau).norm(), smooth, smooth + MAX_SLOPE * (step.theta - p.theta).abs() * tau2)
+    });
+    let mut row =
+        vec![step.theta - THRESHOLD, step.error.x, step.error.y, step.activation, step.theta, 1.0 - step.activation];
+    row.extend(step.tau1.iter().chain(step.tau2.iter()).chain(step.tau2p.iter()));
+    row.extend([
+        step.constraint_force,
+        step.direction.dot(&step.tau2),
+        step.desired.x,
+        step.desired.y,
+        dtau,
+        smooth,
+        bound,
+    ]);
+    row
+}
+
 /// Runs the scenario with the full duration.
-pub fn simulate(progress: Progress) -> Result<Outcome, String> {
-    simulate_for(DURATION_S, progress)
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
+    simulate_for(DURATION_S, options)
 }
 
 /// Runs both projections for `duration_s` and evaluates the claims.
-pub fn simulate_for(duration_s: f64, progress: Progress) -> Result<Outcome, String> {
-    progress.report(NAME, 0.0, duration_s);
-    let continuous = run(Projection::Continuous, duration_s)?;
-    progress.report(NAME, 0.5 * duration_s, duration_s);
-    let classical = run(Projection::Discontinuous, duration_s)?;
-    progress.finish();
+pub fn simulate_for(duration_s: f64, options: &RunOptions) -> Result<Outcome, String> {
+    options.progress.report(NAME, 0.0, duration_s);
+    let continuous = run(Projection::Continuous, duration_s, options)?;
+    options.progress.report(NAME, 0.5 * duration_s, duration_s);
+    let classical = run(Projection::Discontinuous, duration_s, options)?;
+    options.progress.finish();
     let summary = summarize(&continuous, &classical, duration_s)?;
     let series = combine(&continuous, &classical)?;
     let figures = figures(&continuous, &classical)?;

@@ -28,8 +28,8 @@ use kernel::tasks::collision::SweptSphere;
 use nalgebra::{Rotation3, Vector3};
 
 use super::wbc_step::{col, common_claims, distance_to, line, points, pose_of, tcp_columns};
-use super::{Outcome, Progress};
-use crate::output::{Figure, Line, Panel, Span, Summary};
+use super::{Outcome, RunOptions};
+use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
 use crate::wbc;
 
 /// Registry name.
@@ -88,16 +88,33 @@ pub fn table() -> [SweptSphere<f64>; 4] {
     ]
 }
 
-/// Runs the scenario.
-pub fn simulate(progress: Progress) -> Result<Outcome, String> {
+/// Runs the scenario: setup, run, measures, claims, figures.
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
+    let mut rig = setup(options)?;
+    let (series, start, goal) = run(&mut rig, options)?;
+    let measures = Measures::new(&series, &start, &goal)?;
+    let summary = claims(&measures, &goal, &rig, &series)?;
+    let figures = vec![
+        ("grasp_top_view.svg", top_view(&measures, &goal)),
+        ("grasp_time.svg", time_histories(&measures, &series)?),
+    ];
+    Ok(Outcome { summary, series, figures })
+}
+
+/// The rig with the table and the Fig. 6.3 hierarchy for the left hand.
+fn setup(options: &RunOptions) -> Result<wbc::Rig, String> {
     let config = whole_body::controller_config::<f64>().map_err(|e| format!("config: {e}"))?;
-    let mut rig =
-        wbc::rig(&justin::home_configuration(), &table(), config, &whole_body::fig_6_3_hierarchy(Hand::Left))?;
+    wbc::rig(&justin::home_configuration(), &table(), config, &whole_body::fig_6_3_hierarchy(Hand::Left), options)
+}
+
+/// Runs [`DURATION_S`] with the reach and the return; returns the series, the left TCP's start
+/// position and the object's position.
+fn run(rig: &mut wbc::Rig, options: &RunOptions) -> Result<(TimeSeries, Vector3<f64>, Vector3<f64>), String> {
     let mut start = None;
     let mut goal = None;
     let series = rig.run(DURATION_S, |rig, info| {
         if info.cycle % 100 == 0 {
-            progress.report(NAME, info.time_s, DURATION_S);
+            options.progress.report(NAME, info.time_s, DURATION_S);
         }
         let begin = *start.get_or_insert(rig.controller.tcp_target(Hand::Left).pose);
         let mut object = begin;
@@ -115,30 +132,73 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         }
         Ok(())
     })?;
-    progress.finish();
-    let start = start.ok_or("no cycle ran")?.translation.vector;
-    let goal = goal.ok_or("no cycle ran")?;
-    let t = col(&series, "t")?;
-    let tcp = tcp_columns(&series, Hand::Left)?;
-    let to_goal = distance_to(&tcp, &goal);
-    let to_start = distance_to(&tcp, &start);
-    let at = |values: &[f64], time: f64| {
-        t.iter().zip(values.iter()).find(|(t, _)| **t >= time).map_or(f64::NAN, |(_, v)| *v)
-    };
-    let goal_error = at(&to_goal, RETURN_AT_S - 0.01);
-    let orientation_error = ["e1.rx", "e1.ry", "e1.rz"]
-        .iter()
-        .map(|c| col(&series, c).map(|v| at(&v, RETURN_AT_S - 0.01)))
-        .collect::<Result<Vec<f64>, String>>()?
-        .iter()
-        .map(|x| x * x)
-        .sum::<f64>()
-        .sqrt();
-    let return_error = to_start.last().copied().unwrap_or(f64::NAN);
-    let (bx, by) = (col(&series, "q.base_x")?, col(&series, "q.base_y")?);
-    let base_peak = bx.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    let front_gap = TABLE_EDGE_X_M - TABLE_RADIUS_M - (base_peak + PLATFORM_FRONT_M);
+    options.progress.finish();
+    Ok((series, start.ok_or("no cycle ran")?.translation.vector, goal.ok_or("no cycle ran")?))
+}
 
+/// The signals and numbers the claims and the figures share.
+struct Measures {
+    /// Time (s).
+    t: Vec<f64>,
+    /// Left TCP position, world x, y, z (m).
+    tcp: [Vec<f64>; 3],
+    /// Left TCP distance to the object and to its start (m).
+    to_goal: Vec<f64>,
+    to_start: Vec<f64>,
+    /// Platform position x, y (m).
+    bx: Vec<f64>,
+    by: Vec<f64>,
+    /// Position and orientation error at the end of the hold (m, rad).
+    goal_error: f64,
+    orientation_error: f64,
+    /// Distance to the start at the end (m).
+    return_error: f64,
+    /// Largest platform x (m) and the gap of its front to the table then (m).
+    base_peak: f64,
+    front_gap: f64,
+}
+
+impl Measures {
+    fn new(series: &TimeSeries, start: &Vector3<f64>, goal: &Vector3<f64>) -> Result<Self, String> {
+        let t = col(series, "t")?;
+        let tcp = tcp_columns(series, Hand::Left)?;
+        let to_goal = distance_to(&tcp, goal);
+        let to_start = distance_to(&tcp, start);
+        let at = |values: &[f64], time: f64| {
+            t.iter().zip(values.iter()).find(|(t, _)| **t >= time).map_or(f64::NAN, |(_, v)| *v)
+        };
+        let goal_error = at(&to_goal, RETURN_AT_S - 0.01);
+        let orientation_error = ["e1.rx", "e1.ry", "e1.rz"]
+            .iter()
+            .map(|c| col(series, c).map(|v| at(&v, RETURN_AT_S - 0.01)))
+            .collect::<Result<Vec<f64>, String>>()?
+            .iter()
+            .map(|x| x * x)
+            .sum::<f64>()
+            .sqrt();
+        let return_error = to_start.last().copied().unwrap_or(f64::NAN);
+        let (bx, by) = (col(series, "q.base_x")?, col(series, "q.base_y")?);
+        let base_peak = bx.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let front_gap = TABLE_EDGE_X_M - TABLE_RADIUS_M - (base_peak + PLATFORM_FRONT_M);
+        Ok(Self {
+            t,
+            tcp,
+            to_goal,
+            to_start,
+            bx,
+            by,
+            goal_error,
+            orientation_error,
+            return_error,
+            base_peak,
+            front_gap,
+        })
+    }
+}
+
+/// Metrics and claims (module docs).
+fn claims(m: &Measures, goal: &Vector3<f64>, rig: &wbc::Rig, series: &TimeSeries) -> Result<Summary, String> {
+    let Measures { goal_error, orientation_error, return_error, base_peak, front_gap, .. } = *m;
     let mut summary = Summary::new(NAME);
     summary
         .metric("goal_error_m", goal_error)
@@ -167,9 +227,13 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         &format!("the hand returns to its start pose: {:.1} mm < {:.0} mm", return_error * 1e3, GOAL_TOLERANCE_M * 1e3),
         return_error < GOAL_TOLERANCE_M,
     );
-    common_claims(&mut summary, &rig, &series)?;
+    common_claims(&mut summary, rig, series)?;
+    Ok(summary)
+}
 
-    // Main figure: top view and side view (shared world x).
+/// The main figure: top view and side view (shared world x).
+fn top_view(m: &Measures, goal: &Vector3<f64>) -> Figure {
+    let Measures { tcp, bx, by, goal_error, front_gap, .. } = m;
     let xy = |x: &[f64], y: &[f64]| x.iter().zip(y.iter()).step_by(20).map(|(x, y)| (*x, *y)).collect::<Vec<_>>();
     let (x0, x1) = (TABLE_EDGE_X_M, TABLE_EDGE_X_M + TABLE_DEPTH_M);
     let (y0, y1) = TABLE_Y_M;
@@ -189,11 +253,11 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         title: "top view: platform centre path, left hand path, table and object".into(),
         y_label: "world y (m)".into(),
         lines: vec![
-            Line::new("platform centre", xy(&bx, &by)),
+            Line::new("platform centre", xy(bx, by)),
             Line::new("left hand (TCP)", xy(&tcp[0], &tcp[1])),
             Line::new("platform footprint at its closest", footprint(closest.0, closest.1)),
             Line::dashed("table", outline),
-            Line::new("object (goal)", marker(&goal, 0.04)),
+            Line::new("object (goal)", marker(goal, 0.04)),
             Line::dashed("platform footprint at the start", footprint(first.0, first.1)),
         ],
         spans: vec![],
@@ -224,7 +288,7 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         ],
         spans: vec![],
     };
-    let main = Figure {
+    Figure {
         title: format!(
             "wbc_grasp (cf. Fig. 6.8): object reached within {:.0} mm; platform stops {:.0} mm before the table",
             goal_error * 1e3,
@@ -232,14 +296,19 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         ),
         x_label: "world x (m)".into(),
         panels: vec![top, side],
-    };
+    }
+}
+
+/// The time histories: distances of the hand, the platform, the collision distance.
+fn time_histories(m: &Measures, series: &TimeSeries) -> Result<Figure, String> {
+    let Measures { t, to_goal, to_start, .. } = m;
     let spans = || {
         vec![
             Span { label: "reach".into(), from: REACH_AT_S, to: REACH_AT_S + REACH_S },
             Span { label: "return".into(), from: RETURN_AT_S, to: RETURN_AT_S + REACH_S },
         ]
     };
-    let time = Figure {
+    Ok(Figure {
         title: "wbc_grasp: time histories".into(),
         x_label: "time (s)".into(),
         panels: vec![
@@ -247,8 +316,8 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
                 title: "left hand distance to the object and to its start".into(),
                 y_label: "distance (m)".into(),
                 lines: vec![
-                    Line::new("to the object", points(&t, &to_goal, 10, 1.0)),
-                    Line::new("to the start", points(&t, &to_start, 10, 1.0)),
+                    Line::new("to the object", points(t, to_goal, 10, 1.0)),
+                    Line::new("to the start", points(t, to_start, 10, 1.0)),
                 ],
                 spans: spans(),
             },
@@ -256,12 +325,12 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
                 title: "platform".into(),
                 y_label: "m, m/s".into(),
                 lines: vec![
-                    line(&series, "base x", "q.base_x", 1.0)?,
-                    line(&series, "base y", "q.base_y", 1.0)?,
-                    line(&series, "commanded v_x", "vcmd.x", 1.0)?,
+                    line(series, "base x", "q.base_x", 1.0)?,
+                    line(series, "base y", "q.base_y", 1.0)?,
+                    line(series, "commanded v_x", "vcmd.x", 1.0)?,
                     Line::dashed(
                         "table edge − platform front",
-                        points(&t, &vec![TABLE_EDGE_X_M - PLATFORM_FRONT_M; t.len()], 100, 1.0),
+                        points(t, &vec![TABLE_EDGE_X_M - PLATFORM_FRONT_M; t.len()], 100, 1.0),
                     ),
                 ],
                 spans: spans(),
@@ -269,12 +338,11 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
             Panel {
                 title: "smallest collision distance (robot–robot and robot–table)".into(),
                 y_label: "distance (mm)".into(),
-                lines: vec![line(&series, "min pair distance", "min_distance", 1e3)?],
+                lines: vec![line(series, "min pair distance", "min_distance", 1e3)?],
                 spans: spans(),
             },
         ],
-    };
-    Ok(Outcome { summary, series, figures: vec![("grasp_top_view.svg", main), ("grasp_time.svg", time)] })
+    })
 }
 
 #[cfg(test)]
@@ -284,7 +352,7 @@ mod tests {
 
     #[test]
     fn wbc_grasp_reaches_the_object_and_the_base_stops_short() {
-        let outcome = simulate(Progress::Silent).unwrap();
+        let outcome = simulate(&RunOptions::default()).unwrap();
         let s = &outcome.summary;
         assert!(s.failed_claims().is_empty(), "failed: {:?}", s.failed_claims());
         assert!(s.get("goal_error_m").unwrap() < GOAL_TOLERANCE_M);

@@ -20,8 +20,8 @@ use kernel::controller::config::Hand;
 use nalgebra::Vector3;
 
 use super::wbc_step::{col, common_claims, distance_to, line, max_in, tcp_columns, PUSH_FRAME};
-use super::{Outcome, Progress};
-use crate::output::{Figure, Panel, Span, Summary};
+use super::{Outcome, RunOptions};
+use crate::output::{Figure, Panel, Span, Summary, TimeSeries};
 use crate::wbc;
 
 /// Registry name.
@@ -44,43 +44,78 @@ pub const ORIENTATION_TOLERANCE_RAD: f64 = core::f64::consts::PI / 180.0;
 /// Base velocity against the push that counts as a reaction (m/s).
 pub const YIELD_SPEED_M_S: f64 = 0.01;
 
-/// Runs the scenario.
-pub fn simulate(progress: Progress) -> Result<Outcome, String> {
-    let mut rig = wbc::chapter_6_rig(Hand::Right, &[])?;
+/// Runs the scenario: setup, run, claims, figure.
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
+    let mut rig = setup(options)?;
+    let (series, start) = run(&mut rig, options)?;
+    let signals = Signals::new(&series, &start)?;
+    let summary = claims(&signals, &series, &rig)?;
+    let figure = figure(&signals, &series)?;
+    Ok(Outcome { summary, series, figures: vec![("phri.svg", figure)] })
+}
+
+/// The Ch. 6 rig with the two pushes scheduled.
+fn setup(options: &RunOptions) -> Result<wbc::Rig, String> {
+    let mut rig = wbc::chapter_6_rig(Hand::Right, &[], options)?;
     for (at, direction) in PUSHES {
         rig.sim.push(PUSH_FRAME, Vector3::from(direction) * PUSH_N, at, PUSH_S).map_err(|e| format!("push: {e}"))?;
     }
+    Ok(rig)
+}
+
+/// Runs [`DURATION_S`]; returns the series and the right TCP's goal (its start pose).
+fn run(rig: &mut wbc::Rig, options: &RunOptions) -> Result<(TimeSeries, Vector3<f64>), String> {
     let mut start = None;
     let series = rig.run(DURATION_S, |rig, info| {
         if info.cycle % 100 == 0 {
-            progress.report(NAME, info.time_s, DURATION_S);
+            options.progress.report(NAME, info.time_s, DURATION_S);
         }
         start.get_or_insert(rig.controller.tcp_target(Hand::Right).pose.translation.vector);
         Ok(())
     })?;
-    progress.finish();
-    let start = start.ok_or("no cycle ran")?;
-    let t = col(&series, "t")?;
-    let tcp = tcp_columns(&series, Hand::Right)?;
-    let error = distance_to(&tcp, &start);
+    options.progress.finish();
+    Ok((series, start.ok_or("no cycle ran")?))
+}
+
+/// The signals the claims and the figure share.
+struct Signals {
+    /// Time (s).
+    t: Vec<f64>,
+    /// TCP distance from its start (m).
+    error: Vec<f64>,
+    /// Controller energy above the rest state before the first push (J).
+    energy: Vec<f64>,
+}
+
+impl Signals {
+    fn new(series: &TimeSeries, start: &Vector3<f64>) -> Result<Self, String> {
+        let t = col(series, "t")?;
+        let error = distance_to(&tcp_columns(series, Hand::Right)?, start);
+        // Energy relative to the rest state before the first push (the level-1 potentials, e.g.
+        // the torso workspace, are not zero at rest).
+        let total: Vec<f64> =
+            col(series, "kinetic_j")?.iter().zip(col(series, "potential_j")?.iter()).map(|(k, p)| k + p).collect();
+        let rest_energy =
+            t.iter().zip(total.iter()).take_while(|(t, _)| **t < PUSHES[0].0).map(|(_, e)| *e).last().unwrap_or(0.0);
+        let energy = total.iter().map(|e| e - rest_energy).collect();
+        Ok(Self { t, error, energy })
+    }
+}
+
+/// Metrics and claims (module docs).
+fn claims(signals: &Signals, series: &TimeSeries, rig: &wbc::Rig) -> Result<Summary, String> {
+    let Signals { t, error, energy } = signals;
     let final_error = error.last().copied().unwrap_or(f64::NAN);
     let orientation = ["e0.rx", "e0.ry", "e0.rz"]
         .iter()
-        .map(|c| col(&series, c).map(|v| v.last().copied().unwrap_or(f64::NAN)))
+        .map(|c| col(series, c).map(|v| v.last().copied().unwrap_or(f64::NAN)))
         .collect::<Result<Vec<f64>, String>>()?
         .iter()
         .map(|x| x * x)
         .sum::<f64>()
         .sqrt();
-    let (vx, vy) = (col(&series, "vcmd.x")?, col(&series, "vcmd.y")?);
-    let contact = col(&series, "contact")?;
-    // Energy relative to the rest state before the first push (the level-1 potentials, e.g. the
-    // torso workspace, are not zero at rest).
-    let total: Vec<f64> =
-        col(&series, "kinetic_j")?.iter().zip(col(&series, "potential_j")?.iter()).map(|(k, p)| k + p).collect();
-    let rest_energy =
-        t.iter().zip(total.iter()).take_while(|(t, _)| **t < PUSHES[0].0).map(|(_, e)| *e).last().unwrap_or(0.0);
-    let energy: Vec<f64> = total.iter().map(|e| e - rest_energy).collect();
+    let (vx, vy) = (col(series, "vcmd.x")?, col(series, "vcmd.y")?);
+    let contact = col(series, "contact")?;
     let peak_energy = energy.iter().copied().fold(0.0, f64::max);
     let final_energy = energy.last().copied().unwrap_or(f64::NAN);
     let peak_deflection = error.iter().copied().fold(0.0, f64::max);
@@ -91,7 +126,7 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
     for (k, (at, d)) in PUSHES.iter().enumerate() {
         let along: Vec<f64> = vx.iter().zip(vy.iter()).map(|(x, y)| x * d[0] + y * d[1]).collect();
         let against: Vec<f64> = along.iter().map(|v| -v).collect();
-        let peak = max_in(&t, &against, *at, at + PUSH_S);
+        let peak = max_in(t, &against, *at, at + PUSH_S);
         let share = {
             let window: Vec<f64> = t
                 .iter()
@@ -141,12 +176,17 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         ),
         peak_energy < work && final_energy < 0.1 * peak_energy,
     );
-    common_claims(&mut summary, &rig, &series)?;
+    common_claims(&mut summary, rig, series)?;
+    Ok(summary)
+}
 
+/// The figure `phri.svg`.
+fn figure(signals: &Signals, series: &TimeSeries) -> Result<Figure, String> {
+    let Signals { t, error, energy } = signals;
     let spans =
         || PUSHES.iter().map(|(at, _)| Span { label: "push".into(), from: *at, to: at + PUSH_S }).collect::<Vec<_>>();
-    let deflection = crate::output::Line::new("‖p − p_start‖", super::wbc_step::points(&t, &error, 10, 1e3));
-    let main = Figure {
+    let deflection = crate::output::Line::new("‖p − p_start‖", super::wbc_step::points(t, error, 10, 1e3));
+    Ok(Figure {
         title: "wbc_phri: 40 N pushes on the right hand, whole-body compliance (cf. Fig. 6.7)".into(),
         x_label: "time (s)".into(),
         panels: vec![
@@ -155,9 +195,9 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
                 title: "platform velocity command".into(),
                 y_label: "m/s, rad/s".into(),
                 lines: vec![
-                    line(&series, "v_x", "vcmd.x", 1.0)?,
-                    line(&series, "v_y", "vcmd.y", 1.0)?,
-                    line(&series, "ω", "vcmd.theta", 1.0)?,
+                    line(series, "v_x", "vcmd.x", 1.0)?,
+                    line(series, "v_y", "vcmd.y", 1.0)?,
+                    line(series, "ω", "vcmd.theta", 1.0)?,
                 ],
                 spans: spans(),
             },
@@ -165,8 +205,8 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
                 title: "external torque estimate and contact".into(),
                 y_label: "Nm, flag×10".into(),
                 lines: vec![
-                    line(&series, "‖τ_ext‖", "tau_ext_norm", 1.0)?,
-                    line(&series, "contact ×10", "contact", 10.0)?,
+                    line(series, "‖τ_ext‖", "tau_ext_norm", 1.0)?,
+                    line(series, "contact ×10", "contact", 10.0)?,
                 ],
                 spans: spans(),
             },
@@ -174,15 +214,14 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
                 title: "energy".into(),
                 y_label: "J".into(),
                 lines: vec![
-                    line(&series, "kinetic", "kinetic_j", 1.0)?,
-                    line(&series, "potential", "potential_j", 1.0)?,
-                    crate::output::Line::new("total above rest", super::wbc_step::points(&t, &energy, 10, 1.0)),
+                    line(series, "kinetic", "kinetic_j", 1.0)?,
+                    line(series, "potential", "potential_j", 1.0)?,
+                    crate::output::Line::new("total above rest", super::wbc_step::points(t, energy, 10, 1.0)),
                 ],
                 spans: spans(),
             },
         ],
-    };
-    Ok(Outcome { summary, series, figures: vec![("phri.svg", main)] })
+    })
 }
 
 #[cfg(test)]
@@ -192,7 +231,7 @@ mod tests {
 
     #[test]
     fn wbc_phri_base_compensates_and_hand_returns() {
-        let outcome = simulate(Progress::Silent).unwrap();
+        let outcome = simulate(&RunOptions::default()).unwrap();
         let s = &outcome.summary;
         assert!(s.failed_claims().is_empty(), "failed: {:?}", s.failed_claims());
         assert!(s.get("final_error_m").unwrap() < RETURN_TOLERANCE_M);

@@ -19,7 +19,7 @@ use kernel::controller::messages::{Command, Pose};
 use kernel::model::Placement;
 use nalgebra::{UnitQuaternion, Vector3};
 
-use super::{column_index, Outcome, Progress};
+use super::{column_index, Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
 use crate::wbc::{self, Rig};
 
@@ -118,12 +118,12 @@ pub fn common_claims(summary: &mut Summary, rig: &Rig, series: &TimeSeries) -> R
 }
 
 /// Runs the scenario.
-pub fn simulate(progress: Progress) -> Result<Outcome, String> {
-    let mut rig = wbc::chapter_6_rig(Hand::Right, &[])?;
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
+    let mut rig = wbc::chapter_6_rig(Hand::Right, &[], options)?;
     let mut goal: Option<Vector3<f64>> = None;
     let series = rig.run(DURATION_S, |rig, info| {
         if info.cycle % 100 == 0 {
-            progress.report(NAME, info.time_s, DURATION_S);
+            options.progress.report(NAME, info.time_s, DURATION_S);
         }
         if goal.is_none() && info.time_s + 0.5 * wbc_period() >= STEP_AT_S {
             let mut target = rig.controller.tcp_target(Hand::Right).pose;
@@ -134,7 +134,7 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         }
         Ok(())
     })?;
-    progress.finish();
+    options.progress.finish();
     let goal = goal.ok_or("the step was never commanded")?;
     evaluate(&rig, series, &goal)
 }
@@ -299,7 +299,7 @@ mod tests {
 
     #[test]
     fn wbc_step_settles_within_the_thesis_time() {
-        let outcome = simulate(Progress::Silent).unwrap();
+        let outcome = simulate(&RunOptions::default()).unwrap();
         let s = &outcome.summary;
         assert!(s.failed_claims().is_empty(), "failed: {:?}", s.failed_claims());
         assert!(s.get("settling_time_s").unwrap() < THESIS_SETTLING_S);

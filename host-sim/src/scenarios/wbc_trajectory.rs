@@ -14,11 +14,11 @@
 
 use kernel::controller::config::{Hand, MAX_LEVELS};
 use kernel::controller::messages::Command;
-use nalgebra::Vector3;
+use nalgebra::{SVector, Vector3};
 
 use super::wbc_step::{col, common_claims, distance_to, line, points, pose_of, subtask_lines, tcp_columns};
-use super::{Outcome, Progress};
-use crate::output::{Figure, Line, Panel, Span, Summary};
+use super::{Outcome, RunOptions};
+use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
 use crate::wbc;
 
 /// Registry name.
@@ -41,16 +41,38 @@ pub const MAX_TRACKING_M: f64 = 0.2;
 /// Return tolerance (m).
 pub const RETURN_TOLERANCE_M: f64 = 0.01;
 
-/// Runs the scenario.
-pub fn simulate(progress: Progress) -> Result<Outcome, String> {
-    let mut rig = wbc::chapter_6_rig(Hand::Right, &[])?;
+/// Runs the scenario: run, tracking error, claims, figures.
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
+    let mut rig = wbc::chapter_6_rig(Hand::Right, &[], options)?;
+    let run = run(&mut rig, options)?;
+    let tracking = tracking_error(&run)?;
+    let summary = claims(&run, &tracking, &rig)?;
+    let figures = figures(&run, &tracking)?;
+    Ok(Outcome { summary, series: run.series, figures })
+}
+
+/// What a run recorded beside the standard time series.
+struct Run {
+    series: TimeSeries,
+    /// The right TCP's start position (m).
+    start: Vector3<f64>,
+    /// The desired TCP position after each cycle (m).
+    desired: Vec<Vector3<f64>>,
+    /// The level torque norms after each cycle (Nm).
+    levels: Vec<[f64; MAX_LEVELS]>,
+    /// The configuration at the first cycle.
+    q0: SVector<f64, { fixtures::justin::N }>,
+}
+
+/// Runs [`DURATION_S`] with the goals forward and back.
+fn run(rig: &mut wbc::Rig, options: &RunOptions) -> Result<Run, String> {
     let mut start = None;
     let mut desired: Vec<Vector3<f64>> = Vec::new();
     let mut levels: Vec<[f64; MAX_LEVELS]> = Vec::new();
     let mut q0 = None;
     let series = rig.run(DURATION_S, |rig, info| {
         if info.cycle % 100 == 0 {
-            progress.report(NAME, info.time_s, DURATION_S);
+            options.progress.report(NAME, info.time_s, DURATION_S);
         }
         let target = rig.controller.tcp_target(Hand::Right).pose;
         let begin = *start.get_or_insert(target);
@@ -68,11 +90,16 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         levels.push(rig.controller.telemetry().level_torque_norm);
         Ok(())
     })?;
-    progress.finish();
+    options.progress.finish();
     let start = start.ok_or("no cycle ran")?.translation.vector;
     let q0 = q0.ok_or("no cycle ran")?;
-    let t = col(&series, "t")?;
-    let tcp = tcp_columns(&series, Hand::Right)?;
+    Ok(Run { series, start, desired, levels, q0 })
+}
+
+/// The tracking error ‖p − p_des‖ per row (m).
+fn tracking_error(run: &Run) -> Result<Vec<f64>, String> {
+    let Run { series, start, desired, .. } = run;
+    let tcp = tcp_columns(series, Hand::Right)?;
     // The desired pose recorded after cycle k is the one cycle k + 1 uses; compare with the
     // next row's TCP (one period of lag is 0.2 mm at the peak speed).
     let [px, py, pz] = &tcp;
@@ -82,15 +109,22 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         .zip(pz.iter())
         .enumerate()
         .map(|(k, ((x, y), z))| {
-            let d = desired.get(k.saturating_sub(1)).copied().unwrap_or(start);
+            let d = desired.get(k.saturating_sub(1)).copied().unwrap_or(*start);
             (Vector3::new(*x, *y, *z) - d).norm()
         })
         .collect();
+    Ok(tracking)
+}
+
+/// Metrics and claims (module docs).
+fn claims(run: &Run, tracking: &[f64], rig: &wbc::Rig) -> Result<Summary, String> {
+    let Run { series, start, q0, .. } = run;
+    let tcp = tcp_columns(series, Hand::Right)?;
     let max_tracking = tracking.iter().copied().fold(0.0, f64::max);
-    let final_error = distance_to(&tcp, &start).last().copied().unwrap_or(f64::NAN);
+    let final_error = distance_to(&tcp, start).last().copied().unwrap_or(f64::NAN);
     let q_end = *rig.sim.q();
     let upper = (q_end - q0).rows(3, fixtures::justin::UPPER_DOF).norm();
-    let base_dx = col(&series, "q.base_x")?;
+    let base_dx = col(series, "q.base_x")?;
     let base_peak = base_dx.iter().copied().fold(f64::NEG_INFINITY, f64::max);
 
     let mut summary = Summary::new(NAME);
@@ -112,8 +146,15 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
         &format!("the upper-body configuration at the end differs from the start: ‖Δq‖ = {upper:.3} rad > 0.01 rad (null space not restored)"),
         upper > 0.01,
     );
-    common_claims(&mut summary, &rig, &series)?;
+    common_claims(&mut summary, rig, series)?;
+    Ok(summary)
+}
 
+/// The figures `tcp_trajectory.svg` and `torques.svg`.
+fn figures(run: &Run, tracking: &[f64]) -> Result<Vec<(&'static str, Figure)>, String> {
+    let Run { series, start, desired, levels, .. } = run;
+    let t = col(series, "t")?;
+    let tcp = tcp_columns(series, Hand::Right)?;
     let spans = || {
         vec![
             Span { label: "forward".into(), from: FORWARD_AT_S, to: FORWARD_AT_S + SEGMENT_S },
@@ -139,23 +180,23 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
                 lines: vec![
                     Line::new("TCP", points(&t, &rel, 10, 1.0)),
                     Line::dashed("desired", points(&t, &des, 10, 1.0)),
-                    line(&series, "platform", "q.base_x", 1.0)?,
+                    line(series, "platform", "q.base_x", 1.0)?,
                 ],
                 spans: spans(),
             },
             Panel {
                 title: "tracking error ‖p − p_des‖".into(),
                 y_label: "error (mm)".into(),
-                lines: vec![Line::new("tracking error", points(&t, &tracking, 10, 1e3))],
+                lines: vec![Line::new("tracking error", points(&t, tracking, 10, 1e3))],
                 spans: spans(),
             },
             Panel {
                 title: "platform velocity command".into(),
                 y_label: "m/s, rad/s".into(),
                 lines: vec![
-                    line(&series, "v_x", "vcmd.x", 1.0)?,
-                    line(&series, "v_y", "vcmd.y", 1.0)?,
-                    line(&series, "ω", "vcmd.theta", 1.0)?,
+                    line(series, "v_x", "vcmd.x", 1.0)?,
+                    line(series, "v_y", "vcmd.y", 1.0)?,
+                    line(series, "ω", "vcmd.theta", 1.0)?,
                 ],
                 spans: spans(),
             },
@@ -168,7 +209,7 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
             Panel {
                 title: "subtask torque norms ‖τ_i‖ before projection".into(),
                 y_label: "‖τ‖ (Nm)".into(),
-                lines: subtask_lines(&series)?,
+                lines: subtask_lines(series)?,
                 spans: spans(),
             },
             Panel {
@@ -180,12 +221,12 @@ pub fn simulate(progress: Progress) -> Result<Outcome, String> {
             Panel {
                 title: "smallest collision distance".into(),
                 y_label: "distance (mm)".into(),
-                lines: vec![line(&series, "min pair distance", "min_distance", 1e3)?],
+                lines: vec![line(series, "min pair distance", "min_distance", 1e3)?],
                 spans: spans(),
             },
         ],
     };
-    Ok(Outcome { summary, series, figures: vec![("tcp_trajectory.svg", main), ("torques.svg", torques)] })
+    Ok(vec![("tcp_trajectory.svg", main), ("torques.svg", torques)])
 }
 
 #[cfg(test)]
@@ -195,7 +236,7 @@ mod tests {
 
     #[test]
     fn wbc_trajectory_tracks_and_returns() {
-        let outcome = simulate(Progress::Silent).unwrap();
+        let outcome = simulate(&RunOptions::default()).unwrap();
         let s = &outcome.summary;
         assert!(s.failed_claims().is_empty(), "failed: {:?}", s.failed_claims());
         assert!(s.get("max_tracking_error_m").unwrap() < MAX_TRACKING_M);

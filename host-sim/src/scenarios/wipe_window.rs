@@ -40,7 +40,7 @@ use kernel::controller::messages::{Command, Pose};
 use kernel::model::Placement;
 use nalgebra::{Rotation3, SVector, Unit, UnitQuaternion, Vector3};
 
-use super::{Outcome, Progress};
+use super::{Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
 use crate::sim::Surface;
 use crate::wbc::{self, Rig};
@@ -309,9 +309,9 @@ pub fn run_tool(
     config: ControllerConfig<f64, { justin::N }>,
     duration_s: f64,
     plan: impl FnOnce([Placement<f64>; 2]) -> ToolPlan,
-    progress: Progress,
+    options: &RunOptions,
 ) -> Result<ToolRun, String> {
-    let mut rig = wbc::rig(q0, &[], config, &whole_body::fig_6_3_hierarchy(Hand::Right))?;
+    let mut rig = wbc::rig(q0, &[], config, &whole_body::fig_6_3_hierarchy(Hand::Right), options)?;
     let start = [
         rig.sim.frame_placement(justin::RIGHT_TCP).map_err(|e| e.to_string())?,
         rig.sim.frame_placement(justin::LEFT_TCP).map_err(|e| e.to_string())?,
@@ -368,11 +368,11 @@ pub fn run_tool(
             first_fault = rig.controller.telemetry().fault.map(|f| (info.time_s, format!("{f:?}")));
         }
         if info.cycle % 100 == 0 {
-            progress.report(name, info.time_s, duration_s);
+            options.progress.report(name, info.time_s, duration_s);
         }
         Ok(())
     })?;
-    progress.finish();
+    options.progress.finish();
     let finite = series.rows().iter().all(|r| r.iter().all(|x| x.is_finite() || x.is_nan()))
         && samples.iter().all(|s| s.normal_n.iter().chain(s.base.iter()).all(|x| x.is_finite()));
     let series = extend_series(&series, &samples, &contacts, &references)?;
@@ -634,9 +634,9 @@ pub fn tool_figures(
 }
 
 /// The window run.
-pub fn run(progress: Progress) -> Result<ToolRun, String> {
+pub fn run(options: &RunOptions) -> Result<ToolRun, String> {
     let config = whole_body::controller_config::<f64>().map_err(|e| format!("config: {e}"))?;
-    run_tool(NAME, &WIPE_WINDOW, &PLATFORM_IMPEDANCE, &justin::home_configuration(), config, DURATION_S, plan, progress)
+    run_tool(NAME, &WIPE_WINDOW, &PLATFORM_IMPEDANCE, &justin::home_configuration(), config, DURATION_S, plan, options)
 }
 
 fn plan(start: [Placement<f64>; 2]) -> ToolPlan {
@@ -684,8 +684,8 @@ fn plan(start: [Placement<f64>; 2]) -> ToolPlan {
 }
 
 /// Simulates and checks the claims (module docs).
-pub fn simulate(progress: Progress) -> Result<Outcome, String> {
-    let run = run(progress)?;
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
+    let run = run(options)?;
     let limit = WIPE_WINDOW.force_upper[0];
     let m = contact_metrics(&run.samples, 0, STROKES_S);
     let limited = limited_share(&run.samples, 0, STROKES_S);
@@ -765,7 +765,7 @@ mod tests {
 
     #[test]
     fn wipe_window_claims_hold() {
-        let outcome = simulate(Progress::Silent).unwrap();
+        let outcome = simulate(&RunOptions::default()).unwrap();
         let s = &outcome.summary;
         assert!(s.failed_claims().is_empty(), "{:?}", s.failed_claims());
         assert!(s.get("run_peak_force_n").unwrap() <= 10.0, "Table 7.1: +10 N, never exceeded");

@@ -35,8 +35,8 @@ use core::fmt;
 use nalgebra::RealField;
 
 /// Number of wheeled legs of the platform (Sec. 3.2: four steerable wheels on legs of variable
-/// length). Equal to `hal::LEGS`; the kernel does not depend on `hal`.
-pub const LEGS: usize = 4;
+/// length): the one constant of `hal`, which the sensor and actuator frames use too.
+pub use hal::LEGS;
 
 /// Why a platform algorithm refused its input or configuration.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -1,0 +1,300 @@
+//! The registry of named scenarios and the runner behind `host-sim run <scenario>`.
+//!
+//! A scenario is a module with a `NAME`, a one-line `DESCRIPTION` and a `simulate` function
+//! that takes the [`RunOptions`] and returns an [`Outcome`] (time series, summary with its
+//! checked claims, figures); [`run`] writes the outcome into the output directory following the
+//! convention of [`crate::output`]. Every scenario drives its robot with the one scenario loop,
+//! [`crate::sim::run_loop`], builds its simulator with [`RunOptions::simulator`] (or the
+//! whole-body rig with [`crate::wbc::rig`]) so `--plant` reaches it, and reports its progress
+//! through [`RunOptions::progress`]. Errors are one-line messages. Tests call the scenario
+//! functions directly and assert the same numbers the summary reports.
+
+use std::path::{Path, PathBuf};
+
+use kernel::model::Model;
+use kernel::tasks::collision::SweptSphere;
+
+use crate::output::{self, Figure, Summary, TimeSeries};
+use crate::pil::Target;
+use crate::plant::{PlantKind, PlantModel};
+use crate::replay;
+use crate::sim::{SimConfig, Simulator};
+
+pub mod cartesian_step;
+pub mod clean_mug;
+pub mod energy_planar4;
+pub mod hierarchy_common;
+pub mod icr_avoidance;
+pub mod mobile_impedance;
+pub mod mobile_impedance_critical;
+pub mod multilevel_arm;
+pub mod multilevel_planar;
+pub mod multilevel_sim1;
+pub mod multilevel_sim2;
+pub mod multilevel_sim3;
+pub mod projectors_sim1;
+pub mod sca_damping;
+pub mod soak;
+pub mod stability_map;
+pub mod stiffness_sim2;
+pub mod sweep_floor;
+pub mod torso_workspace;
+pub mod unilateral_sim;
+pub mod wbc_grasp;
+pub mod wbc_phri;
+pub mod wbc_step;
+pub mod wbc_trajectory;
+pub mod wipe_window;
+
+/// What a scenario produced.
+#[derive(Clone, Debug)]
+pub struct Outcome {
+    /// The summary: metrics and claims.
+    pub summary: Summary,
+    /// The time series, one row per control cycle.
+    pub series: TimeSeries,
+    /// Figures with their file names (`*.svg`), the main one first.
+    pub figures: Vec<(&'static str, Figure)>,
+}
+
+/// Whether a scenario reports its progress on stderr.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Progress {
+    /// Print a progress line on stderr while running (the CLI).
+    Stderr,
+    /// Stay silent (tests).
+    Silent,
+}
+
+impl Progress {
+    /// Reports simulated time `t_s` of `total_s` for scenario `name` (overwrites its line).
+    pub fn report(self, name: &str, t_s: f64, total_s: f64) {
+        if self == Self::Stderr {
+            eprint!("\r{name}: t = {t_s:5.2} s of {total_s:.2} s");
+        }
+    }
+
+    /// Ends the progress line.
+    pub fn finish(self) {
+        if self == Self::Stderr {
+            eprintln!();
+        }
+    }
+}
+
+/// Writes the files a scenario draws itself from its [`Outcome`] (maps and plots that are not
+/// line figures, extra tables); returns their names.
+type FileWriter = fn(&Path, &Outcome) -> Result<Vec<&'static str>, String>;
+
+/// A registered scenario.
+struct Entry {
+    name: &'static str,
+    description: &'static str,
+    simulate: fn(&RunOptions) -> Result<Outcome, String>,
+    /// Extra output files beyond the standard ones, if the scenario has any.
+    extra_files: Option<FileWriter>,
+    /// The world-fixed collision volumes the replay draws (table, wall), if any.
+    environment: Option<fn() -> Vec<SweptSphere<f64>>>,
+    /// What the outcome's table holds.
+    table: Table,
+}
+
+/// What a scenario's [`Outcome::series`] holds, and so the file it is written to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Table {
+    /// Samples over time: `timeseries.csv`, decimated by [`RunOptions::record_every`].
+    TimeSeries,
+    /// A map over a parameter grid, written whole into the named file.
+    Grid(&'static str),
+}
+
+impl Entry {
+    /// A scenario that writes the standard files only.
+    const fn new(
+        name: &'static str,
+        description: &'static str,
+        simulate: fn(&RunOptions) -> Result<Outcome, String>,
+    ) -> Self {
+        Self { name, description, simulate, extra_files: None, environment: None, table: Table::TimeSeries }
+    }
+}
+
+/// The registry entry of scenario module `$module` (its `NAME`, `DESCRIPTION` and `simulate`).
+macro_rules! entry {
+    ($module:ident) => {
+        Entry::new($module::NAME, $module::DESCRIPTION, $module::simulate)
+    };
+}
+
+/// The registry: every scenario `host-sim list` shows, in that order.
+const SCENARIOS: &[Entry] = &[
+    entry!(cartesian_step),
+    entry!(energy_planar4),
+    entry!(projectors_sim1),
+    entry!(stiffness_sim2),
+    entry!(unilateral_sim),
+    Entry {
+        extra_files: Some(torso_workspace::write_files),
+        table: Table::Grid(torso_workspace::GRID_FILE),
+        ..entry!(torso_workspace)
+    },
+    entry!(sca_damping),
+    entry!(multilevel_sim1),
+    entry!(multilevel_sim2),
+    entry!(multilevel_sim3),
+    entry!(multilevel_arm),
+    entry!(mobile_impedance),
+    entry!(mobile_impedance_critical),
+    Entry {
+        extra_files: Some(stability_map::write_files),
+        table: Table::Grid(stability_map::CSV_FILE),
+        ..entry!(stability_map)
+    },
+    Entry { extra_files: Some(icr_avoidance::write_files), ..entry!(icr_avoidance) },
+    entry!(wbc_step),
+    entry!(wbc_trajectory),
+    entry!(wbc_phri),
+    Entry { environment: Some(|| wbc_grasp::table().to_vec()), ..entry!(wbc_grasp) },
+    entry!(wipe_window),
+    entry!(sweep_floor),
+    entry!(clean_mug),
+    entry!(soak),
+];
+
+/// The scenarios: `(name, one-line description)`.
+pub fn list() -> Vec<(&'static str, &'static str)> {
+    SCENARIOS.iter().map(|s| (s.name, s.description)).collect()
+}
+
+/// How a scenario runs and where [`run`] writes its outputs: passed from the command line into
+/// every scenario.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RunOptions {
+    /// Output directory; `None`: `out/<scenario>`.
+    pub dir: Option<PathBuf>,
+    /// Write every `record_every`-th row of the time series into `timeseries.csv` (≥ 1).
+    pub record_every: u64,
+    /// The plant every simulator of the run drives ([`crate::plant`]).
+    pub plant: PlantKind,
+    /// The firmware target that controls the whole-body rig under QEMU, if any ([`crate::pil`]).
+    pub pil: Option<Target>,
+    /// Whether the scenario reports its progress on stderr.
+    pub progress: Progress,
+}
+
+/// Default decimation of `timeseries.csv`: every 10th control cycle (100 Hz at the 1 kHz loop).
+pub const DEFAULT_RECORD_EVERY: u64 = 10;
+
+/// Seed of the realistic plant's noise in every scenario but the soak (which uses `SOAK_SEED`).
+pub const PLANT_SEED: u64 = 0x91a7_5eed;
+
+impl Default for RunOptions {
+    /// `out/<scenario>`, every 10th row, the ideal plant, the host controller, silent.
+    fn default() -> Self {
+        Self {
+            dir: None,
+            record_every: DEFAULT_RECORD_EVERY,
+            plant: PlantKind::Ideal,
+            pil: None,
+            progress: Progress::Silent,
+        }
+    }
+}
+
+impl RunOptions {
+    /// The realistic plant's model with noise from `seed`, or `None` for the ideal plant.
+    pub fn plant_model(&self, seed: u64) -> Option<PlantModel> {
+        match self.plant {
+            PlantKind::Ideal => None,
+            PlantKind::Realistic => Some(PlantModel::justin(seed)),
+        }
+    }
+
+    /// These options without the progress line (for a scenario's secondary runs).
+    pub fn silent(&self) -> Self {
+        Self { progress: Progress::Silent, ..self.clone() }
+    }
+
+    /// A simulator of `model` with `config`, driving the plant of these options (noise from
+    /// [`PLANT_SEED`]).
+    pub fn simulator<const N: usize, const B: usize, const F: usize, const U: usize>(
+        &self,
+        model: Model<f64, N, B, F>,
+        config: SimConfig,
+    ) -> Result<Simulator<N, B, F, U>, String> {
+        let mut sim = Simulator::new(model, config)?;
+        sim.set_plant_model(self.plant_model(PLANT_SEED))?;
+        Ok(sim)
+    }
+}
+
+/// Runs scenario `name` and writes `timeseries.csv`, `summary.json`, its SVG plots and, for a
+/// scenario of the Justin robot, `replay.html` into the output directory (created if missing);
+/// prints a short result on stdout.
+///
+/// Errors: unknown scenario (the message lists the names), a failed simulation, an I/O error,
+/// or failed claims (after all outputs are written).
+pub fn run(name: &str, options: &RunOptions) -> Result<(), String> {
+    let Some(entry) = SCENARIOS.iter().find(|s| s.name == name) else {
+        let names: Vec<&str> = SCENARIOS.iter().map(|s| s.name).collect();
+        return Err(format!("unknown scenario `{name}`; known: {}", names.join(", ")));
+    };
+    let out = options.dir.clone().unwrap_or_else(|| Path::new("out").join(name));
+    let mut outcome = (entry.simulate)(options)?;
+    outcome.summary.value("plant", options.plant.name());
+    output::create_dir(&out)?;
+    let (table_file, every) = match entry.table {
+        Table::TimeSeries => ("timeseries.csv", options.record_every),
+        Table::Grid(file) => (file, 1),
+    };
+    outcome.series.write_csv(&out.join(table_file), every)?;
+    outcome.summary.write_json(&out.join("summary.json"))?;
+    let mut files = vec![table_file, "summary.json"];
+    for (file, figure) in &outcome.figures {
+        output::plot(&out.join(file), figure)?;
+        files.push(file);
+    }
+    if let Some(write) = entry.extra_files {
+        files.extend(write(&out, &outcome)?);
+    }
+    let replayable = replay::is_replayable(&outcome.series);
+    if replayable {
+        let environment = entry.environment.map(|volumes| volumes()).unwrap_or_default();
+        replay::write(&out, &outcome.series, &outcome.summary, &environment)?;
+        files.push("replay.html");
+    }
+    let passed = outcome.summary.passed_claims();
+    let failed = outcome.summary.failed_claims();
+    println!("{name}: {} claims passed, {} failed", passed.len(), failed.len());
+    for claim in passed {
+        println!("  pass: {claim}");
+    }
+    for claim in failed {
+        println!("  FAIL: {claim}");
+    }
+    println!("wrote {} in {}", files.join(", "), out.display());
+    println!("columns and units of {table_file}: docs/OUTPUT.md");
+    if replayable {
+        println!("watch the robot: open {} in a browser", out.join("replay.html").display());
+    }
+    if failed.is_empty() {
+        Ok(())
+    } else {
+        Err(format!("{name}: {} claim(s) failed", failed.len()))
+    }
+}
+
+/// Standard column names for per-joint signals: `q.<joint>`, `dq.<joint>`, `tau.<joint>`.
+pub fn joint_columns(names: &[&str]) -> Vec<String> {
+    ["q", "dq", "tau"].iter().flat_map(|p| names.iter().map(move |n| format!("{p}.{n}"))).collect()
+}
+
+/// Columns `e<level>.x, .y, .z, .rx, .ry, .rz` of a 6-D Cartesian task error.
+pub fn pose_error_columns(level: usize) -> Vec<String> {
+    ["x", "y", "z", "rx", "ry", "rz"].iter().map(|a| format!("e{level}.{a}")).collect()
+}
+
+/// Index of `name` in a time series' columns.
+pub(crate) fn column_index(series: &TimeSeries, name: &str) -> Result<usize, String> {
+    series.columns().iter().position(|c| c == name).ok_or_else(|| format!("no column {name}"))
+}
