@@ -92,7 +92,7 @@ use force_limit::{ForceLimiter, HandLimits};
 use guard::{limit_base_velocity, limit_leg_rates, rate_exceeded, saturate_with_priority, torque_box, Saturation};
 use observer::MomentumObserver;
 use recovery::Recovery;
-use speed_barrier::{speed_barrier, JointLimits};
+use speed_barrier::{joint_mobility, speed_barrier, JointLimits};
 use trajectory::{JointTrajectory, PoseTrajectory};
 
 /// Number of platform coordinates `r = (x, y, θ)`; they come first in `q`.
@@ -611,7 +611,7 @@ impl<
 
         let platform = self.platform_command(frame, dt)?;
         let terms = coupling_compensation(&self.data, &layout, &platform.acceleration).map_err(Fault::Platform)?;
-        let compensation = terms.torque(self.config.platform.compensation) + self.speed_barrier(&v);
+        let compensation = terms.torque(self.config.platform.compensation) + self.speed_barrier(&v, &inertia);
         let compensation = self.blend_from_hold(&compensation, &v);
         let torque = self.guard_torque(&compensation, &inertia, dt);
         self.commit(frame, &torque, &platform, &closed_loop, dt)
@@ -794,12 +794,11 @@ impl<
     }
 
     /// The joint speed barrier ([`speed_barrier`]) on the upper body, from the measured `v`
-    /// and the diagonal of `M`.
-    fn speed_barrier(&self, v: &SVector<T, N>) -> SVector<T, N> {
+    /// and the factor of the closed-loop inertia `M̃`.
+    fn speed_barrier(&self, v: &SVector<T, N>, inertia: &TreeFactorization<T, N>) -> SVector<T, N> {
         let active = self.config.layout.coordinates(JointGroup::UpperBody);
-        let inertia = self.data.mass_matrix.diagonal();
         let limits = JointLimits { speed: &self.model.limits.velocity, effort: &self.model.limits.effort };
-        speed_barrier(&self.config.speed_barrier, v, limits, &inertia, &active)
+        speed_barrier(&self.config.speed_barrier, v, limits, |i| joint_mobility(inertia, i), &active)
     }
 
     /// While returning from the safe output ([`recovery`]): the levels' torques scaled by the
