@@ -16,7 +16,7 @@ use super::guard::{
 };
 use super::layout::{Hand, JointGroup};
 use super::settings::ControllerSettings;
-use super::speed_barrier::{speed_barrier, JointLimits};
+use super::speed_barrier::{joint_mobility, speed_barrier, JointLimits};
 use super::state::{ControllerState, Workspace};
 use super::task_set::{evaluate, EvaluationContext, Scratch};
 use super::trajectory::{JointTrajectory, PoseTrajectory};
@@ -143,7 +143,7 @@ impl<
 
         let platform = self.platform_command(frame, dt)?;
         let terms = coupling_compensation(&self.work.data, &layout, &platform.acceleration).map_err(Fault::Platform)?;
-        let compensation = terms.torque(self.settings.config.platform.compensation) + self.speed_barrier(&v);
+        let compensation = terms.torque(self.settings.config.platform.compensation) + self.speed_barrier(&v, &inertia);
         let compensation = self.blend_from_hold(&compensation, &v);
         let torque = self.guard_torque(&compensation, &inertia, dt);
         self.commit(frame, &torque, &platform, &closed_loop, dt)
@@ -319,13 +319,12 @@ impl<
     }
 
     /// The joint speed barrier ([`mod@super::speed_barrier`]) on the upper body, from the measured `v`
-    /// and the diagonal of `M`.
-    fn speed_barrier(&self, v: &SVector<T, N>) -> SVector<T, N> {
+    /// and the factor of the closed-loop inertia `M̃`.
+    fn speed_barrier(&self, v: &SVector<T, N>, inertia: &TreeFactorization<T, N>) -> SVector<T, N> {
         let active = self.settings.config.layout.coordinates(JointGroup::UpperBody);
-        let inertia = self.work.data.mass_matrix.diagonal();
         let limits =
             JointLimits { speed: &self.settings.model.limits.velocity, effort: &self.settings.model.limits.effort };
-        speed_barrier(&self.settings.config.speed_barrier, v, limits, &inertia, &active)
+        speed_barrier(&self.settings.config.speed_barrier, v, limits, |i| joint_mobility(inertia, i), &active)
     }
 
     /// While returning from the safe output ([`super::recovery`]): the levels' torques scaled by the
