@@ -290,6 +290,7 @@ impl<
     /// Validates everything once: the configuration, every task's parameters and the initial
     /// hierarchy. The controller starts (targets at the measured poses) on its first valid
     /// frame.
+    #[inline(always)]
     pub fn try_new(
         model: Model<T, N, B, F>,
         collision_model: CollisionModel<T, V, P>,
