@@ -132,45 +132,6 @@ pub fn chapter_6_rig(hand: Hand, environment: &[SweptSphere<f64>], options: &Run
     rig(&justin::home_configuration(), environment, config, &whole_body::fig_6_3_hierarchy(hand), options)
 }
 
-/// A short name of a task for column headers.
-pub fn task_name(kind: TaskKind) -> String {
-    use kernel::controller::config::{Field, JointGroup};
-    let hand = |h: Hand| if h == Hand::Right { "right" } else { "left" };
-    let group = |g: JointGroup| match g {
-        JointGroup::Platform => "platform".to_string(),
-        JointGroup::Torso => "torso".to_string(),
-        JointGroup::Arm(h) => format!("{}_arm", hand(h)),
-        JointGroup::UpperBody => "upper_body".to_string(),
-    };
-    match kind {
-        TaskKind::CartesianImpedance(h) => format!("cartesian_{}", hand(h)),
-        TaskKind::CollisionAvoidance(Field::Strong) => "collision_strong".into(),
-        TaskKind::CollisionAvoidance(Field::Weak) => "collision_weak".into(),
-        TaskKind::SingularityAvoidance(h) => format!("singularity_{}", hand(h)),
-        TaskKind::EndStops => "end_stops".into(),
-        TaskKind::TorsoWorkspace => "torso_workspace".into(),
-        TaskKind::JointImpedance(g) => format!("joint_impedance_{}", group(g)),
-        TaskKind::JointDamping(g) => format!("joint_damping_{}", group(g)),
-    }
-}
-
-/// Every task kind the controller knows, for the fixed `a.<task>` / `tn.<task>` columns.
-pub fn all_tasks() -> Vec<TaskKind> {
-    use kernel::controller::config::{Field, JointGroup};
-    let mut kinds = Vec::new();
-    for hand in Hand::BOTH {
-        kinds.push(TaskKind::CartesianImpedance(hand));
-    }
-    kinds.extend([TaskKind::CollisionAvoidance(Field::Strong), TaskKind::CollisionAvoidance(Field::Weak)]);
-    for hand in Hand::BOTH {
-        kinds.push(TaskKind::SingularityAvoidance(hand));
-    }
-    kinds.extend([TaskKind::EndStops, TaskKind::TorsoWorkspace]);
-    kinds.extend(JointGroup::ALL.map(TaskKind::JointImpedance));
-    kinds.extend(JointGroup::ALL.map(TaskKind::JointDamping));
-    kinds
-}
-
 /// The columns [`Rig::record`] writes, in order.
 pub fn columns() -> Vec<String> {
     let mut columns = vec!["t".to_string()];
@@ -179,8 +140,8 @@ pub fn columns() -> Vec<String> {
     columns.extend(crate::scenarios::pose_error_columns(1));
     columns.extend((0..MAX_LEVELS).map(|l| format!("S{l}")));
     columns.extend((0..MAX_LEVELS).map(|l| format!("dS{l}")));
-    columns.extend(all_tasks().into_iter().map(|k| format!("a.{}", task_name(k))));
-    columns.extend(all_tasks().into_iter().map(|k| format!("tn.{}", task_name(k))));
+    columns.extend(TaskKind::ALL.map(|k| format!("a.{}", k.name())));
+    columns.extend(TaskKind::ALL.map(|k| format!("tn.{}", k.name())));
     columns.extend(
         [
             "vcmd.x",
@@ -271,8 +232,8 @@ impl Rig {
                 .find(|(k, _)| **k == Some(kind))
                 .map_or(0.0, |(_, v)| *v)
         };
-        row.extend(all_tasks().into_iter().map(|k| entry(k, &t.task_activation)));
-        row.extend(all_tasks().into_iter().map(|k| entry(k, &t.task_torque_norm)));
+        row.extend(TaskKind::ALL.map(|k| entry(k, &t.task_activation)));
+        row.extend(TaskKind::ALL.map(|k| entry(k, &t.task_torque_norm)));
         row.extend(output.platform.velocity.iter());
         row.extend(t.virtual_force.iter());
         row.extend(output.platform.leg_rates.iter());

@@ -63,6 +63,56 @@ pub enum TaskKind {
     JointDamping(JointGroup),
 }
 
+impl TaskKind {
+    /// Every task kind, in a fixed order (the telemetry columns of host-sim follow it).
+    pub const ALL: [TaskKind; 18] = [
+        TaskKind::CartesianImpedance(Hand::Right),
+        TaskKind::CartesianImpedance(Hand::Left),
+        TaskKind::CollisionAvoidance(Field::Strong),
+        TaskKind::CollisionAvoidance(Field::Weak),
+        TaskKind::SingularityAvoidance(Hand::Right),
+        TaskKind::SingularityAvoidance(Hand::Left),
+        TaskKind::EndStops,
+        TaskKind::TorsoWorkspace,
+        TaskKind::JointImpedance(JointGroup::Platform),
+        TaskKind::JointImpedance(JointGroup::Torso),
+        TaskKind::JointImpedance(JointGroup::Arm(Hand::Right)),
+        TaskKind::JointImpedance(JointGroup::Arm(Hand::Left)),
+        TaskKind::JointImpedance(JointGroup::UpperBody),
+        TaskKind::JointDamping(JointGroup::Platform),
+        TaskKind::JointDamping(JointGroup::Torso),
+        TaskKind::JointDamping(JointGroup::Arm(Hand::Right)),
+        TaskKind::JointDamping(JointGroup::Arm(Hand::Left)),
+        TaskKind::JointDamping(JointGroup::UpperBody),
+    ];
+
+    /// A short name for logs and column headers, e.g. `cartesian_right`,
+    /// `joint_impedance_left_arm`.
+    pub const fn name(self) -> &'static str {
+        use JointGroup::{Arm, Platform, Torso, UpperBody};
+        match self {
+            TaskKind::CartesianImpedance(Hand::Right) => "cartesian_right",
+            TaskKind::CartesianImpedance(Hand::Left) => "cartesian_left",
+            TaskKind::CollisionAvoidance(Field::Strong) => "collision_strong",
+            TaskKind::CollisionAvoidance(Field::Weak) => "collision_weak",
+            TaskKind::SingularityAvoidance(Hand::Right) => "singularity_right",
+            TaskKind::SingularityAvoidance(Hand::Left) => "singularity_left",
+            TaskKind::EndStops => "end_stops",
+            TaskKind::TorsoWorkspace => "torso_workspace",
+            TaskKind::JointImpedance(Platform) => "joint_impedance_platform",
+            TaskKind::JointImpedance(Torso) => "joint_impedance_torso",
+            TaskKind::JointImpedance(Arm(Hand::Right)) => "joint_impedance_right_arm",
+            TaskKind::JointImpedance(Arm(Hand::Left)) => "joint_impedance_left_arm",
+            TaskKind::JointImpedance(UpperBody) => "joint_impedance_upper_body",
+            TaskKind::JointDamping(Platform) => "joint_damping_platform",
+            TaskKind::JointDamping(Torso) => "joint_damping_torso",
+            TaskKind::JointDamping(Arm(Hand::Right)) => "joint_damping_right_arm",
+            TaskKind::JointDamping(Arm(Hand::Left)) => "joint_damping_left_arm",
+            TaskKind::JointDamping(UpperBody) => "joint_damping_upper_body",
+        }
+    }
+}
+
 /// One entry of the hierarchy: a task on a priority level (0 = highest).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -278,6 +328,21 @@ impl<T: RealField + Copy, const N: usize> ControllerConfig<T, N> {
         match checks.iter().find(|(ok, _)| !ok) {
             Some((_, name)) => Err(ConfigError::InvalidParameter { name }),
             None => Ok(()),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::TaskKind;
+
+    #[test]
+    fn every_task_kind_is_listed_once_with_its_own_name() {
+        for (i, a) in TaskKind::ALL.iter().enumerate() {
+            for b in TaskKind::ALL.iter().skip(i + 1) {
+                assert_ne!(a, b);
+                assert_ne!(a.name(), b.name());
+            }
         }
     }
 }
