@@ -334,7 +334,21 @@ impl<T: RealField + Copy, const N: usize> ControllerConfig<T, N> {
 
 #[cfg(test)]
 mod tests {
-    use super::TaskKind;
+    use super::{Field, Hand, JointGroup, TaskKind};
+
+    #[test]
+    fn the_list_holds_every_task_kind_of_every_hand_field_and_group() {
+        let mut kinds = heapless::Vec::<TaskKind, 18>::new();
+        let mut push = |kind| assert!(kinds.push(kind).is_ok());
+        Hand::BOTH.into_iter().for_each(|hand| push(TaskKind::CartesianImpedance(hand)));
+        [Field::Strong, Field::Weak].into_iter().for_each(|field| push(TaskKind::CollisionAvoidance(field)));
+        Hand::BOTH.into_iter().for_each(|hand| push(TaskKind::SingularityAvoidance(hand)));
+        push(TaskKind::EndStops);
+        push(TaskKind::TorsoWorkspace);
+        JointGroup::ALL.into_iter().for_each(|group| push(TaskKind::JointImpedance(group)));
+        JointGroup::ALL.into_iter().for_each(|group| push(TaskKind::JointDamping(group)));
+        assert_eq!(kinds.as_slice(), TaskKind::ALL.as_slice());
+    }
 
     #[test]
     fn every_task_kind_is_listed_once_with_its_own_name() {
