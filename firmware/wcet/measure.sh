@@ -6,7 +6,7 @@
 #   m4-f32  Cortex-M4F (mps2-an386), target-cpu=cortex-m4, f32
 # Each variant runs twice; the script fails if any count differs between the runs.
 # With --callgrind, also counts the same stages on the host (x86-64, valgrind callgrind, one
-# process per case and precision; the bench in wcet/host shares wcet/stages.rs with the image).
+# process per case and precision; the bench in wcet/host shares wcet/stages with the images).
 # With --time (implied by --callgrind), also host wall-clock percentiles of the full step.
 # Usage: bash firmware/wcet/measure.sh [--callgrind|--time]   (raw outputs in firmware/target/wcet/)
 # Method and its limits: firmware/wcet/README.md.
@@ -80,7 +80,7 @@ for v in "${variants[@]}"; do
     done
 done
 echo
-echo "Full Controller::step per input class (wcet-step image; insns min / median / max; frames of stages.rs)"
+echo "Full Controller::step per input class (wcet-step image; insns min / median / max; frames of wcet/stages)"
 printf '%-8s %-12s %6s %12s %12s %12s\n' variant class frames min median max
 for v in "${variants[@]}"; do
     # per-sample counts (plugin: 'wcet region=0 sample=K insns=X fp_div_sqrt=D') joined with the
@@ -131,7 +131,7 @@ if [ "${1:-}" = "--callgrind" ]; then
         export DEBIAN_FRONTEND=noninteractive
         apt-get update -qq && apt-get install -y -qq valgrind >/dev/null
     fi
-    cases=$(sed -n 's/^pub const CASES: u32 = \([0-9]*\);/\1/p' "$here/stages.rs")
+    cases=$(sed -n 's/^pub const CASES: u32 = \([0-9]*\);/\1/p' "$here/stages/src/lib.rs")
     echo
     echo "Host x86-64 instructions per call (callgrind, $cases cases, min - max)"
     printf '%-8s %-15s %12s %12s\n' variant stage min max
@@ -145,10 +145,10 @@ if [ "${1:-}" = "--callgrind" ]; then
             valgrind --tool=callgrind --collect-atstart=no --toggle-collect=wcet_dynamics \
                 --toggle-collect=wcet_self_collision --toggle-collect=wcet_projection \
                 --callgrind-out-file="$out/cg.out" "$bin" "$k" >/dev/null 2>&1
-            # The stage's own line (file stages.rs) carries its inclusive cost.
+            # The stage's own line (file wcet/stages/src/lib.rs) carries its inclusive cost.
             for st in "${stages[@]}"; do
                 n=$(callgrind_annotate --inclusive=yes "$out/cg.out" 2>/dev/null \
-                    | grep -E "stages\.rs:wcet_$st( |\$)" | head -n1 | awk '{ gsub(",", "", $1); print $1 }')
+                    | grep -E "lib\.rs:wcet_$st( |\$)" | head -n1 | awk '{ gsub(",", "", $1); print $1 }')
                 echo "$st $k $n" >> "$out/host-$prec.callgrind"
             done
         done
@@ -163,7 +163,7 @@ if [ "${1:-}" = "--callgrind" ]; then
             class=$(valgrind --tool=callgrind --collect-atstart=no --toggle-collect=wcet_step \
                 --callgrind-out-file="$out/cg.out" "$bin" step "$k" 2>/dev/null | sed -n 's/^frame [0-9]* class=\([a-z]*\).*/\1/p')
             n=$(callgrind_annotate --inclusive=yes "$out/cg.out" 2>/dev/null \
-                | grep -E "stages\.rs:wcet_step( |\$)" | head -n1 | awk '{ gsub(",", "", $1); print $1 }')
+                | grep -E "lib\.rs:wcet_step( |\$)" | head -n1 | awk '{ gsub(",", "", $1); print $1 }')
             echo "$n $class" >> "$out/host-$prec.step"
         done
         for class in nominal adversarial fault recovery all; do

@@ -18,10 +18,7 @@ use core::panic::PanicInfo;
 
 use cortex_m_rt::entry;
 
-#[path = "../../wcet/stages.rs"]
-#[allow(dead_code)]
-mod stages;
-use stages::*;
+use wcet_stages::*;
 
 static mut CONTROLLER: MaybeUninit<JustinController> = MaybeUninit::uninit();
 static mut FRAME: MaybeUninit<Frame> = MaybeUninit::uninit();

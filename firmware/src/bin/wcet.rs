@@ -29,10 +29,7 @@ use nalgebra::SMatrix;
 use panic_semihosting as _;
 
 // The stages image uses the stage inputs only; the full-step frames are `wcet_step.rs`'s.
-#[path = "../../wcet/stages.rs"]
-#[allow(dead_code)]
-mod stages;
-use stages::*;
+use wcet_stages::*;
 
 use firmware::probe::{self, exit, mark_begin, mark_end};
 

@@ -21,10 +21,7 @@ use cortex_m_semihosting::hprintln;
 use fixtures::justin;
 use panic_semihosting as _;
 
-#[path = "../../wcet/stages.rs"]
-#[allow(dead_code)]
-mod stages;
-use stages::*;
+use wcet_stages::*;
 
 use firmware::probe::{self, exit, mark_begin, mark_end, GUARD, PAINT};
 

@@ -17,10 +17,7 @@ use kernel::tasks::collision::{CollisionData, CollisionParameters};
 use kernel::Data;
 use nalgebra::{SMatrix, SVector};
 
-#[path = "../../stages.rs"]
-#[allow(dead_code)]
-mod stages;
-use stages::*;
+use wcet_stages::*;
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();

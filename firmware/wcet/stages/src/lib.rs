@@ -1,6 +1,8 @@
-//! The measured kernel stages and their inputs, shared by the Cortex-M image
-//! (`src/bin/wcet.rs`) and the host callgrind bench (`wcet/host`). See `wcet/measure.sh`.
-//! The scalar is `f32`, or `f64` with the `wcet-f64` feature of the including crate.
+//! The measured kernel stages and their inputs, shared by the Cortex-M images
+//! (`firmware/src/bin/{wcet,wcet_step,panic_check}.rs`) and the host callgrind bench
+//! (`wcet/host`). See `wcet/measure.sh`. The scalar is `f32`, or `f64` with the `wcet-f64`
+//! feature.
+#![no_std]
 
 use fixtures::justin;
 use fixtures::justin::collision::JustinCollisionModel;
