@@ -22,7 +22,7 @@ pub(super) fn unit_clamp<T: RealField + Copy>(value: T) -> T {
     }
 }
 
-/// `numerator / denominator` clamped to `[0, 1]` for `denominator > 0` (NaN maps to 0): the
+/// `numerator / denominator` clamped to `[0, 1]` for a finite `denominator > 0` (NaN maps to 0): the
 /// same value as [`unit_clamp`] of the quotient, dividing only when it lies inside.
 #[inline]
 pub(super) fn clamped_ratio<T: RealField + Copy>(numerator: T, denominator: T) -> T {
