@@ -243,4 +243,7 @@ fn closest_points_framed<T: RealField + Copy>(
 mod reference;
 
 #[cfg(test)]
+mod pruning_tests;
+
+#[cfg(test)]
 mod tests;

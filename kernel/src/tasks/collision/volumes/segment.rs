@@ -22,6 +22,21 @@ pub(super) fn unit_clamp<T: RealField + Copy>(value: T) -> T {
     }
 }
 
+/// `numerator / denominator` clamped to `[0, 1]` for a finite `denominator > 0` (NaN maps to 0): the
+/// same value as [`unit_clamp`] of the quotient, dividing only when it lies inside.
+#[inline]
+pub(super) fn clamped_ratio<T: RealField + Copy>(numerator: T, denominator: T) -> T {
+    if numerator > T::zero() {
+        if numerator < denominator {
+            numerator / denominator
+        } else {
+            T::one()
+        }
+    } else {
+        T::zero()
+    }
+}
+
 /// Closest point to `p` on the segment `[a, b]`.
 pub(super) fn closest_on_segment<T: RealField + Copy>(p: &Vector3<T>, a: &Vector3<T>, b: &Vector3<T>) -> Vector3<T> {
     closest_on_edge(p, a, &(b - a), (b - a).norm_squared())
@@ -38,7 +53,7 @@ pub(super) fn closest_on_edge<T: RealField + Copy>(
     if length2 <= negligible::<T>() {
         return *a;
     }
-    a + d * unit_clamp((p - a).dot(d) / length2)
+    a + d * clamped_ratio((p - a).dot(d), length2)
 }
 
 /// Closest points of the segments `[p1, q1]` and `[p2, q2]`.
@@ -76,14 +91,14 @@ pub(super) fn closest_edge_edge<T: RealField + Copy>(
     let point2 = |t: T| p2 + d2 * t;
     match (a <= tiny, e <= tiny) {
         (true, true) => return (*p1, *p2),
-        (true, false) => return (*p1, point2(unit_clamp(f / e))),
-        (false, true) => return (point1(unit_clamp(-d1.dot(&r) / a)), *p2),
+        (true, false) => return (*p1, point2(clamped_ratio(f, e))),
+        (false, true) => return (point1(clamped_ratio(-d1.dot(&r), a)), *p2),
         (false, false) => {}
     }
     let (b, c) = (d1.dot(d2), d1.dot(&r));
     let denominator = a * e - b * b;
     let mut s = if denominator > eps * a * e {
-        unit_clamp((b * f - c * e) / denominator)
+        clamped_ratio(b * f - c * e, denominator)
     } else {
         // Parallel: parameters of p2 and q2 projected onto the first segment.
         let (sa, sb) = (-c / a, (b - c) / a);
@@ -94,10 +109,14 @@ pub(super) fn closest_edge_edge<T: RealField + Copy>(
             unit_clamp(sa.min(sb))
         }
     };
-    let t_free = (b * s + f) / e;
-    let t = unit_clamp(t_free);
-    if t != t_free {
-        s = unit_clamp((b * t - c) / a);
-    }
+    // The best t for s; if it is clamped, the best s for the clamped t.
+    let t_numerator = b * s + f;
+    let t = if t_numerator >= T::zero() && t_numerator <= e {
+        t_numerator / e
+    } else {
+        let t = if t_numerator > e { T::one() } else { T::zero() };
+        s = clamped_ratio(b * t - c, a);
+        t
+    };
     (point1(s), point2(t))
 }

@@ -116,26 +116,28 @@ impl<T: RealField + Copy> TriangleFrame<T> {
         }
     }
 
-    /// For each edge `k`, `true` if `x` lies on its inner side, `(n × e_k) · (x − v_k) ≥ 0`
-    /// (the triple products `n · (e_k × (x − v_k))` of [`closest_on_triangle`]'s test,
-    /// regrouped): all `true` if the projection of `x` onto the plane lies inside or on the
-    /// triangle; all `false` for a degenerate triangle.
+    /// Bit `k` set if `x` lies on the inner side of edge `k`, `(n × e_k) · (x − v_k) ≥ 0` (the
+    /// triple products `n · (e_k × (x − v_k))` of [`closest_on_triangle`]'s test, regrouped):
+    /// [`INSIDE`] (all three bits) if the projection of `x` onto the plane lies inside or on the
+    /// triangle; no bit for a degenerate triangle.
     #[inline]
-    fn sides(&self, x: &Vector3<T>) -> [bool; 3] {
+    fn sides(&self, x: &Vector3<T>) -> u8 {
         if !self.planar {
-            return [false; 3];
+            return 0;
         }
         let zero = T::zero();
         let [m0, m1, m2] = &self.edge_normals;
         let [a, b, c] = &self.vertices;
-        [m0.dot(&(x - a)) >= zero, m1.dot(&(x - b)) >= zero, m2.dot(&(x - c)) >= zero]
+        u8::from(m0.dot(&(x - a)) >= zero)
+            | u8::from(m1.dot(&(x - b)) >= zero) << 1
+            | u8::from(m2.dot(&(x - c)) >= zero) << 2
     }
 
     /// The projection of `x` (height `height`) onto the plane if `sides` (its [`Self::sides`])
     /// puts it inside or on the triangle.
     #[inline]
-    fn projection(&self, x: &Vector3<T>, height: T, sides: [bool; 3]) -> Option<Vector3<T>> {
-        (sides == [true; 3]).then(|| x - self.normal * (height / self.normal_length2))
+    fn projection(&self, x: &Vector3<T>, height: T, sides: u8) -> Option<Vector3<T>> {
+        (sides == INSIDE).then(|| x - self.normal * (height / self.normal_length2))
     }
 
     /// Closest point to `p` on the triangle, with `height = self.height(p)`: the projection onto
@@ -148,29 +150,40 @@ impl<T: RealField + Copy> TriangleFrame<T> {
             return x;
         }
         let mut nearest = Nearest::new();
-        for (((v, e), &length2), inner) in self.vertices.iter().zip(&self.edges).zip(&self.edge_length2).zip(sides) {
-            if !inner {
+        let mut bit = 1;
+        for ((v, e), &length2) in self.vertices.iter().zip(&self.edges).zip(&self.edge_length2) {
+            if sides & bit == 0 {
                 nearest.offer(p, &closest_on_edge(p, v, e, length2));
             }
+            bit <<= 1;
         }
         nearest.pair.1
     }
 
     /// The point where the segment `[p, q]` pierces the triangle, given the heights `dp`, `dq`
-    /// of its ends, if it does.
-    #[inline]
+    /// of its ends, if it does: the sign test here, the crossing point in [`Self::crossing`].
+    #[inline(always)]
     fn piercing(&self, p: &Vector3<T>, q: &Vector3<T>, dp: T, dq: T) -> Option<Vector3<T>> {
         let zero = T::zero();
         let crosses = (dp <= zero && dq >= zero) || (dp >= zero && dq <= zero);
         if self.planar && crosses && dp != dq {
-            let x = p + (q - p) * (dp / (dp - dq));
-            if self.sides(&x) == [true; 3] {
-                return Some(x);
-            }
+            self.crossing(p, q, dp, dq)
+        } else {
+            None
         }
-        None
+    }
+
+    /// The point where the segment `[p, q]` with end heights `dp`, `dq` of opposite signs meets
+    /// the plane, if it lies inside or on the triangle.
+    #[inline(never)]
+    fn crossing(&self, p: &Vector3<T>, q: &Vector3<T>, dp: T, dq: T) -> Option<Vector3<T>> {
+        let x = p + (q - p) * (dp / (dp - dq));
+        (self.sides(&x) == INSIDE).then_some(x)
     }
 }
+
+/// [`TriangleFrame::sides`] of a point whose projection lies inside or on the triangle.
+const INSIDE: u8 = 0b111;
 
 /// The running nearest of candidate pairs (the first wins ties).
 struct Nearest<T: RealField> {
@@ -241,23 +254,26 @@ pub(super) fn closest_segment_framed<T: RealField + Copy>(
     }
     let (sp, sq) = (frame.sides(p), frame.sides(q));
     let mut nearest = Nearest::new();
-    for (x, end) in [(p, frame.projection(p, hp, sp)), (q, frame.projection(q, hq, sq))] {
-        if let Some(y) = end {
-            nearest.offer(x, &y);
-        }
+    if let Some(y) = frame.projection(p, hp, sp) {
+        nearest.offer(p, &y);
+    }
+    if let Some(y) = frame.projection(q, hq, sq) {
+        nearest.offer(q, &y);
     }
     if nearest.excludes(frame.clearance(hp, hq)) {
         return nearest.pair;
     }
     let d = q - p;
     let a = d.norm_squared();
-    for (((v, e), &length2), (inner_p, inner_q)) in
-        frame.vertices.iter().zip(&frame.edges).zip(&frame.edge_length2).zip(sp.into_iter().zip(sq))
-    {
-        if !(inner_p && inner_q) {
+    // Bit k: both ends lie on the inner side of edge k (then edge k is skipped).
+    let inner = sp & sq;
+    let mut bit = 1;
+    for ((v, e), &length2) in frame.vertices.iter().zip(&frame.edges).zip(&frame.edge_length2) {
+        if inner & bit == 0 {
             let (x, y) = closest_edge_edge(p, &d, a, v, e, length2);
             nearest.offer(&x, &y);
         }
+        bit <<= 1;
     }
     nearest.pair
 }
@@ -282,55 +298,70 @@ pub(super) fn closest_triangles_framed<T: RealField + Copy>(
     ft: &TriangleFrame<T>,
 ) -> (Vector3<T>, Vector3<T>) {
     let (s, t) = (&fs.vertices, &ft.vertices);
-    let [a, b, c] = s;
-    let [d, e, f] = t;
-    let [ha, hb, hc] = s.each_ref().map(|v| ft.height(v));
-    let [hd, he, hf] = t.each_ref().map(|v| fs.height(v));
-    let edges_s = [(a, b, ha, hb), (b, c, hb, hc), (c, a, hc, ha)];
-    let edges_t = [(d, e, hd, he), (e, f, he, hf), (f, d, hf, hd)];
-    for (p, q, hp, hq) in edges_s {
-        if let Some(x) = ft.piercing(p, q, hp, hq) {
-            return (x, x);
+    let hs = s.each_ref().map(|v| ft.height(v));
+    let ht = t.each_ref().map(|v| fs.height(v));
+    let ([a, b, c], [d, e, f]) = (s, t);
+    let ([ha, hb, hc], [hd, he, hf]) = (hs, ht);
+    // An edge pierces the other triangle only if its ends are not strictly on one side of that
+    // triangle's plane: with all three vertices on one side, none of the three does.
+    if straddles(hs) {
+        for (p, q, hp, hq) in [(a, b, ha, hb), (b, c, hb, hc), (c, a, hc, ha)] {
+            if let Some(x) = ft.piercing(p, q, hp, hq) {
+                return (x, x);
+            }
         }
     }
-    for (p, q, hp, hq) in edges_t {
-        if let Some(x) = fs.piercing(p, q, hp, hq) {
-            return (x, x);
+    if straddles(ht) {
+        for (p, q, hp, hq) in [(d, e, hd, he), (e, f, he, hf), (f, d, hf, hd)] {
+            if let Some(x) = fs.piercing(p, q, hp, hq) {
+                return (x, x);
+            }
         }
     }
-    let [sa, sb, sc] = s.each_ref().map(|v| ft.sides(v));
-    let [sd, se, sf] = t.each_ref().map(|v| fs.sides(v));
+    let ss = s.each_ref().map(|v| ft.sides(v));
+    let st = t.each_ref().map(|v| fs.sides(v));
     let mut nearest = Nearest::new();
-    for (v, h, side) in [(a, ha, sa), (b, hb, sb), (c, hc, sc)] {
+    for ((v, &h), &side) in s.iter().zip(&hs).zip(&ss) {
         if let Some(y) = ft.projection(v, h, side) {
             nearest.offer(v, &y);
         }
     }
-    for (v, h, side) in [(d, hd, sd), (e, he, se), (f, hf, sf)] {
+    for ((v, &h), &side) in t.iter().zip(&ht).zip(&st) {
         if let Some(x) = fs.projection(v, h, side) {
             nearest.offer(&x, v);
         }
     }
-    // Edge k of t has an end outside edge j of s: `outer_t[k][j]`; the bound of edge k of t.
-    let outer = |[x0, x1, x2]: [bool; 3], [y0, y1, y2]: [bool; 3]| [!(x0 && y0), !(x1 && y1), !(x2 && y2)];
-    let outer_t = [outer(sd, se), outer(se, sf), outer(sf, sd)];
-    let bounds_t = edges_t.map(|(_, _, hp, hq)| fs.clearance(hp, hq));
-    let sides_s = [(sa, sb), (sb, sc), (sc, sa)];
-    for (j, (((p, _, hp, hq), (sp, sq)), (edge, &length2))) in
-        edges_s.into_iter().zip(sides_s).zip(fs.edges.iter().zip(&fs.edge_length2)).enumerate()
-    {
-        let bound_s = ft.clearance(hp, hq);
-        if nearest.excludes(bound_s) {
-            continue;
-        }
-        let outer_s = outer(sp, sq);
-        let edges = ft.vertices.iter().zip(&ft.edges).zip(&ft.edge_length2);
-        for ((((v, e), &e2), out_s), (out_t, bound_t)) in edges.zip(outer_s).zip(outer_t.iter().zip(&bounds_t)) {
-            if (out_s || out_t.get(j).copied().unwrap_or(true)) && !nearest.excludes(*bound_t) {
-                let (x, y) = closest_edge_edge(p, edge, length2, v, e, e2);
-                nearest.offer(&x, &y);
+    // Bit k of `inner_s[j]`: both ends of edge j of s lie on the inner side of edge k of t; bit
+    // j of `inner_t[k]`: both ends of edge k of t on the inner side of edge j of s. The pair
+    // (j, k) is tested unless both hold, or a plane clearance rules out either edge.
+    let ([sa, sb, sc], [sd, se, sf]) = (ss, st);
+    let inner_s = [sa & sb, sb & sc, sc & sa];
+    let inner_t = [sd & se, se & sf, sf & sd];
+    let clear_s = [ft.clearance(ha, hb), ft.clearance(hb, hc), ft.clearance(hc, ha)];
+    let clear_t = [fs.clearance(hd, he), fs.clearance(he, hf), fs.clearance(hf, hd)];
+    let edges_s = s.iter().zip(&fs.edges).zip(&fs.edge_length2).zip(inner_s).zip(clear_s);
+    let mut bit_j = 1;
+    for ((((p, edge), &length2), inner_j), bound_s) in edges_s {
+        if !nearest.excludes(bound_s) {
+            let edges_t = t.iter().zip(&ft.edges).zip(&ft.edge_length2).zip(&inner_t).zip(&clear_t);
+            let mut bit_k = 1;
+            for ((((v, e), &e2), &inner_k), &bound_t) in edges_t {
+                if (inner_j & bit_k == 0 || inner_k & bit_j == 0) && !nearest.excludes(bound_t) {
+                    let (x, y) = closest_edge_edge(p, edge, length2, v, e, e2);
+                    nearest.offer(&x, &y);
+                }
+                bit_k <<= 1;
             }
         }
+        bit_j <<= 1;
     }
     nearest.pair
+}
+
+/// `false` if the heights are all strictly positive or all strictly negative (the points lie
+/// strictly on one side of a plane).
+#[inline]
+fn straddles<T: RealField + Copy>([h0, h1, h2]: [T; 3]) -> bool {
+    let zero = T::zero();
+    !((h0 > zero && h1 > zero && h2 > zero) || (h0 < zero && h1 < zero && h2 < zero))
 }
