@@ -197,16 +197,7 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
             for x in below.iter_mut() {
                 *x *= inverse;
             }
-            let mut tail = &*below;
-            for a in structure.ancestors(k) {
-                let Some((l_ki, _)) = tail.split_first() else { break };
-                if let Some(target) = before.get_mut(usize::from(*a)).and_then(|t| t.get_mut(..tail.len())) {
-                    for (h, l_kj) in target.iter_mut().zip(tail.iter()) {
-                        *h -= *l_ki * *l_kj;
-                    }
-                }
-                tail = tail.get(1..).unwrap_or(&[]);
-            }
+            eliminate(before, structure.ancestors(k), below);
         }
         Ok(())
     }
@@ -384,6 +375,49 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
             }
             if let Some(x) = xs.get_mut(k) {
                 *x = sum / *l_kk;
+            }
+        }
+    }
+}
+
+/// The update of [`TreeFactorization::factorize`] after the elimination of one coordinate with
+/// the scaled row `below = (L_{k,a})` over its ancestors `ancestors` (nearest first):
+/// `H_{a_t, a_s} −= L_{k,a_t} L_{k,a_s}` for `s ≥ t`, i.e. packed row `a_t` minus
+/// `L_{k,a_t} · below[t..]`. The ancestors are taken in pairs `(a_t, a_{t+1})`: both rows are
+/// updated in one pass over `below[t+1..]`, each entry of `below` loaded once for two
+/// multiply-adds.
+#[inline(always)]
+fn eliminate<T: RealField + Copy, const N: usize>(rows: &mut [[T; N]], ancestors: &[u16], below: &[T]) {
+    let mut t = 0;
+    while let (Some(&[a0, a1]), Some(&[l0, l1])) = (
+        ancestors.get(t..t + 2).and_then(|a| a.first_chunk::<2>()),
+        below.get(t..t + 2).and_then(|b| b.first_chunk::<2>()),
+    ) {
+        let (a0, a1) = (usize::from(a0), usize::from(a1));
+        let tail = below.get(t + 1..).unwrap_or(&[]);
+        // `a1 < a0` (nearest ancestor first): row `a1` below the split, row `a0` its first row.
+        if let Some((lower, upper)) = rows.split_at_mut_checked(a0) {
+            if let (Some(row0), Some(row1)) = (upper.first_mut(), lower.get_mut(a1)) {
+                if let (Some((first, rest0)), Some(rest1)) =
+                    (row0.get_mut(..=tail.len()).and_then(|r| r.split_first_mut()), row1.get_mut(..tail.len()))
+                {
+                    *first -= l0 * l0;
+                    for ((x0, x1), m) in rest0.iter_mut().zip(rest1.iter_mut()).zip(tail.iter()) {
+                        let m = *m;
+                        *x0 -= l0 * m;
+                        *x1 -= l1 * m;
+                    }
+                }
+            }
+        }
+        t += 2;
+    }
+    if let (Some(a), Some(tail)) = (ancestors.get(t), below.get(t..)) {
+        if let (Some(target), Some(&l)) =
+            (rows.get_mut(usize::from(*a)).and_then(|r| r.get_mut(..tail.len())), tail.first())
+        {
+            for (h, m) in target.iter_mut().zip(tail.iter()) {
+                *h -= l * *m;
             }
         }
     }
