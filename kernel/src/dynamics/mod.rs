@@ -42,6 +42,7 @@ mod jacobian_derivative;
 mod kernels;
 mod rnea;
 mod tree_factorization;
+mod tree_kernels;
 
 pub use coriolis_matrix::{composite_coriolis_operators, coriolis_matrix};
 pub use coriolis_products::{coriolis_product, coriolis_transpose_velocity};
