@@ -2,8 +2,9 @@
 //! algebra, ancestor walks) against the plain matrix-based reference algorithms
 //! (`kernel/src/dynamics/reference.rs`, the kernel's original implementation) on Justin and the
 //! planar and mobile fixtures at random states: forward kinematics, `M` (CRBA) and the composite
-//! inertias `I^c`, `C` and the composite operators `B^c`, `g`, RNEA and every frame Jacobian; f64 to rounding, f32 within
-//! single-precision accumulation of the f64 reference.
+//! inertias `I^c`, `C` and the composite operators `B^c`, the matrix-free products `C x` and
+//! `Cᵀ q̇` (against the reference `C` times the vector), `g`, RNEA and every frame Jacobian; f64
+//! to rounding, f32 within single-precision accumulation of the f64 reference.
 #![allow(clippy::unwrap_used, clippy::indexing_slicing, clippy::panic, reason = "test code")]
 
 /// The reference algorithms, shared with the kernel's own tests.
@@ -13,8 +14,9 @@ mod reference {
 }
 
 use kernel::dynamics::{
-    composite_coriolis_operators, composite_inertia_matrices, coriolis_matrix, crba, forward_kinematics,
-    frame_jacobian, gravity, placement_kinematics, rnea, support_kinematics,
+    composite_coriolis_operators, composite_inertia_matrices, coriolis_matrix, coriolis_product,
+    coriolis_transpose_velocity, crba, forward_kinematics, frame_jacobian, gravity, placement_kinematics, rnea,
+    support_kinematics,
 };
 use kernel::model::FrameId;
 use kernel::{Data, Model};
@@ -54,6 +56,9 @@ fn fast<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
     let cast = |x: &SVector<f64, N>| x.map(|e| nalgebra::convert::<f64, T>(e));
     let mut data = Data::new(model);
     forward_kinematics(model, &mut data, &cast(q), &cast(v)).unwrap();
+    // The matrix-free products, from the kinematics alone (before any other algorithm ran).
+    let c_a = to_f64(coriolis_product(model, &data, &cast(a)).as_slice());
+    let ct_v = to_f64(coriolis_transpose_velocity(model, &data).as_slice());
     let mut out = vec![("kinematics", kinematics(&data))];
     out.push(("M", to_f64(crba(model, &mut data).as_slice())));
     for ic in composite_inertia_matrices(&mut data) {
@@ -63,6 +68,8 @@ fn fast<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
     for bc in composite_coriolis_operators(&mut data) {
         out.push(("B^c", to_f64(bc.as_slice())));
     }
+    out.push(("C a", c_a));
+    out.push(("Cᵀ q̇", ct_v));
     out.push(("g", to_f64(gravity(model, &mut data).as_slice())));
     out.push(("rnea", to_f64(rnea(model, &mut data, &cast(a)).unwrap().as_slice())));
     for k in 0..model.frames().len() {
@@ -91,6 +98,8 @@ fn plain<const N: usize, const B: usize, const F: usize>(
     for b in &bc {
         out.push(("B^c", to_f64(b.as_slice())));
     }
+    out.push(("C a", to_f64((c * a).as_slice())));
+    out.push(("Cᵀ q̇", to_f64((c.transpose() * v).as_slice())));
     let mut at_rest = Data::new(model);
     reference::forward_kinematics(model, &mut at_rest, q, &SVector::zeros());
     out.push(("g", to_f64(reference::rnea(model, &at_rest, &SVector::zeros()).as_slice())));

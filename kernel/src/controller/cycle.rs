@@ -20,11 +20,13 @@ use super::speed_barrier::{joint_mobility, speed_barrier, JointLimits};
 use super::state::{ControllerState, Workspace};
 use super::task_set::{evaluate, EvaluationContext, Scratch};
 use super::trajectory::{JointTrajectory, PoseTrajectory};
-use crate::dynamics::{coriolis_matrix, crba, forward_kinematics, gravity, DynamicsError, TreeFactorization};
+use crate::dynamics::{
+    coriolis_transpose_velocity, crba, forward_kinematics, gravity, DynamicsError, TreeFactorization,
+};
 use crate::hierarchy::{project, HierarchyConfig, Weighting};
 use crate::math::sqrt;
 use crate::platform::avoidance::PlatformReference;
-use crate::platform::coupling_compensation::coupling_compensation;
+use crate::platform::coupling_compensation::coupling_compensation_recursive;
 use crate::platform::storage::closed_loop_inertia;
 use crate::tasks::collision::PairRowCache;
 
@@ -95,7 +97,6 @@ impl<
         let (model, data) = (&self.settings.model, &mut self.work.data);
         forward_kinematics(model, data, &q, &v).map_err(Fault::Dynamics)?;
         crba(model, data);
-        coriolis_matrix(model, data);
         gravity(model, data);
         let layout = self.settings.config.layout.platform;
         let closed_loop =
@@ -142,7 +143,9 @@ impl<
         project(&config, &self.work.stack, &mut self.work.projection).map_err(Fault::Hierarchy)?;
 
         let platform = self.platform_command(frame, dt)?;
-        let terms = coupling_compensation(&self.work.data, &layout, &platform.acceleration).map_err(Fault::Platform)?;
+        let terms =
+            coupling_compensation_recursive(&self.settings.model, &self.work.data, &layout, &platform.acceleration)
+                .map_err(Fault::Platform)?;
         let compensation = terms.torque(self.settings.config.platform.compensation) + self.speed_barrier(&v, &inertia);
         let compensation = self.blend_from_hold(&compensation, &v);
         let torque = self.guard_torque(&compensation, &inertia, dt);
@@ -434,7 +437,8 @@ impl<
             *m = *t;
         }
         let observed = self.settings.config.layout.coordinates(JointGroup::UpperBody);
-        let residual = *self.state.observer.update(&self.work.data, &measured, &observed, dt);
+        let coriolis = coriolis_transpose_velocity(&self.settings.model, &self.work.data);
+        let residual = *self.state.observer.update_with(&self.work.data, &coriolis, &measured, &observed, dt);
         let t = &mut self.state.telemetry;
         t.external_torque = residual;
         t.contact = sqrt(residual.norm_squared()) > self.settings.config.observer.contact_threshold;

@@ -335,7 +335,8 @@ impl<
         self.state.started
     }
 
-    /// The dynamics workspace of the last valid cycle.
+    /// The dynamics workspace of the last valid cycle. The step uses `C q̇`-type products only
+    /// ([`crate::dynamics::coriolis_product`]): `coriolis` and the Coriolis composites are not computed.
     pub fn data(&self) -> &Data<T, N, B, F> {
         &self.work.data
     }

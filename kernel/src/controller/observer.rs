@@ -55,6 +55,20 @@ impl<T: RealField + Copy, const N: usize> MomentumObserver<T, N> {
         observed: &[bool; N],
         dt: T,
     ) -> &SVector<T, N> {
+        let coriolis = data.coriolis.transpose() * data.v;
+        self.update_with(data, &coriolis, torque, observed, dt)
+    }
+
+    /// [`Self::update`] with `Cᵀ q̇` given (from [`crate::dynamics::coriolis_transpose_velocity`]):
+    /// reads `M`, `g` and `q̇` from `data`, not `data.coriolis`.
+    pub fn update_with<const B: usize, const F: usize>(
+        &mut self,
+        data: &Data<T, N, B, F>,
+        coriolis_transpose_velocity: &SVector<T, N>,
+        torque: &SVector<T, N>,
+        observed: &[bool; N],
+        dt: T,
+    ) -> &SVector<T, N> {
         let velocity = &data.v;
         let mask =
             SVector::<T, N>::from_fn(
@@ -68,8 +82,7 @@ impl<T: RealField + Copy, const N: usize> MomentumObserver<T, N> {
             self.started = true;
             return &self.residual;
         }
-        let rate =
-            (torque + data.coriolis.transpose() * velocity - data.gravity_torque + self.residual).component_mul(&mask);
+        let rate = (torque + coriolis_transpose_velocity - data.gravity_torque + self.residual).component_mul(&mask);
         self.integral += rate * dt;
         self.residual = (momentum - self.initial_momentum - self.integral) * self.gain;
         &self.residual

@@ -19,6 +19,7 @@
 //! | [`composite_inertia_matrices`] | the 6×6 `I^c` of [`crba`] | O(B) |
 //! | [`coriolis_matrix`] | `C(q, q̇)` with `Ṁ = C + Cᵀ` (2.7) | O(B·depth) |
 //! | [`composite_coriolis_operators`] | the 6×6 `B^c` of [`coriolis_matrix`] | O(B) |
+//! | [`coriolis_product`], [`coriolis_transpose_velocity`] | `C x`, `Cᵀ q̇` without forming `C` | O(B) |
 //! | [`mass_matrix_cholesky`], [`forward_dynamics`] | `M = L Lᵀ`, `q̈ = M⁻¹(τ − C q̇ − g)` | O(N³) |
 //! | [`TreeFactorization`] | `M = Lᵀ L` over the branch-induced sparsity, solves | O(Σ depth²) |
 //! | [`kinetic_energy`], [`potential_energy`] | `½ q̇ᵀ M q̇`, `−Σ m_i gᵀ c_i` | O(B) |
@@ -28,6 +29,7 @@
 //! `J = J_tree G`; see [`crate::model::JointDrive`].
 
 mod coriolis_matrix;
+mod coriolis_products;
 mod crba;
 mod energy;
 mod error;
@@ -40,8 +42,10 @@ mod jacobian_derivative;
 mod kernels;
 mod rnea;
 mod tree_factorization;
+mod tree_kernels;
 
 pub use coriolis_matrix::{composite_coriolis_operators, coriolis_matrix};
+pub use coriolis_products::{coriolis_product, coriolis_transpose_velocity};
 pub use crba::{composite_inertia_matrices, crba};
 pub use energy::{kinetic_energy, potential_energy};
 pub use error::DynamicsError;

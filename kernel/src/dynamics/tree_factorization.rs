@@ -10,6 +10,7 @@
 use nalgebra::{Cholesky, Const, RealField, SMatrix, SVector};
 
 use super::error::DynamicsError;
+use super::tree_kernels::{combine_ancestor_columns, eliminate};
 use crate::math::sqrt;
 use crate::model::Model;
 
@@ -197,16 +198,7 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
             for x in below.iter_mut() {
                 *x *= inverse;
             }
-            let mut tail = &*below;
-            for a in structure.ancestors(k) {
-                let Some((l_ki, _)) = tail.split_first() else { break };
-                if let Some(target) = before.get_mut(usize::from(*a)).and_then(|t| t.get_mut(..tail.len())) {
-                    for (h, l_kj) in target.iter_mut().zip(tail.iter()) {
-                        *h -= *l_ki * *l_kj;
-                    }
-                }
-                tail = tail.get(1..).unwrap_or(&[]);
-            }
+            eliminate(before, structure.ancestors(k), below);
         }
         Ok(())
     }
@@ -386,47 +378,6 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
                 *x = sum / *l_kk;
             }
         }
-    }
-}
-
-/// `head_j = scale · Σ_a L_a w_a[j]` for `j < head.len()` over the ancestor columns
-/// `w_a = columns[a]` and their weights `L_a = weights[·]` (paired in order): four entries of
-/// `head` at a time in local accumulators, each ancestor column read once per block.
-#[inline(always)]
-fn combine_ancestor_columns<T: RealField + Copy, const N: usize>(
-    head: &mut [T],
-    columns: &[[T; N]],
-    ancestors: &[u16],
-    weights: &[T],
-    scale: T,
-) {
-    let mut blocks = head.chunks_exact_mut(4);
-    let mut j = 0;
-    for block in &mut blocks {
-        let (mut s0, mut s1, mut s2, mut s3) = (T::zero(), T::zero(), T::zero(), T::zero());
-        for (a, l) in ancestors.iter().zip(weights.iter()) {
-            let entries = columns.get(usize::from(*a)).and_then(|w_a| w_a.get(j..)).and_then(|t| t.first_chunk::<4>());
-            if let Some([y0, y1, y2, y3]) = entries {
-                s0 += *l * *y0;
-                s1 += *l * *y1;
-                s2 += *l * *y2;
-                s3 += *l * *y3;
-            }
-        }
-        if let [x0, x1, x2, x3] = block {
-            *x0 = s0 * scale;
-            *x1 = s1 * scale;
-            *x2 = s2 * scale;
-            *x3 = s3 * scale;
-        }
-        j += 4;
-    }
-    for (offset, x) in blocks.into_remainder().iter_mut().enumerate() {
-        let mut s = T::zero();
-        for (a, l) in ancestors.iter().zip(weights.iter()) {
-            s += *l * columns.get(usize::from(*a)).and_then(|w_a| w_a.get(j + offset)).copied().unwrap_or_else(T::zero);
-        }
-        *x = s * scale;
     }
 }
 

@@ -22,7 +22,7 @@
 use nalgebra::{RealField, SVector, Vector3};
 
 use super::{PlatformError, PlatformLayout};
-use crate::model::Data;
+use crate::model::{Data, Model};
 
 /// Which parts of `τ_comp` (5.14) a controller applies.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -112,6 +112,43 @@ pub fn coupling_compensation<T: RealField + Copy, const N: usize, const B: usize
     layout: &PlatformLayout,
     base_acceleration: &Vector3<T>,
 ) -> Result<CouplingTerms<T, N>, PlatformError> {
+    compensation_terms(data, layout, base_acceleration, |i| {
+        let mut coriolis = T::zero();
+        for c in layout.axes().iter().filter_map(|axis| axis.coordinate()) {
+            let rate = data.v.get(c).copied().unwrap_or_else(T::zero);
+            coriolis += data.coriolis.get((i, c)).copied().unwrap_or_else(T::zero) * rate;
+        }
+        coriolis
+    })
+}
+
+/// Coupling compensation (5.14) as [`coupling_compensation`], with `C_qr ṙ = C (0; ṙ)` from
+/// the tree pass [`crate::dynamics::coriolis_product`] instead of the columns of
+/// `data.coriolis`: needs [`crate::dynamics::forward_kinematics`], `crba` and `gravity` at the
+/// same state, not `coriolis_matrix`. Errors: a non-finite acceleration. Cost O(B).
+pub fn coupling_compensation_recursive<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
+    model: &Model<T, N, B, F>,
+    data: &Data<T, N, B, F>,
+    layout: &PlatformLayout,
+    base_acceleration: &Vector3<T>,
+) -> Result<CouplingTerms<T, N>, PlatformError> {
+    let mut platform_rate = SVector::<T, N>::zeros();
+    for c in layout.axes().iter().filter_map(|axis| axis.coordinate()) {
+        if let (Some(slot), Some(rate)) = (platform_rate.get_mut(c), data.v.get(c)) {
+            *slot = *rate;
+        }
+    }
+    let product = crate::dynamics::coriolis_product(model, data, &platform_rate);
+    compensation_terms(data, layout, base_acceleration, |i| product.get(i).copied().unwrap_or_else(T::zero))
+}
+
+/// The terms of (5.14) with row `i` of `C_qr ṙ` from `coriolis_row(i)`.
+fn compensation_terms<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
+    data: &Data<T, N, B, F>,
+    layout: &PlatformLayout,
+    base_acceleration: &Vector3<T>,
+    coriolis_row: impl Fn(usize) -> T,
+) -> Result<CouplingTerms<T, N>, PlatformError> {
     if !crate::math::all_finite(base_acceleration) {
         return Err(PlatformError::NonFinite { input: "base_acceleration" });
     }
@@ -123,10 +160,9 @@ pub fn coupling_compensation<T: RealField + Copy, const N: usize, const B: usize
             continue;
         }
         *gravity = data.gravity_torque.get(i).copied().unwrap_or_else(T::zero);
+        *coriolis = coriolis_row(i);
         for (axis, acceleration) in layout.axes().iter().zip(base_acceleration.iter()) {
             let Some(c) = axis.coordinate() else { continue };
-            let rate = data.v.get(c).copied().unwrap_or_else(T::zero);
-            *coriolis += data.coriolis.get((i, c)).copied().unwrap_or_else(T::zero) * rate;
             if axis.is_admitted() {
                 *inertia += data.mass_matrix.get((i, c)).copied().unwrap_or_else(T::zero) * *acceleration;
             }
@@ -168,6 +204,10 @@ mod tests {
             let c_qq = data.coriolis * upper_v;
             let reference = *rnea(&model, &mut data, &qdd).unwrap() - c_qq;
             let tau = terms.torque(CompensationSwitch::ON);
+            let recursive = coupling_compensation_recursive(&model, &data, &layout, &acceleration).unwrap();
+            assert_eq!((recursive.inertia, recursive.gravity), (terms.inertia, terms.gravity));
+            let scale = nalgebra::convert::<f64, T>(tolerance * 1e-2) * (T::one() + terms.coriolis.amax());
+            assert!((recursive.coriolis - terms.coriolis).amax() <= scale, "seed {seed}: C_qr ṙ");
             assert_eq!(tau[0], T::zero());
             let error = (tau.rows(1, N - 1) - reference.rows(1, N - 1)).amax();
             assert!(error < nalgebra::convert(tolerance), "seed {seed}: {error}");
