@@ -258,8 +258,8 @@ fn fast_recursion_equals_the_reference_for_20_coordinates() {
     }
 }
 
-/// [`quadratic_form`], [`mat_vec_dot`] and [`projected_norm_squared`] (one pass) give bit for
-/// bit the sums of the plain [`mat_vec`], [`dot`] and [`norm_squared`] they replace, in f64
+/// [`quadratic_form`], [`mat_vec_dot`] and [`projected_norm_squared_adding`] (one pass) give bit
+/// for bit the sums of the plain [`mat_vec`], [`dot`], [`norm_squared`] and [`add_scaled`] they replace, in f64
 /// and f32, on random matrices and sparse random vectors (including the zero vector).
 #[test]
 fn fused_norms_equal_the_plain_mat_vec_bit_for_bit() {
@@ -271,9 +271,15 @@ fn fused_norms_equal_the_plain_mat_vec_bit_for_bit() {
         let mut fused = SVector::<T, M>::zeros();
         assert_eq!(mat_vec_dot::<T, M>(a.as_slice(), x.as_slice(), fused.as_mut_slice()), quadratic);
         assert_eq!(fused, ax);
-        let (x_squared, ax_squared) = projected_norm_squared::<T, M>(a.as_slice(), x.as_slice());
+        let force = T::from_f64(-1.7).unwrap();
+        let mut torque = SVector::<T, M>::from_fn(|i, _| T::from_f64(0.25 + i as f64).unwrap());
+        let mut plain = torque;
+        let (x_squared, ax_squared) =
+            projected_norm_squared_adding::<T, M>(a.as_slice(), x.as_slice(), force, torque.as_mut_slice());
         assert_eq!(x_squared, norm_squared(x.as_slice()));
         assert_eq!(ax_squared, norm_squared(ax.as_slice()));
+        add_scaled(plain.as_mut_slice(), x.as_slice(), force);
+        assert_eq!(torque, plain);
         // Not vacuous: the plain mat-vec agrees with nalgebra's product to rounding.
         let expected = a * x;
         assert!((ax - expected).amax() <= T::from_f64(1e-5).unwrap() * (T::one() + expected.amax()));
@@ -318,8 +324,9 @@ fn joint_row_transmissions_are_the_input_projector_column_norms() {
                 let mut smallest = 1.0_f64;
                 for (b, diagnostics) in data.rows[3..3 + N].iter().enumerate() {
                     let j = stack.rows()[3 + b].row.jacobian;
-                    let mut tmp = SVector::zeros();
-                    let general = transmission(&weighting, &input.projector, j.as_slice(), &mut tmp);
+                    let (mut tmp, mut torque) = (SVector::zeros(), SVector::zeros());
+                    let general = transmission(&weighting, &input.projector, j.as_slice(), 1.0, &mut torque, &mut tmp);
+                    assert_eq!(torque, j.transpose());
                     assert!((diagnostics.transmission - general).abs() < 1e-12, "seed {seed} column {b}");
                     smallest = smallest.min(general);
                 }
