@@ -121,8 +121,8 @@ impl<T: RealField + Copy, const N: usize, const R: usize, const L: usize> Defaul
 /// the projector (`4 N²` for one that does not lock), `N²` (less for sparse rows, none on the
 /// first level, a lookup for a joint row after `N²` once per level) per row of the last level
 /// without diagnostics.
-/// Errors (nothing written): a level `≥ L`, more rows than `R`, a non-finite row, an invalid
-/// shaping band.
+/// Errors (nothing written): a level `≥ L`, more rows than `R`, an invalid shaping band (a
+/// non-finite row cannot be on the stack: [`Stack::push`] refuses it).
 pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS: usize, const L: usize>(
     config: &HierarchyConfig<'_, T, N>,
     stack: &Stack<T, N, RS>,
@@ -401,21 +401,7 @@ fn validate<T: RealField + Copy, const N: usize, const RS: usize>(
     if stack.level_count() > level_capacity {
         return Err(HierarchyError::TooManyLevels { capacity: level_capacity });
     }
-    // `x · 0` is ±0 for a finite `x` and NaN otherwise, and NaN propagates through the sum: one
-    // multiply-add per entry instead of a test and a branch.
-    let finite = stack.rows().iter().all(|r| {
-        let zero = T::zero();
-        let probe = r
-            .row
-            .jacobian
-            .as_slice()
-            .iter()
-            .fold(r.row.force * zero + r.row.activation * zero, |sum, &x| sum + x * zero);
-        probe == zero
-    });
-    if !finite {
-        return Err(HierarchyError::NonFinite);
-    }
+    // The rows are finite: the stack refuses others.
     let band_ok = match config.shaping {
         Shaping::Continuous { singular_full, singular_start } => {
             singular_full.is_finite()

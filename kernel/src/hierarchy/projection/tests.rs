@@ -207,19 +207,23 @@ fn bad_input_is_rejected_without_output() {
     let mut data = HierarchyData::<f64, N, 8, 4> { torque: SVector::repeat(7.0), ..Default::default() };
     let cfg = config(Recursion::Augmented, Weighting::Identity);
     assert_eq!(project(&cfg, &stack, &mut data), Err(HierarchyError::TooManyLevels { capacity: 4 }));
+    // A non-finite row never reaches the projection: the stack refuses it and stays as it was.
     stack.clear();
-    stack.push(0, TaskRow { force: f64::NAN, ..row(RowSVector::zeros(), 0.0) }).unwrap();
-    assert_eq!(project(&cfg, &stack, &mut data), Err(HierarchyError::NonFinite));
+    stack.push(1, row(RowSVector::from_element(1.0), 1.0)).unwrap();
+    let before = stack.clone();
+    assert_eq!(
+        stack.push(0, TaskRow { force: f64::NAN, ..row(RowSVector::zeros(), 0.0) }),
+        Err(HierarchyError::NonFinite)
+    );
     for (entry, value) in [(0, f64::INFINITY), (N - 1, f64::NEG_INFINITY), (2, f64::NAN)] {
         let mut j = RowSVector::<f64, N>::from_element(1e300);
         j[entry] = value;
-        stack.clear();
-        stack.push(0, row(j, 1.0)).unwrap();
-        assert_eq!(project(&cfg, &stack, &mut data), Err(HierarchyError::NonFinite), "entry {entry}");
+        assert_eq!(stack.push(3, row(j, 1.0)), Err(HierarchyError::NonFinite), "entry {entry}");
     }
-    stack.clear();
-    stack.push(0, TaskRow { activation: f64::NEG_INFINITY, ..row(RowSVector::from_element(1.0), 0.0) }).unwrap();
-    assert_eq!(project(&cfg, &stack, &mut data), Err(HierarchyError::NonFinite));
+    let infinite = TaskRow { activation: f64::NEG_INFINITY, ..row(RowSVector::from_element(1.0), 0.0) };
+    assert_eq!(stack.push(0, infinite), Err(HierarchyError::NonFinite));
+    assert_eq!(stack, before);
+    assert_eq!(stack.level_count(), 2);
     assert_eq!(data.torque, SVector::<f64, N>::repeat(7.0));
     let bad = HierarchyConfig { shaping: Shaping::Continuous { singular_full: 0.2, singular_start: 0.1 }, ..cfg };
     assert_eq!(project(&bad, &Stack::<f64, N, 8>::new(), &mut data), Err(HierarchyError::InvalidShaping));
