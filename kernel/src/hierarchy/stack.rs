@@ -18,9 +18,15 @@ pub struct StackRow<T, const N: usize> {
 /// All rows of all tasks, capacity `R`, in insertion order. Levels need not be inserted in
 /// order; [`super::project`] processes them from 0 upwards and, within a level, in insertion
 /// order.
+///
+/// Every row on the stack has a finite Jacobian, force and activation (a row that does not is
+/// refused by [`Self::push`]; the rows of a [`TaskRows`] are finite by construction), so the
+/// projection does not test them again.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Stack<T, const N: usize, const R: usize> {
     rows: Vec<StackRow<T, N>, R>,
+    /// Highest level + 1 (0 when empty).
+    level_count: usize,
 }
 
 impl<T: RealField + Copy, const N: usize, const R: usize> Default for Stack<T, N, R> {
@@ -32,17 +38,30 @@ impl<T: RealField + Copy, const N: usize, const R: usize> Default for Stack<T, N
 impl<T: RealField + Copy, const N: usize, const R: usize> Stack<T, N, R> {
     /// An empty stack.
     pub const fn new() -> Self {
-        Self { rows: Vec::new() }
+        Self { rows: Vec::new(), level_count: 0 }
     }
 
     /// Removes every row.
     pub fn clear(&mut self) {
         self.rows.clear();
+        self.level_count = 0;
     }
 
-    /// Appends one row on `level`.
+    /// Appends one row on `level`. Errors (nothing appended): a full stack, a row with a
+    /// non-finite Jacobian entry, force or activation.
     pub fn push(&mut self, level: usize, row: TaskRow<T, N>) -> Result<(), HierarchyError> {
-        self.rows.push(StackRow { level, row }).map_err(|_| HierarchyError::Capacity { capacity: R })
+        if !finite(&row) {
+            return Err(HierarchyError::NonFinite);
+        }
+        self.push_finite(level, row)
+    }
+
+    /// Appends one row known to be finite (a row of a [`TaskRows`], possibly with its force and
+    /// activation scaled by a weight in `[0, 1]`).
+    pub(super) fn push_finite(&mut self, level: usize, row: TaskRow<T, N>) -> Result<(), HierarchyError> {
+        self.rows.push(StackRow { level, row }).map_err(|_| HierarchyError::Capacity { capacity: R })?;
+        self.level_count = self.level_count.max(level.saturating_add(1));
+        Ok(())
     }
 
     /// Appends all rows of a task on `level`; all or nothing.
@@ -50,7 +69,7 @@ impl<T: RealField + Copy, const N: usize, const R: usize> Stack<T, N, R> {
         if self.rows.len() + rows.len() > R {
             return Err(HierarchyError::Capacity { capacity: R });
         }
-        rows.rows().iter().try_for_each(|row| self.push(level, *row))
+        rows.rows().iter().try_for_each(|row| self.push_finite(level, *row))
     }
 
     /// The rows in insertion order.
@@ -60,6 +79,15 @@ impl<T: RealField + Copy, const N: usize, const R: usize> Stack<T, N, R> {
 
     /// Number of levels in use (highest level + 1; 0 when empty).
     pub fn level_count(&self) -> usize {
-        self.rows.iter().map(|r| r.level + 1).max().unwrap_or(0)
+        self.level_count
     }
+}
+
+/// `true` if the Jacobian, the force and the activation of `row` are finite. `x · 0` is `±0` for
+/// a finite `x` and NaN otherwise, and NaN propagates through the sum: one multiply-add per
+/// entry instead of a test and a branch.
+fn finite<T: RealField + Copy, const N: usize>(row: &TaskRow<T, N>) -> bool {
+    let zero = T::zero();
+    let probe = row.jacobian.as_slice().iter().fold(row.force * zero + row.activation * zero, |sum, &x| sum + x * zero);
+    probe == zero
 }

@@ -66,7 +66,8 @@ pub fn push_scaled<T: RealField + Copy, const N: usize, const R: usize, const Q:
     }
     let weight = weight.min(T::one());
     for row in rows.rows() {
-        stack.push(level, TaskRow { force: row.force * weight, activation: row.activation * weight, ..*row })?;
+        // A finite row scaled by a weight in `(0, 1]` stays finite.
+        stack.push_finite(level, TaskRow { force: row.force * weight, activation: row.activation * weight, ..*row })?;
     }
     Ok(())
 }

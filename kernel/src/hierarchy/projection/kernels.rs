@@ -32,14 +32,21 @@ pub(super) fn quadratic_form<T: RealField + Copy, const N: usize>(a: &[T], x: &[
 }
 
 /// `(‖x‖², ‖A x‖²)` for the column-major `N × N` matrix `a` in one pass over the nonzero entries
-/// of `x`: `A x` is accumulated in registers as in [`mat_vec`] and never stored. The sums equal
-/// those of [`norm_squared`] and [`mat_vec`] bit for bit (the skipped terms are `+0`).
-pub(super) fn projected_norm_squared<T: RealField + Copy, const N: usize>(a: &[T], x: &[T]) -> (T, T) {
+/// of `x`, adding `x f` to `t` in the same pass: `A x` is accumulated in registers as in
+/// [`mat_vec`] and never stored. The sums equal those of [`norm_squared`], [`mat_vec`] and the
+/// plain `t + x f` bit for bit (the skipped terms are `±0`).
+pub(super) fn projected_norm_squared_adding<T: RealField + Copy, const N: usize>(
+    a: &[T],
+    x: &[T],
+    f: T,
+    t: &mut [T],
+) -> (T, T) {
     let mut sum = [T::zero(); N];
     let mut x_squared = T::zero();
-    for (column, &xc) in a.chunks_exact(N.max(1)).zip(x) {
+    for ((column, &xc), tc) in a.chunks_exact(N.max(1)).zip(x).zip(t.iter_mut()) {
         if xc != T::zero() {
             x_squared += xc * xc;
+            *tc += xc * f;
             for (v, &aic) in sum.iter_mut().zip(column) {
                 *v += aic * xc;
             }

@@ -9,8 +9,8 @@ use super::error::HierarchyError;
 use super::stack::Stack;
 use crate::math::sqrt;
 use kernels::{
-    cholesky_inverse, column_norms_of, dot, mat_vec, mat_vec_dot, norm_squared, projected_norm_squared, quadratic_form,
-    rank_one_update,
+    cholesky_inverse, column_norms_of, dot, mat_vec, mat_vec_dot, norm_squared, projected_norm_squared_adding,
+    quadratic_form, rank_one_update,
 };
 #[cfg(test)]
 use {
@@ -121,8 +121,8 @@ impl<T: RealField + Copy, const N: usize, const R: usize, const L: usize> Defaul
 /// the projector (`4 N²` for one that does not lock), `N²` (less for sparse rows, none on the
 /// first level, a lookup for a joint row after `N²` once per level) per row of the last level
 /// without diagnostics.
-/// Errors (nothing written): a level `≥ L`, more rows than `R`, a non-finite row, an invalid
-/// shaping band.
+/// Errors (nothing written): a level `≥ L`, more rows than `R`, an invalid shaping band (a
+/// non-finite row cannot be on the stack: [`Stack::push`] refuses it).
 pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS: usize, const L: usize>(
     config: &HierarchyConfig<'_, T, N>,
     stack: &Stack<T, N, RS>,
@@ -171,22 +171,20 @@ pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS
             let row = r.row.jacobian.as_slice();
             let force = r.row.force;
             let single = if identity_input || accelerated { None } else { single_entry(row) };
-            match single.and_then(|b| task_torque.get_mut(b).zip(row.get(b))) {
-                Some((t, &j)) => *t += j * force,
-                None => {
-                    for (t, &j) in task_torque.as_mut_slice().iter_mut().zip(row) {
-                        *t += j * force;
-                    }
+            let transmission = match single.and_then(|b| task_torque.get_mut(b).zip(row.get(b)).map(|tj| (b, tj))) {
+                Some((b, (t, &j))) => {
+                    *t += j * force;
+                    column_norms
+                        .get_or_insert_with(|| column_norms_of::<T, N>(projector.as_slice()))
+                        .get(b)
+                        .copied()
+                        .unwrap_or_else(T::one)
                 }
-            }
-            let transmission = match single {
-                _ if identity_input => T::one(),
-                Some(b) => column_norms
-                    .get_or_insert_with(|| column_norms_of::<T, N>(projector.as_slice()))
-                    .get(b)
-                    .copied()
-                    .unwrap_or_else(T::one),
-                None => transmission(&config.weighting, projector, row, &mut scratch.u),
+                None if identity_input => {
+                    add_scaled(task_torque.as_mut_slice(), row, force);
+                    T::one()
+                }
+                None => transmission(&config.weighting, projector, row, force, &mut task_torque, &mut scratch.u),
             };
             *slot =
                 RowDiagnostics { level, activation: r.row.activation, projected_norm_ratio: T::zero(), transmission };
@@ -316,28 +314,39 @@ fn update_row<T: RealField + Copy, const N: usize>(
 }
 
 /// `‖N_in jᵀ‖ / ‖jᵀ‖` (the acceleration-based projector: `‖M N M⁻¹ jᵀ‖ / ‖jᵀ‖`), 1 for a zero
-/// row. `tmp` receives the projected row (acceleration-based projector only; the others form
-/// both norms in one pass, [`projected_norm_squared`]).
+/// row; adds `jᵀ f` to `task_torque`. `tmp` receives the projected row (acceleration-based
+/// projector only; the others form both norms and the torque in one pass over the nonzero
+/// entries of the row, [`projected_norm_squared_adding`]).
 fn transmission<T: RealField + Copy, const N: usize>(
     weighting: &Weighting<'_, T, N>,
     input: &SMatrix<T, N, N>,
     row: &[T],
+    force: T,
+    task_torque: &mut SVector<T, N>,
     tmp: &mut SVector<T, N>,
 ) -> T {
     let (row_squared, projected_squared) = match weighting {
         Weighting::AccelerationBased(_) => {
+            add_scaled(task_torque.as_mut_slice(), row, force);
             let row_squared = norm_squared(row);
             if row_squared > T::zero() {
                 apply_projector(weighting, input, row, tmp);
             }
             (row_squared, norm_squared(tmp.as_slice()))
         }
-        _ => projected_norm_squared::<T, N>(input.as_slice(), row),
+        _ => projected_norm_squared_adding::<T, N>(input.as_slice(), row, force, task_torque.as_mut_slice()),
     };
     if row_squared > T::zero() {
         sqrt(projected_squared / row_squared)
     } else {
         T::one()
+    }
+}
+
+/// `t ← t + x f`.
+fn add_scaled<T: RealField + Copy>(t: &mut [T], x: &[T], f: T) {
+    for (t, &x) in t.iter_mut().zip(x) {
+        *t += x * f;
     }
 }
 
@@ -392,21 +401,7 @@ fn validate<T: RealField + Copy, const N: usize, const RS: usize>(
     if stack.level_count() > level_capacity {
         return Err(HierarchyError::TooManyLevels { capacity: level_capacity });
     }
-    // `x · 0` is ±0 for a finite `x` and NaN otherwise, and NaN propagates through the sum: one
-    // multiply-add per entry instead of a test and a branch.
-    let finite = stack.rows().iter().all(|r| {
-        let zero = T::zero();
-        let probe = r
-            .row
-            .jacobian
-            .as_slice()
-            .iter()
-            .fold(r.row.force * zero + r.row.activation * zero, |sum, &x| sum + x * zero);
-        probe == zero
-    });
-    if !finite {
-        return Err(HierarchyError::NonFinite);
-    }
+    // The rows are finite: the stack refuses others.
     let band_ok = match config.shaping {
         Shaping::Continuous { singular_full, singular_start } => {
             singular_full.is_finite()

@@ -207,19 +207,23 @@ fn bad_input_is_rejected_without_output() {
     let mut data = HierarchyData::<f64, N, 8, 4> { torque: SVector::repeat(7.0), ..Default::default() };
     let cfg = config(Recursion::Augmented, Weighting::Identity);
     assert_eq!(project(&cfg, &stack, &mut data), Err(HierarchyError::TooManyLevels { capacity: 4 }));
+    // A non-finite row never reaches the projection: the stack refuses it and stays as it was.
     stack.clear();
-    stack.push(0, TaskRow { force: f64::NAN, ..row(RowSVector::zeros(), 0.0) }).unwrap();
-    assert_eq!(project(&cfg, &stack, &mut data), Err(HierarchyError::NonFinite));
+    stack.push(1, row(RowSVector::from_element(1.0), 1.0)).unwrap();
+    let before = stack.clone();
+    assert_eq!(
+        stack.push(0, TaskRow { force: f64::NAN, ..row(RowSVector::zeros(), 0.0) }),
+        Err(HierarchyError::NonFinite)
+    );
     for (entry, value) in [(0, f64::INFINITY), (N - 1, f64::NEG_INFINITY), (2, f64::NAN)] {
         let mut j = RowSVector::<f64, N>::from_element(1e300);
         j[entry] = value;
-        stack.clear();
-        stack.push(0, row(j, 1.0)).unwrap();
-        assert_eq!(project(&cfg, &stack, &mut data), Err(HierarchyError::NonFinite), "entry {entry}");
+        assert_eq!(stack.push(3, row(j, 1.0)), Err(HierarchyError::NonFinite), "entry {entry}");
     }
-    stack.clear();
-    stack.push(0, TaskRow { activation: f64::NEG_INFINITY, ..row(RowSVector::from_element(1.0), 0.0) }).unwrap();
-    assert_eq!(project(&cfg, &stack, &mut data), Err(HierarchyError::NonFinite));
+    let infinite = TaskRow { activation: f64::NEG_INFINITY, ..row(RowSVector::from_element(1.0), 0.0) };
+    assert_eq!(stack.push(0, infinite), Err(HierarchyError::NonFinite));
+    assert_eq!(stack, before);
+    assert_eq!(stack.level_count(), 2);
     assert_eq!(data.torque, SVector::<f64, N>::repeat(7.0));
     let bad = HierarchyConfig { shaping: Shaping::Continuous { singular_full: 0.2, singular_start: 0.1 }, ..cfg };
     assert_eq!(project(&bad, &Stack::<f64, N, 8>::new(), &mut data), Err(HierarchyError::InvalidShaping));
@@ -258,8 +262,8 @@ fn fast_recursion_equals_the_reference_for_20_coordinates() {
     }
 }
 
-/// [`quadratic_form`], [`mat_vec_dot`] and [`projected_norm_squared`] (one pass) give bit for
-/// bit the sums of the plain [`mat_vec`], [`dot`] and [`norm_squared`] they replace, in f64
+/// [`quadratic_form`], [`mat_vec_dot`] and [`projected_norm_squared_adding`] (one pass) give bit
+/// for bit the sums of the plain [`mat_vec`], [`dot`], [`norm_squared`] and [`add_scaled`] they replace, in f64
 /// and f32, on random matrices and sparse random vectors (including the zero vector).
 #[test]
 fn fused_norms_equal_the_plain_mat_vec_bit_for_bit() {
@@ -271,9 +275,15 @@ fn fused_norms_equal_the_plain_mat_vec_bit_for_bit() {
         let mut fused = SVector::<T, M>::zeros();
         assert_eq!(mat_vec_dot::<T, M>(a.as_slice(), x.as_slice(), fused.as_mut_slice()), quadratic);
         assert_eq!(fused, ax);
-        let (x_squared, ax_squared) = projected_norm_squared::<T, M>(a.as_slice(), x.as_slice());
+        let force = T::from_f64(-1.7).unwrap();
+        let mut torque = SVector::<T, M>::from_fn(|i, _| T::from_f64(0.25 + i as f64).unwrap());
+        let mut plain = torque;
+        let (x_squared, ax_squared) =
+            projected_norm_squared_adding::<T, M>(a.as_slice(), x.as_slice(), force, torque.as_mut_slice());
         assert_eq!(x_squared, norm_squared(x.as_slice()));
         assert_eq!(ax_squared, norm_squared(ax.as_slice()));
+        add_scaled(plain.as_mut_slice(), x.as_slice(), force);
+        assert_eq!(torque, plain);
         // Not vacuous: the plain mat-vec agrees with nalgebra's product to rounding.
         let expected = a * x;
         assert!((ax - expected).amax() <= T::from_f64(1e-5).unwrap() * (T::one() + expected.amax()));
@@ -318,8 +328,9 @@ fn joint_row_transmissions_are_the_input_projector_column_norms() {
                 let mut smallest = 1.0_f64;
                 for (b, diagnostics) in data.rows[3..3 + N].iter().enumerate() {
                     let j = stack.rows()[3 + b].row.jacobian;
-                    let mut tmp = SVector::zeros();
-                    let general = transmission(&weighting, &input.projector, j.as_slice(), &mut tmp);
+                    let (mut tmp, mut torque) = (SVector::zeros(), SVector::zeros());
+                    let general = transmission(&weighting, &input.projector, j.as_slice(), 1.0, &mut torque, &mut tmp);
+                    assert_eq!(torque, j.transpose());
                     assert!((diagnostics.transmission - general).abs() < 1e-12, "seed {seed} column {b}");
                     smallest = smallest.min(general);
                 }
