@@ -269,8 +269,8 @@ pub(super) fn pair_row<
 /// The configuration-dependent part of pair `pair`'s row: the two projected Jacobians written in
 /// place ([`projected_jacobian_into`]), their difference written into `jacobian`, and the sum of
 /// both inverse reflected masses (3.20), returned: one forward substitution over the factor for
-/// both ([`inverse_reflected_masses`] on dense rows, [`TreeFactorization::inverse_reflected_masses`]
-/// on the tree factor); none for a world-fixed volume, whose mass is infinite. The proximity must have a direction.
+/// both ([`inverse_reflected_masses`] on dense rows) or one substitution along each support
+/// path ([`TreeFactorization::inverse_reflected_mass`] on the tree factor); none for a world-fixed volume, whose mass is infinite. The proximity must have a direction.
 fn pair_kinematics<
     T: RealField + Copy,
     const N: usize,
@@ -309,11 +309,10 @@ fn pair_kinematics<
         (true, false, PairFactor::Rows(rows)) => inverse_reflected_masses(rows, [&jacobian_first])?[0],
         (false, true, PairFactor::Rows(rows)) => inverse_reflected_masses(rows, [&jacobian_second])?[0],
         (true, true, PairFactor::Tree(tree)) => {
-            let [wi, wj] = tree.inverse_reflected_masses([&jacobian_first, &jacobian_second]);
-            wi + wj
+            tree.inverse_reflected_mass(&jacobian_first) + tree.inverse_reflected_mass(&jacobian_second)
         }
-        (true, false, PairFactor::Tree(tree)) => tree.inverse_reflected_masses([&jacobian_first])[0],
-        (false, true, PairFactor::Tree(tree)) => tree.inverse_reflected_masses([&jacobian_second])[0],
+        (true, false, PairFactor::Tree(tree)) => tree.inverse_reflected_mass(&jacobian_first),
+        (false, true, PairFactor::Tree(tree)) => tree.inverse_reflected_mass(&jacobian_second),
         (false, false, _) => T::zero(),
     };
     // The difference and its finiteness in one pass (no early exit: a branch-free flag).
