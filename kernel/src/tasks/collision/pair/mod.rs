@@ -253,4 +253,6 @@ pub fn evaluate_pair<
 }
 
 #[cfg(test)]
+mod reflected_mass_tests;
+#[cfg(test)]
 mod tests;
