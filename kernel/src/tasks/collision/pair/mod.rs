@@ -33,6 +33,7 @@ use crate::tasks::{TaskError, TaskRow};
 
 mod parameters;
 mod rows;
+mod selection;
 
 pub use parameters::CollisionParameters;
 pub use rows::{

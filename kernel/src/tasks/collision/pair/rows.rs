@@ -8,6 +8,7 @@ use heapless::Vec;
 use nalgebra::{convert, Cholesky, Const, RealField, RowSVector, SMatrix, Vector3};
 
 use super::parameters::CollisionParameters;
+use super::selection::{heapify, sift};
 use crate::dynamics::{DynamicsError, InertiaFactor, TreeFactorization};
 use crate::math::sqrt;
 use crate::model::{BodyId, Data, Model};
@@ -351,41 +352,6 @@ fn pair_kinematics<
         return Err(TaskError::NonFinite);
     }
     Ok(inverse_mass_sum)
-}
-
-/// Puts `item` at node `root` of the binary max-heap `heap` (by distance, the farthest at the
-/// root), whose subtrees below `root` are heaps, and restores the order of that subtree: the
-/// larger child moves up into the hole until `item` is no closer than both children.
-/// O(log len).
-fn sift<T: RealField + Copy>(heap: &mut [(T, usize)], root: usize, item: (T, usize)) {
-    let mut hole = root;
-    for _ in 0..heap.len() {
-        let left = 2 * hole + 1;
-        let Some(&l) = heap.get(left) else { break };
-        let (child, c) = match heap.get(left + 1) {
-            Some(&r) if r.0 > l.0 => (left + 1, r),
-            _ => (left, l),
-        };
-        if c.0 <= item.0 {
-            break;
-        }
-        if let Some(h) = heap.get_mut(hole) {
-            *h = c;
-        }
-        hole = child;
-    }
-    if let Some(h) = heap.get_mut(hole) {
-        *h = item;
-    }
-}
-
-/// Orders `heap` as a binary max-heap by distance (the farthest at the root), O(len).
-fn heapify<T: RealField + Copy>(heap: &mut [(T, usize)]) {
-    for root in (0..heap.len() / 2).rev() {
-        if let Some(&item) = heap.get(root) {
-            sift(heap, root, item);
-        }
-    }
 }
 
 /// What [`self_collision_rows`] did in one cycle (telemetry).
