@@ -91,7 +91,7 @@ pub fn inverse_reflected_masses<T: RealField + Copy, const N: usize, const K: us
 /// The kinematic tree as the support-path walks of [`projected_jacobian_into`] read it: per
 /// body its parent (`usize::MAX`: the world) and its joint's drive term when it has exactly
 /// one (`coordinate = usize::MAX` otherwise: no term, or several, read from the model). Built
-/// once per [`collision_rows_shared`] call that evaluates a pair, instead of reading the body
+/// once per [`collision_rows_shared`] call that evaluates a pair (a row not in the cache), instead of reading the body
 /// descriptions in every walk.
 pub(super) struct SupportTable<T, const B: usize> {
     parent: [usize; B],
@@ -226,7 +226,7 @@ fn pair_row_into<
     model: &Model<T, N, B, F>,
     data: &Data<T, N, B, F>,
     factor: &PairFactor<'_, T, N>,
-    table: &mut Option<SupportTable<T, B>>,
+    table: Option<&SupportTable<T, B>>,
     parameters: &CollisionParameters<T>,
     pair: usize,
     cache: &mut PairRowCache<T, N, P, C>,
@@ -241,7 +241,14 @@ fn pair_row_into<
             entry.inverse_mass_sum
         }
         None => {
-            let table = table.get_or_insert_with(|| SupportTable::new(model));
+            let built;
+            let table = match table {
+                Some(table) => table,
+                None => {
+                    built = SupportTable::new(model);
+                    &built
+                }
+            };
             let sum = pair_kinematics(collision_model, proximity, model, table, data, factor, pair, &mut row.jacobian)?;
             cache.insert(pair, CachedPairRow { jacobian: row.jacobian, inverse_mass_sum: sum });
             sum
@@ -286,7 +293,7 @@ pub(super) fn pair_row<
 ) -> Result<TaskRow<T, N>, TaskError> {
     let mut row =
         TaskRow { jacobian: RowSVector::zeros(), force: T::zero(), potential: T::zero(), activation: T::zero() };
-    pair_row_into(collision_model, collision, model, data, factor, &mut None, parameters, pair, cache, &mut row)?;
+    pair_row_into(collision_model, collision, model, data, factor, None, parameters, pair, cache, &mut row)?;
     Ok(row)
 }
 
@@ -541,8 +548,14 @@ pub fn collision_rows_shared<
             InertiaFactor::Tree(tree) => PairFactor::Tree(tree),
         };
         let start = rows.len();
-        // Built at the first pair not in the cache.
-        let mut table = None;
+        // Built in place when a pair is not in the cache.
+        let built;
+        let table = if selected.iter().any(|&(_, index)| cache.get(index).is_none()) {
+            built = SupportTable::new(model);
+            Some(&built)
+        } else {
+            None
+        };
         for (index, _) in chosen.iter().enumerate().filter(|(_, &flag)| flag) {
             let mut result = Ok(());
             let pushed = rows.push_with(|row| {
@@ -552,7 +565,7 @@ pub fn collision_rows_shared<
                     model,
                     data,
                     &factor,
-                    &mut table,
+                    table,
                     parameters,
                     index,
                     cache,
