@@ -285,6 +285,74 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
         norms
     }
 
+    /// `J M⁻¹ Jᵀ = ‖J L⁻¹‖²` for one row `J = row`: the inverse reflected mass (3.20) by the
+    /// substitution of [`Self::inverse_reflected_masses`] restricted to the row's support. A
+    /// point Jacobian is supported on the ancestor chain of its last nonzero coordinate (a path
+    /// to the root), plus, in a decoupled factor ([`Self::decouple`]), roots without ancestors
+    /// (the platform coordinates of `M̃`). The chain's entries are gathered into a packed
+    /// vector, in which the ancestors of each chain coordinate are the entries after it in the
+    /// order of its packed row of `L`: each column's update pairs two contiguous slices. The
+    /// roots below the chain are solved alone. Same operations in the same order as
+    /// [`Self::inverse_reflected_masses`]; a row with any other support (a nonzero entry
+    /// between two chain coordinates or below the chain on a coordinate with ancestors) is
+    /// passed to it. Cost: depth²/2 multiply-adds and one pass over the row.
+    pub fn inverse_reflected_mass(&self, row: &[T; N]) -> T {
+        let Some(leaf) = row.iter().rposition(|x| !x.is_zero()) else {
+            return T::zero();
+        };
+        let depth = self.structure.depth.get(leaf).map_or(0, |d| usize::from(*d));
+        let chain = self.structure.chains.get(leaf).and_then(|c| c.get(..=depth)).unwrap_or(&[]);
+        // The chain entries, leaf first; a nonzero entry between two chain coordinates is off
+        // the chain (`other`).
+        let mut storage = [T::zero(); N];
+        let packed = storage.get_mut(..chain.len()).unwrap_or(&mut []);
+        let mut other = false;
+        let mut above = leaf + 1;
+        for (y, a) in packed.iter_mut().zip(chain.iter()) {
+            let a = usize::from(*a);
+            if let Some((value, gap)) = row.get(a..above).and_then(|s| s.split_first()) {
+                *y = *value;
+                other |= gap.iter().any(|x| !x.is_zero());
+            }
+            above = a;
+        }
+        let mut norm = T::zero();
+        let mut tail = packed;
+        for k in chain {
+            let Some((y, ancestors)) = tail.split_first_mut() else { break };
+            let k = usize::from(*k);
+            let (Some(l), Some(inverse)) = (self.rows.data.0.get(k), self.reciprocal.get(k)) else { break };
+            let x = *y * *inverse;
+            norm += x * x;
+            // The chain of `k` is the rest of the leaf's chain: its packed row pairs entry by entry.
+            // Short loops: two exits instead of `zip` (whose common trip count invites an
+            // unrolled body and a remainder dispatch that cost more than the few updates).
+            let mut l = l.get(1..).unwrap_or(&[]).iter();
+            for t in ancestors.iter_mut() {
+                let Some(l_ka) = l.next() else { break };
+                *t -= *l_ka * x;
+            }
+            tail = ancestors;
+        }
+        // Below the chain's root: roots are solved alone (from the last coordinate down).
+        if let (Some(x), Some(d), Some(r)) =
+            (row.get(..above), self.structure.depth.get(..above), self.reciprocal.get(..above))
+        {
+            for ((x, d), inverse) in x.iter().zip(d).zip(r).rev() {
+                if !x.is_zero() {
+                    other |= *d != 0;
+                    let y = *x * *inverse;
+                    norm += y * y;
+                }
+            }
+        }
+        if other {
+            let [w] = self.inverse_reflected_masses([row]);
+            return w;
+        }
+        norm
+    }
+
     /// `X ← X L⁻¹` in place for the `R × N` matrix `X` (`X L = B` by columns from the last
     /// coordinate down). With `M = Lᵀ L`, `(J L⁻¹)(J L⁻¹)ᵀ = J M⁻¹ Jᵀ`, and `J L⁻¹` keeps the
     /// column support of `J` closed under ancestors (a Jacobian's support path): columns that

@@ -33,6 +33,7 @@ use crate::tasks::{TaskError, TaskRow};
 
 mod parameters;
 mod rows;
+mod selection;
 
 pub use parameters::CollisionParameters;
 pub use rows::{
@@ -252,5 +253,7 @@ pub fn evaluate_pair<
     Ok(PairEvaluation { pair, distance: d, jacobian_first, jacobian_second, inverse_masses, damping, row })
 }
 
+#[cfg(test)]
+mod reflected_mass_tests;
 #[cfg(test)]
 mod tests;

@@ -8,6 +8,7 @@ use heapless::Vec;
 use nalgebra::{convert, Cholesky, Const, RealField, RowSVector, SMatrix, Vector3};
 
 use super::parameters::CollisionParameters;
+use super::selection::{heapify, sift};
 use crate::dynamics::{DynamicsError, InertiaFactor, TreeFactorization};
 use crate::math::sqrt;
 use crate::model::{BodyId, Data, Model};
@@ -16,8 +17,8 @@ use crate::tasks::collision::volumes::Proximity;
 use crate::tasks::{TaskError, TaskRow, TaskRows};
 
 /// The inertia factor of the pair rows: the rows of a dense factor ([`factor_rows`]) or the
-/// tree-sparse factor (reflected masses by [`TreeFactorization::inverse_reflected_masses`] over
-/// the support paths of the two Jacobians).
+/// tree-sparse factor (reflected masses by [`TreeFactorization::inverse_reflected_mass`] over
+/// the support path of each Jacobian).
 pub(super) enum PairFactor<'a, T: RealField, const N: usize> {
     Rows(SMatrix<T, N, N>),
     Tree(&'a TreeFactorization<T, N>),
@@ -87,50 +88,71 @@ pub fn inverse_reflected_masses<T: RealField + Copy, const N: usize, const K: us
     Ok(norms)
 }
 
-/// Writes `eᵀ J_{x,q}` for the point `point` (world, m) on `body` into `row` (zeroed first):
-/// per joint on the support path, `eᵀ (v_S + ω_S × x) = eᵀ v_S + ω_Sᵀ (x × e)` spread over
-/// the joint's drive terms, (3.17)–(3.18). The fast form of [`projected_jacobian`](super::projected_jacobian).
+/// The kinematic tree as the support-path walks of [`projected_jacobian_into`] read it: per
+/// body its parent (`usize::MAX`: the world) and its joint's drive term when it has exactly
+/// one (`coordinate = usize::MAX` otherwise: no term, or several, read from the model). Built
+/// once per [`collision_rows_shared`] call that evaluates a pair (a row not in the cache), instead of reading the body
+/// descriptions in every walk.
+pub(super) struct SupportTable<T, const B: usize> {
+    parent: [usize; B],
+    coordinate: [usize; B],
+    coefficient: [T; B],
+}
+
+impl<T: RealField + Copy, const B: usize> SupportTable<T, B> {
+    pub(super) fn new<const N: usize, const F: usize>(model: &Model<T, N, B, F>) -> Self {
+        let mut table = Self { parent: [usize::MAX; B], coordinate: [usize::MAX; B], coefficient: [T::zero(); B] };
+        let slots = table.parent.iter_mut().zip(table.coordinate.iter_mut()).zip(table.coefficient.iter_mut());
+        for (body, ((parent, coordinate), coefficient)) in model.bodies().iter().zip(slots) {
+            *parent = body.parent.map_or(usize::MAX, |p| p.0);
+            if let [term] = body.drive.terms() {
+                *coordinate = term.coordinate;
+                *coefficient = term.coefficient;
+            }
+        }
+        table
+    }
+}
+
+/// Adds `eᵀ J_{x,q}` for the point `point` (world, m) on `body` to `row` (zero on entry): per
+/// joint on the support path, `eᵀ (v_S + ω_S × x) = eᵀ v_S + ω_Sᵀ (x × e)` spread over the
+/// joint's drive terms, (3.17)–(3.18), the path and single drive terms read from `table`. The
+/// fast form of [`projected_jacobian`](super::projected_jacobian).
+#[allow(clippy::too_many_arguments, reason = "the model, its table, the state and the point")]
 fn projected_jacobian_into<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
     model: &Model<T, N, B, F>,
+    table: &SupportTable<T, B>,
     data: &Data<T, N, B, F>,
     body: BodyId,
     point: &Vector3<T>,
     direction: &Vector3<T>,
     row: &mut [T; N],
 ) -> Result<(), TaskError> {
-    *row = [T::zero(); N];
     let bodies = model.bodies();
     bodies.get(body.0).ok_or(DynamicsError::UnknownBody)?;
     let moment = point.cross(direction);
     let (e, m) = (direction, &moment);
-    let mut next = Some(body);
+    let mut next = body.0;
     for _ in 0..B {
-        let Some(id) = next else {
+        let (Some(&parent), Some(&coordinate), Some(&coefficient), Some(s)) = (
+            table.parent.get(next),
+            table.coordinate.get(next),
+            table.coefficient.get(next),
+            data.motion_subspaces.get(next),
+        ) else {
             break;
-        };
-        let Some(joint) = bodies.get(id.0) else {
-            break;
-        };
-        next = joint.parent;
-        let Some(s) = data.motion_subspaces.get(id.0) else {
-            continue;
         };
         let value = e.x * s.w + e.y * s.a + e.z * s.b + (m.x * s.x + m.y * s.y + m.z * s.z);
-        // Most joints have one drive term: no loop set-up for them.
-        match joint.drive.terms() {
-            [term] => {
+        if let Some(x) = row.get_mut(coordinate) {
+            *x += value * coefficient;
+        } else if let Some(joint) = bodies.get(next) {
+            for term in joint.drive.terms() {
                 if let Some(x) = row.get_mut(term.coordinate) {
                     *x += value * term.coefficient;
                 }
             }
-            terms => {
-                for term in terms {
-                    if let Some(x) = row.get_mut(term.coordinate) {
-                        *x += value * term.coefficient;
-                    }
-                }
-            }
         }
+        next = parent;
     }
     Ok(())
 }
@@ -204,6 +226,7 @@ fn pair_row_into<
     model: &Model<T, N, B, F>,
     data: &Data<T, N, B, F>,
     factor: &PairFactor<'_, T, N>,
+    table: Option<&SupportTable<T, B>>,
     parameters: &CollisionParameters<T>,
     pair: usize,
     cache: &mut PairRowCache<T, N, P, C>,
@@ -218,7 +241,15 @@ fn pair_row_into<
             entry.inverse_mass_sum
         }
         None => {
-            let sum = pair_kinematics(collision_model, proximity, model, data, factor, pair, &mut row.jacobian)?;
+            let built;
+            let table = match table {
+                Some(table) => table,
+                None => {
+                    built = SupportTable::new(model);
+                    &built
+                }
+            };
+            let sum = pair_kinematics(collision_model, proximity, model, table, data, factor, pair, &mut row.jacobian)?;
             cache.insert(pair, CachedPairRow { jacobian: row.jacobian, inverse_mass_sum: sum });
             sum
         }
@@ -262,15 +293,16 @@ pub(super) fn pair_row<
 ) -> Result<TaskRow<T, N>, TaskError> {
     let mut row =
         TaskRow { jacobian: RowSVector::zeros(), force: T::zero(), potential: T::zero(), activation: T::zero() };
-    pair_row_into(collision_model, collision, model, data, factor, parameters, pair, cache, &mut row)?;
+    pair_row_into(collision_model, collision, model, data, factor, None, parameters, pair, cache, &mut row)?;
     Ok(row)
 }
 
 /// The configuration-dependent part of pair `pair`'s row: the two projected Jacobians written in
 /// place ([`projected_jacobian_into`]), their difference written into `jacobian`, and the sum of
 /// both inverse reflected masses (3.20), returned: one forward substitution over the factor for
-/// both ([`inverse_reflected_masses`] on dense rows, [`TreeFactorization::inverse_reflected_masses`]
-/// on the tree factor); none for a world-fixed volume, whose mass is infinite. The proximity must have a direction.
+/// both ([`inverse_reflected_masses`] on dense rows) or one substitution along each support
+/// path ([`TreeFactorization::inverse_reflected_mass`] on the tree factor); none for a world-fixed volume, whose mass is infinite. The proximity must have a direction.
+#[allow(clippy::too_many_arguments, reason = "the pair, the model with its table, the state and the factor")]
 fn pair_kinematics<
     T: RealField + Copy,
     const N: usize,
@@ -282,6 +314,7 @@ fn pair_kinematics<
     collision_model: &CollisionModel<T, V, P>,
     proximity: &Proximity<T>,
     model: &Model<T, N, B, F>,
+    table: &SupportTable<T, B>,
     data: &Data<T, N, B, F>,
     factor: &PairFactor<'_, T, N>,
     pair: usize,
@@ -296,10 +329,10 @@ fn pair_kinematics<
     let mut jacobian_first = [T::zero(); N];
     let mut jacobian_second = [T::zero(); N];
     if let Some(body) = a.body {
-        projected_jacobian_into(model, data, body, &proximity.core_first, &e, &mut jacobian_first)?;
+        projected_jacobian_into(model, table, data, body, &proximity.core_first, &e, &mut jacobian_first)?;
     }
     if let Some(body) = b.body {
-        projected_jacobian_into(model, data, body, &proximity.core_second, &e, &mut jacobian_second)?;
+        projected_jacobian_into(model, table, data, body, &proximity.core_second, &e, &mut jacobian_second)?;
     }
     let inverse_mass_sum = match (a.body.is_some(), b.body.is_some(), factor) {
         (true, true, PairFactor::Rows(rows)) => {
@@ -309,11 +342,10 @@ fn pair_kinematics<
         (true, false, PairFactor::Rows(rows)) => inverse_reflected_masses(rows, [&jacobian_first])?[0],
         (false, true, PairFactor::Rows(rows)) => inverse_reflected_masses(rows, [&jacobian_second])?[0],
         (true, true, PairFactor::Tree(tree)) => {
-            let [wi, wj] = tree.inverse_reflected_masses([&jacobian_first, &jacobian_second]);
-            wi + wj
+            tree.inverse_reflected_mass(&jacobian_first) + tree.inverse_reflected_mass(&jacobian_second)
         }
-        (true, false, PairFactor::Tree(tree)) => tree.inverse_reflected_masses([&jacobian_first])[0],
-        (false, true, PairFactor::Tree(tree)) => tree.inverse_reflected_masses([&jacobian_second])[0],
+        (true, false, PairFactor::Tree(tree)) => tree.inverse_reflected_mass(&jacobian_first),
+        (false, true, PairFactor::Tree(tree)) => tree.inverse_reflected_mass(&jacobian_second),
         (false, false, _) => T::zero(),
     };
     // The difference and its finiteness in one pass (no early exit: a branch-free flag).
@@ -327,41 +359,6 @@ fn pair_kinematics<
         return Err(TaskError::NonFinite);
     }
     Ok(inverse_mass_sum)
-}
-
-/// Puts `item` at node `root` of the binary max-heap `heap` (by distance, the farthest at the
-/// root), whose subtrees below `root` are heaps, and restores the order of that subtree: the
-/// larger child moves up into the hole until `item` is no closer than both children.
-/// O(log len).
-fn sift<T: RealField + Copy>(heap: &mut [(T, usize)], root: usize, item: (T, usize)) {
-    let mut hole = root;
-    for _ in 0..heap.len() {
-        let left = 2 * hole + 1;
-        let Some(&l) = heap.get(left) else { break };
-        let (child, c) = match heap.get(left + 1) {
-            Some(&r) if r.0 > l.0 => (left + 1, r),
-            _ => (left, l),
-        };
-        if c.0 <= item.0 {
-            break;
-        }
-        if let Some(h) = heap.get_mut(hole) {
-            *h = c;
-        }
-        hole = child;
-    }
-    if let Some(h) = heap.get_mut(hole) {
-        *h = item;
-    }
-}
-
-/// Orders `heap` as a binary max-heap by distance (the farthest at the root), O(len).
-fn heapify<T: RealField + Copy>(heap: &mut [(T, usize)]) {
-    for root in (0..heap.len() / 2).rev() {
-        if let Some(&item) = heap.get(root) {
-            sift(heap, root, item);
-        }
-    }
 }
 
 /// What [`self_collision_rows`] did in one cycle (telemetry).
@@ -551,10 +548,29 @@ pub fn collision_rows_shared<
             InertiaFactor::Tree(tree) => PairFactor::Tree(tree),
         };
         let start = rows.len();
+        // Built in place when a pair is not in the cache.
+        let built;
+        let table = if selected.iter().any(|&(_, index)| cache.get(index).is_none()) {
+            built = SupportTable::new(model);
+            Some(&built)
+        } else {
+            None
+        };
         for (index, _) in chosen.iter().enumerate().filter(|(_, &flag)| flag) {
             let mut result = Ok(());
             let pushed = rows.push_with(|row| {
-                result = pair_row_into(collision_model, collision, model, data, &factor, parameters, index, cache, row);
+                result = pair_row_into(
+                    collision_model,
+                    collision,
+                    model,
+                    data,
+                    &factor,
+                    table,
+                    parameters,
+                    index,
+                    cache,
+                    row,
+                );
             });
             if let Err(e) = result.and(pushed) {
                 rows.truncate(start);

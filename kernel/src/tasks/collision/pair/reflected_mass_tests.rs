@@ -1,0 +1,96 @@
+//! [`TreeFactorization::inverse_reflected_mass`], the reflected masses of the pair rows over
+//! the tree factor, against the reference [`TreeFactorization::inverse_reflected_masses`] and
+//! the dense inverse.
+#![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
+use crate::dynamics::{crba, forward_kinematics, TreeFactorization};
+use crate::model::Data;
+use crate::test_models::{branched, state, N};
+use nalgebra::{RealField, SVector};
+
+/// The elimination-tree ancestor chain `k, λ(k), λ(λ(k)), …` of `k`.
+fn chain<T: RealField + Copy>(tree: &TreeFactorization<T, N>, k: usize) -> std::vec::Vec<usize> {
+    let parents = tree.parents();
+    let mut chain = vec![k];
+    while let Some(p) = parents[*chain.last().unwrap()] {
+        chain.push(p);
+    }
+    chain
+}
+
+/// `inverse_reflected_mass` (one row along its support path) against the reference
+/// `inverse_reflected_masses` (every column) and the dense `J M⁻¹ Jᵀ`, on the plain factor
+/// and on decoupled ones, for rows supported on each coordinate's chain (point Jacobians),
+/// on a chain plus decoupled roots, on other supports (the fallback) and for a zero row.
+/// The fast path makes the reference's operations in its order here (the roots off the
+/// chain precede it), so the two are equal to the bit.
+fn check_single_row_masses<T: RealField + Copy>(seed: u64, tol: f64) {
+    let model = branched::<T>();
+    let mut data = Data::new(&model);
+    let q = state(seed, 2.0).map(|e| nalgebra::convert::<f64, T>(e));
+    forward_kinematics(&model, &mut data, &q, &SVector::zeros()).unwrap();
+    let m = *crba(&model, &mut data);
+    let mut plain = TreeFactorization::new(&model);
+    plain.factorize(&m).unwrap();
+    let to64 = |x: T| nalgebra::try_convert::<T, f64>(x).unwrap();
+    let (mut fast_paths, mut fallbacks) = (0, 0);
+    for set in [&[][..], &[0_usize][..], &[0, 1]] {
+        let mut tree = plain.clone();
+        let mut cleared = m;
+        let mut decoupled = [false; N];
+        for &c in set {
+            decoupled[c] = true;
+            let diagonal = cleared[(c, c)];
+            cleared.row_mut(c).fill(T::zero());
+            cleared.column_mut(c).fill(T::zero());
+            cleared[(c, c)] = diagonal;
+        }
+        tree.decouple(&decoupled, &cleared).unwrap();
+        let dense_inverse = cleared.map(to64).try_inverse().unwrap();
+        let mut rows = std::vec::Vec::new();
+        for leaf in 0..N {
+            let chain = chain(&tree, leaf);
+            let values = state(seed ^ (leaf as u64 + 101), 1.0);
+            let mut on_chain = [T::zero(); N];
+            for &a in &chain {
+                on_chain[a] = nalgebra::convert(values[a]);
+            }
+            let mut with_roots = on_chain;
+            for &c in set {
+                with_roots[c] = nalgebra::convert(0.5 + values[c]);
+            }
+            rows.push(on_chain);
+            rows.push(with_roots);
+        }
+        rows.push(core::array::from_fn(|c| nalgebra::convert(state(seed ^ 7, 1.0)[c])));
+        let mut two_branches = [T::zero(); N];
+        two_branches[3] = T::one();
+        two_branches[5] = nalgebra::convert(-0.7);
+        rows.push(two_branches);
+        rows.push([T::zero(); N]);
+        for row in &rows {
+            let fast = tree.inverse_reflected_mass(row);
+            let [reference] = tree.inverse_reflected_masses([row]);
+            assert_eq!(fast, reference, "set {set:?} row {row:?}");
+            let j = SVector::<f64, N>::from_fn(|c, _| to64(row[c]));
+            let dense = (j.transpose() * dense_inverse * j).x;
+            assert!((to64(fast) - dense).abs() <= tol * (1.0 + dense.abs()), "set {set:?}: {} vs {dense}", to64(fast));
+            let leaf = row.iter().rposition(|x| !x.is_zero());
+            let chain = leaf.map_or(std::vec::Vec::new(), |l| chain(&tree, l));
+            let off_chain = (0..N).filter(|c| !row[*c].is_zero() && !chain.contains(c));
+            if off_chain.clone().all(|c| tree.parents()[c].is_none()) {
+                fast_paths += 1;
+            } else {
+                fallbacks += 1;
+            }
+        }
+    }
+    assert!(fast_paths > 30 && fallbacks >= 2, "{fast_paths} fast, {fallbacks} fallbacks");
+}
+
+#[test]
+fn single_row_reflected_masses_match_the_reference() {
+    for seed in 0..20 {
+        check_single_row_masses::<f64>(seed, 1e-10);
+        check_single_row_masses::<f32>(seed, 1e-3);
+    }
+}
