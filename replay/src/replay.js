@@ -226,7 +226,7 @@ const travel = (h) => h.path[0].reduce((sum, _, i) => {
 const leftMovesMore = hands.length === 2 && travel(hands[1]) > travel(hands[0]);
 const side = leftMovesMore ? 1 : -1;
 const direction = planar ? new THREE.Vector3(0.25, -1, 0.2) : new THREE.Vector3(0.6, side, 0.45);
-camera.position.copy(centre).add(direction.normalize().multiplyScalar(size * (planar ? 1.0 : 1.3) + 2.2));
+camera.position.copy(centre).add(direction.normalize().multiplyScalar(size * (planar ? 1.5 : 1.3) + 2.2));
 
 // ---- side panel ----
 document.title = `${data.scenario} replay`;
@@ -282,7 +282,7 @@ const eventItems = events.map((event) => {
   story.append(item);
   return item;
 });
-if (events.length === 0) story.innerHTML = '<li>no pushes, contacts, goal or platform motion found in the signals</li>';
+if (events.length === 0) story.innerHTML = '<li>none: the scenario names no phases, and the signals show no push, contact, goal step or platform motion</li>';
 
 // The caption names the latest two events of the last 1.5 s before `t`, the latest first.
 function showStory(t) {
