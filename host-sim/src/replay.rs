@@ -14,8 +14,8 @@
 //!   non-finite values as `null`, under the names of the Justin runs ([`Robot::Justin`]'s
 //!   aliases rename a run's own columns);
 //! - the story: the scenario's description, its phases (given by the scenario) and the events
-//!   found in the signals ([`events`]: forces on the hands, contact, goal steps, platform
-//!   motion), shown as marks on the time slider, as a caption and as a list;
+//!   found in the signals (forces on the hands, contact, goal steps, platform motion), shown as
+//!   marks on the time slider, as a caption and as a list;
 //! - the claims of the summary;
 //! - the page script `replay/dist/replay.js` (the page code and three.js, bundled by esbuild
 //!   from the pinned npm packages in `replay/`, see `replay/README.md`), inlined, so the page
