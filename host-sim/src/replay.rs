@@ -233,20 +233,17 @@ pub fn replay_data(robot: Robot, series: &TimeSeries, summary: &Summary, story: 
             .iter()
             .map(|(name, values)| (name.clone(), values.iter().map(|&x| rounded(x)).collect()))
             .collect::<serde_json::Map<String, Value>>(),
-        "events": story_events(&story.phases, events(&times, &signals, &hands, &platform))
-            .iter()
-            .map(|(t, text)| json!({ "t": rounded(*t), "text": text }))
-            .collect::<Vec<_>>(),
+        "events": story_events(&story.phases, events(&times, &signals, &hands, &platform)),
     }))
 }
 
 /// The scenario's `phases` and the `found` events in time order (a phase before an event at the
-/// same time).
-fn story_events(phases: &[(f64, String)], found: Vec<(f64, String)>) -> Vec<(f64, String)> {
-    let mut events = phases.to_vec();
-    events.extend(found);
+/// same time): `{ t, text, phase }`.
+fn story_events(phases: &[(f64, String)], found: Vec<(f64, String)>) -> Vec<Value> {
+    let mut events: Vec<(f64, String, bool)> = phases.iter().map(|(t, text)| (*t, text.clone(), true)).collect();
+    events.extend(found.into_iter().map(|(t, text)| (t, text, false)));
     events.sort_by(|a, b| a.0.total_cmp(&b.0));
-    events
+    events.into_iter().map(|(t, text, phase)| json!({ "t": rounded(t), "text": text, "phase": phase })).collect()
 }
 
 /// The indices of the rows kept: the first row, then one per `1 / REPLAY_RATE_HZ` of time.
@@ -620,11 +617,11 @@ mod tests {
         assert_eq!(
             events,
             json!([
-                { "t": 0.5, "text": "a phase" },
-                { "t": 1.0, "text": "a push" },
-                { "t": 1.0, "text": "a force acts on the right hand (peak 40 N)" },
-                { "t": 1.5, "text": "the force on the right hand ends" },
-                { "t": 2.0, "text": "the right hand goal steps by 0.20 m" },
+                { "t": 0.5, "text": "a phase", "phase": true },
+                { "t": 1.0, "text": "a push", "phase": true },
+                { "t": 1.0, "text": "a force acts on the right hand (peak 40 N)", "phase": false },
+                { "t": 1.5, "text": "the force on the right hand ends", "phase": false },
+                { "t": 2.0, "text": "the right hand goal steps by 0.20 m", "phase": false },
             ])
         );
     }

@@ -273,22 +273,27 @@ const caption = document.getElementById('caption');
 const fraction = (t) => (duration > 0 ? (t - times[0]) / duration : 0);
 const eventItems = events.map((event) => {
   const mark = document.createElement('span');
-  mark.className = 'mark';
+  mark.className = event.phase ? 'mark phase' : 'mark';
   mark.style.left = `${100 * fraction(event.t)}%`;
   mark.title = `${event.t.toFixed(2)} s: ${event.text}`;
   marks.append(mark);
   const item = document.createElement('li');
+  if (event.phase) item.className = 'phase';
   item.innerHTML = `<a href="#t=${event.t.toFixed(2)}">${event.t.toFixed(2)} s</a> ${event.text}`;
   story.append(item);
   return item;
 });
 if (events.length === 0) story.innerHTML = '<li>none: the scenario names no phases, and the signals show no push, contact, goal step or platform motion</li>';
 
-// The caption names the latest two events of the last 1.5 s before `t`, the latest first.
+// The caption names the phase the run is in (the scenario's latest phase before `t`) and the
+// latest event found in the signals in the 1.5 s before `t`.
 function showStory(t) {
-  const recent = events.filter((e) => e.t <= t + 1e-9 && e.t > t - 1.5).slice(-2).reverse();
-  caption.innerHTML = recent.map((e) => `<div>${e.t.toFixed(2)} s: ${e.text}</div>`).join('');
-  caption.style.visibility = recent.length > 0 ? 'visible' : 'hidden';
+  const past = events.filter((e) => e.t <= t + 1e-9);
+  const phase = past.filter((e) => e.phase).slice(-1);
+  const recent = past.filter((e) => !e.phase && e.t > t - 1.5).slice(-1);
+  const shown = [...phase, ...recent];
+  caption.innerHTML = shown.map((e) => `<div>${e.t.toFixed(2)} s: ${e.text}</div>`).join('');
+  caption.style.visibility = shown.length > 0 ? 'visible' : 'hidden';
   events.forEach((e, k) => eventItems[k].classList.toggle('past', e.t <= t + 1e-9));
 }
 
