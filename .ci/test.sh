@@ -10,7 +10,8 @@
 #      between the kernel's modules (.ci/module_cycles.py)
 #   7. processor in the loop: the runtime image under QEMU (Cortex-M7) controls the simulated
 #      robot for 300 cycles, and refuses injected bad link frames with the safe output
-#   8. the replay page in a real browser: headless Chromium draws replay.html of wbc_phri
+#   8. the replay page in a real browser: headless Chromium draws replay.html of wbc_phri (Justin)
+#      and of projectors_sim1 (the planar arm)
 #   9. coverage-guided fuzzing (cargo fuzz): every target for 20 s from the committed seeds
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -91,6 +92,8 @@ fi
 git diff --exit-code -- replay/dist/replay.js
 cargo run --locked -p host-sim -- run wbc_phri --out out/replay-ci
 (cd replay && npm test -- ../out/replay-ci/replay.html 0 1.2 ../out/replay-ci/screenshots)
+cargo run --locked -p host-sim -- run projectors_sim1 --out out/replay-ci-planar
+(cd replay && npm test -- ../out/replay-ci-planar/replay.html 0 1.5 ../out/replay-ci-planar/screenshots)
 
 # The sanitizer build of the fuzz targets needs ~1.3 GB: on a small disk, free the workspace's
 # target first (a developer's machine with room keeps it).

@@ -13,7 +13,7 @@
 //! - [`controllers`]: controllers run in the loop by scenarios.
 //! - [`output`]: the scenario output convention (CSV, summary JSON, SVG plots).
 //! - [`scenarios`]: the registry of named scenarios, their run options, one module per scenario.
-//! - [`replay`]: `replay.html`, the 3-D replay of a run of the Justin robot.
+//! - [`replay`]: `replay.html`, the 3-D replay of a run of a robot (Justin, a planar arm, the platform).
 //! - [`wbc`]: the simulated Justin under the kernel's whole-body controller.
 //! - [`pil`]: processor-in-the-loop: the firmware image under QEMU as the rig's controller.
 //!

@@ -21,7 +21,7 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Run a named scenario; write timeseries.csv, summary.json, SVG plots and, for the Justin
+    /// Run a named scenario; write timeseries.csv, summary.json, SVG plots and, for the robot
     /// scenarios, replay.html (columns and units: docs/OUTPUT.md).
     Run {
         /// Scenario name (see `list`).

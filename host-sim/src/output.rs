@@ -263,6 +263,12 @@ fn draw_panel<'a>(
     x_label: &str,
 ) -> DrawResult {
     let (x_range, y_range) = ranges(panel);
+    let (x_range, y_range) = if drawn_to_scale(panel, x_label) {
+        let (width, height) = area.dim_in_pixel();
+        to_scale(x_range, y_range, f64::from(width) - PLOT_INSET_X_PX, f64::from(height) - PLOT_INSET_Y_PX)
+    } else {
+        (x_range, y_range)
+    };
     let mut chart = ChartBuilder::on(area)
         .caption(&panel.title, ("sans-serif", 18))
         .margin(12)
@@ -344,7 +350,7 @@ fn draw_panel<'a>(
     }
     chart
         .configure_series_labels()
-        .position(legend_corner(panel, &x_range, &y_range, listed.len()))
+        .position(SeriesLabelPosition::UpperRight)
         .background_style(WHITE.mix(0.85))
         .border_style(RGBColor(180, 180, 180))
         .label_font(("sans-serif", 13))
@@ -352,34 +358,51 @@ fn draw_panel<'a>(
     Ok(())
 }
 
-/// The corner of the panel whose legend box (about 40 % of the width, 8 % of the height per
-/// entry) covers the fewest data points; upper right on a tie.
-fn legend_corner(
-    panel: &Panel,
-    x: &std::ops::Range<f64>,
-    y: &std::ops::Range<f64>,
-    entries: usize,
-) -> SeriesLabelPosition {
-    #[allow(clippy::cast_precision_loss, reason = "a few legend entries")]
-    let height = (0.08 * entries as f64).min(0.8) * (y.end - y.start);
-    let width = 0.4 * (x.end - x.start);
-    let corners = [
-        (SeriesLabelPosition::UpperRight, x.end - width..x.end, y.end - height..y.end),
-        (SeriesLabelPosition::UpperLeft, x.start..x.start + width, y.end - height..y.end),
-        (SeriesLabelPosition::LowerRight, x.end - width..x.end, y.start..y.start + height),
-        (SeriesLabelPosition::LowerLeft, x.start..x.start + width, y.start..y.start + height),
-    ];
-    let covered = |xs: &std::ops::Range<f64>, ys: &std::ops::Range<f64>| {
-        panel.lines.iter().flat_map(|l| l.points.iter()).filter(|(px, py)| xs.contains(px) && ys.contains(py)).count()
-    };
-    corners
-        .into_iter()
-        .map(|(corner, xs, ys)| (covered(&xs, &ys), corner))
-        .min_by_key(|(count, _)| *count)
-        .map_or(SeriesLabelPosition::UpperRight, |(_, corner)| corner)
+/// Pixels of a panel's width outside its plotting area: margins (2 × 12) and y labels (70).
+const PLOT_INSET_X_PX: f64 = 94.0;
+/// Pixels of a panel's height outside its plotting area: margins (2 × 12), x labels (40) and the
+/// caption (about 30).
+const PLOT_INSET_Y_PX: f64 = 94.0;
+
+/// Whether a panel is a view of the world (a top or side view): both axes are world coordinates
+/// (labels `world …`), drawn to the same scale.
+fn drawn_to_scale(panel: &Panel, x_label: &str) -> bool {
+    x_label.starts_with("world ") && panel.y_label.starts_with("world ")
 }
 
-/// Data ranges of a panel with a 5 % margin in y; degenerate ranges are widened.
+/// `x` and `y` widened about their centres so that one unit is as long on both axes of a
+/// plotting area of `width` × `height` px.
+fn to_scale(
+    x: std::ops::Range<f64>,
+    y: std::ops::Range<f64>,
+    width: f64,
+    height: f64,
+) -> (std::ops::Range<f64>, std::ops::Range<f64>) {
+    let per_px = ((x.end - x.start) / width).max((y.end - y.start) / height);
+    let widen = |r: std::ops::Range<f64>, px: f64| {
+        let (centre, half) = (0.5 * (r.start + r.end), 0.5 * per_px * px);
+        (centre - half)..(centre + half)
+    };
+    (widen(x, width), widen(y, height))
+}
+
+/// Height of one legend entry and of the legend box's frame (px).
+const LEGEND_ENTRY_PX: f64 = 19.0;
+const LEGEND_FRAME_PX: f64 = 16.0;
+
+/// The number of entries of a panel's legend: its distinct non-empty labels.
+fn legend_entries(panel: &Panel) -> usize {
+    let mut labels: Vec<&str> = panel.spans.iter().map(|s| s.label.as_str()).collect();
+    labels.extend(panel.lines.iter().map(|l| l.label.as_str()));
+    labels.retain(|l| !l.is_empty());
+    labels.sort_unstable();
+    labels.dedup();
+    labels.len()
+}
+
+/// Data ranges of a panel with a 5 % margin below the data and, above it, a band as high as the
+/// legend (which is drawn there, upper right, so it covers no data; at most 60 % of the panel);
+/// degenerate ranges are widened.
 fn ranges(panel: &Panel) -> (std::ops::Range<f64>, std::ops::Range<f64>) {
     let points = || panel.lines.iter().flat_map(|l| l.points.iter()).filter(|(x, y)| x.is_finite() && y.is_finite());
     let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
@@ -399,7 +422,11 @@ fn ranges(panel: &Panel) -> (std::ops::Range<f64>, std::ops::Range<f64>) {
         x1 = x0 + 1.0;
     }
     let pad = if y1 > y0 { 0.05 * (y1 - y0) } else { 0.5 * y0.abs().max(1.0) };
-    (x0..x1, (y0 - pad)..(y1 + pad * 4.0))
+    #[allow(clippy::cast_precision_loss, reason = "a few legend entries")]
+    let legend_px = LEGEND_ENTRY_PX * legend_entries(panel) as f64 + LEGEND_FRAME_PX;
+    let legend_share = (legend_px / (f64::from(PANEL_HEIGHT_PX) - PLOT_INSET_Y_PX)).min(0.6);
+    let span = (y1 - y0 + 2.0 * pad) / (1.0 - legend_share);
+    (x0..x1, (y0 - pad)..(y0 - pad + span))
 }
 
 /// Creates `dir` (and parents) if needed.
@@ -422,6 +449,29 @@ mod tests {
         assert_eq!(series.csv(1), "t,a,b\n0,,1.5\n0.001,,1.5\n0.002,,\n0.003,,1.5\n0.004,,1.5\n");
         assert_eq!(series.csv(2), "t,a,b\n0,,1.5\n0.002,,\n0.004,,1.5\n");
         assert_eq!(series.csv(0), series.csv(1));
+    }
+
+    #[test]
+    fn a_view_of_the_world_gets_one_scale_on_both_axes() {
+        let panel = Panel { y_label: "world y (m)".into(), ..Panel::default() };
+        assert!(drawn_to_scale(&panel, "world x (m)"));
+        assert!(!drawn_to_scale(&panel, "time (s)"));
+        // 4 m over 800 px and 1 m over 400 px: y widens to 2 m, x keeps its 4 m.
+        let (x, y) = to_scale(0.0..4.0, 1.0..2.0, 800.0, 400.0);
+        assert_eq!((x, y), (0.0..4.0, 0.5..2.5));
+        let (x, y) = to_scale(0.0..1.0, 0.0..4.0, 800.0, 400.0);
+        assert_eq!((x, y), (-3.5..4.5, 0.0..4.0));
+    }
+
+    #[test]
+    fn the_legend_gets_a_band_above_the_data() {
+        let line = |label: &str| Line::new(label, vec![(0.0, 0.0), (1.0, 1.0)]);
+        let panel = Panel { lines: vec![line("a"), line("b"), line(""), line("a")], ..Panel::default() };
+        assert_eq!(legend_entries(&panel), 2);
+        let (_, y) = ranges(&panel);
+        // Two entries: 54 px of the 286 px plotting height above the data (1.0 plus its 5 %).
+        let band = (y.end - 1.05) / (y.end - y.start);
+        assert!((band - 54.0 / 286.0).abs() < 1e-9, "{band}");
     }
 
     #[test]

@@ -9,11 +9,12 @@ const duration = times[times.length - 1] - times[0];
 const signal = (name) => data.signals[name];
 
 const PART_COLOURS = {
-  base: 0x4a5568, torso: 0xc9ced6, head: 0xe2e6ea, right_arm: 0xe07b39, left_arm: 0x3b82c4,
-  environment: 0xb08b5a,
+  base: 0x4a5568, wheel: 0x1f2933, torso: 0xc9ced6, head: 0xe2e6ea, right_arm: 0xe07b39, left_arm: 0x3b82c4,
+  link: 0xe07b39, pedestal: 0x4a5568, environment: 0xb08b5a,
 };
 const PART_NAMES = {
-  base: 'mobile platform', torso: 'torso', head: 'head', right_arm: 'right arm', left_arm: 'left arm',
+  base: 'mobile platform', wheel: 'wheels (leg lines to the platform)', torso: 'torso', head: 'head',
+  right_arm: 'right arm', left_arm: 'left arm', link: 'arm links', pedestal: 'fixed base of the arm',
   environment: 'environment (table, wall, …)',
 };
 
@@ -166,63 +167,71 @@ function setArrow(arrow, tip, force) {
 }
 
 const legend = [];
-const hands = [];
+// A path given as coordinate arrays [[x…], [y…], [z…]] (null: undefined).
+const pathPoint = (path, i) => (path[0][i] === null || path[1][i] === null || path[2][i] === null
+  ? null : new THREE.Vector3(path[0][i], path[1][i], path[2][i]));
 // The service tasks press on surfaces (columns contact.<surface>.force); the replay draws a patch of
 // the surface where and while a hand presses on it.
 const hasSurfaces = Object.keys(data.signals).some((n) => /^contact\..*\.force$/.test(n));
-for (const [hand, level, colour] of [['right', 0, 0xc2410c], ['left', 1, 0x1d4ed8]]) {
-  const p = ['x', 'y', 'z'].map((a) => signal(`${hand}_tcp.${a}`));
-  if (!p[0]) continue;
-  const e = ['x', 'y', 'z'].map((a) => signal(`e${level}.${a}`));
-  const goal = e[0] ? p.map((c, k) => c.map((x, i) => (x === null || e[k][i] === null ? null : x - e[k][i]))) : null;
-  pathLine(...p, colour, false);
-  if (goal) pathLine(...goal, colour, true);
+const HAND_COLOURS = [0xc2410c, 0x1d4ed8];
+const hands = data.hands.map((hand, k) => {
+  const colour = HAND_COLOURS[k % HAND_COLOURS.length];
+  pathLine(...hand.path, colour, false);
+  if (hand.goal) pathLine(...hand.goal, colour, true);
   const goalMarker = new THREE.Mesh(new THREE.SphereGeometry(0.04, 16, 12),
     new THREE.MeshBasicMaterial({ color: colour, wireframe: true }));
   scene.add(goalMarker);
-  goalMarker.visible = Boolean(goal);
-  const f = ['x', 'y', 'z'].map((a) => signal(`force.${hand}.${a}`));
+  goalMarker.visible = Boolean(hand.goal);
   const arrow = forceArrow(0xd61f69);
   // The touched surface, drawn where and while the hand presses on it (normal along the force).
   const surface = new THREE.Mesh(new THREE.CircleGeometry(0.08, 32), materials.environment);
   surface.visible = false;
   scene.add(surface);
-  hands.push({ p, goal, goalMarker, f, arrow, surface });
-  legend.push([colour, `${hand} hand path (solid) and its goal (dashed, wire ball)`]);
-}
-legend.push([0xd61f69, 'force on a hand (push or contact), 1 cm per N']);
+  legend.push([colour, hand.goal ? `${hand.label} path (solid) and its goal (dashed, wire ball)` : `${hand.label} path`]);
+  return { ...hand, goalMarker, arrow, surface };
+});
+if (hands.some((h) => h.force)) legend.push([0xd61f69, 'force on a hand (push or contact), 1 cm per N']);
 if (hasSurfaces) legend.push([PART_COLOURS.environment, 'contact surface, drawn where a hand presses on it']);
-const bx = signal('q.base_x');
-const by = signal('q.base_y');
-if (bx && by) {
-  pathLine(bx, by, bx.map(() => 0.01), 0x2f855a, false);
+if (data.platform) {
+  pathLine(data.platform[0], data.platform[1], data.platform[0].map(() => 0.01), 0x2f855a, false);
   legend.push([0x2f855a, 'platform centre path']);
 }
-for (const [part, colour] of Object.entries(PART_COLOURS)) legend.push([colour, PART_NAMES[part]]);
+const parts = new Set(data.volumes.map((v) => v.part));
+for (const [part, colour] of Object.entries(PART_COLOURS)) if (parts.has(part)) legend.push([colour, PART_NAMES[part]]);
 
 // ---- camera framing: everything that moves and the environment, seen from the front left ----
 const box = new THREE.Box3();
-scene.updateMatrixWorld(true);
 for (const volume of data.volumes) {
   if (volume.body < 0 && volume.part !== 'floor') volume.points.forEach((p) => box.expandByPoint(v3(p)));
 }
-hands.forEach((h) => h.p[0].forEach((x, i) => { if (x !== null) box.expandByPoint(new THREE.Vector3(x, h.p[1][i], h.p[2][i])); }));
-if (bx) bx.forEach((x, i) => box.expandByPoint(new THREE.Vector3(x, by[i], 0)));
-box.expandByPoint(new THREE.Vector3(box.min.x - 0.5, box.min.y, 1.6));
-const centre = box.getCenter(new THREE.Vector3());
-centre.z = 0.7;
+data.bodies.forEach((placements) => {
+  for (let k = 0; k < placements.length; k += 7) box.expandByPoint(new THREE.Vector3(placements[k], placements[k + 1], placements[k + 2]));
+});
+hands.forEach((h) => h.path[0].forEach((_, i) => { const p = pathPoint(h.path, i); if (p) box.expandByPoint(p); }));
+box.expandByPoint(new THREE.Vector3(box.min.x, box.min.y, 0));
 const size = box.getSize(new THREE.Vector3()).length();
+// Aim between the middle of the scene and the middle of the hands' paths, where the work is.
+const centre = box.getCenter(new THREE.Vector3());
+const handBox = new THREE.Box3();
+hands.forEach((h) => h.path[0].forEach((_, i) => { const p = pathPoint(h.path, i); if (p) handBox.expandByPoint(p); }));
+if (!handBox.isEmpty()) centre.lerp(handBox.getCenter(new THREE.Vector3()), 0.5);
 controls.target.copy(centre);
-// Look from the side of the hand that travels further, slightly from the front and above.
-const travel = (h) => h.p[0].reduce((sum, x, i) => (i === 0 || x === null || h.p[0][i - 1] === null ? sum
-  : sum + Math.hypot(x - h.p[0][i - 1], h.p[1][i] - h.p[1][i - 1], h.p[2][i] - h.p[2][i - 1])), 0);
+// A robot moving in the x–z plane (the planar arms) is seen from the side; any other from the
+// side of the hand that travels further, slightly from the front and above.
+const planar = box.max.y - box.min.y < 0.2;
+const travel = (h) => h.path[0].reduce((sum, _, i) => {
+  const [a, b] = [pathPoint(h.path, i - 1), pathPoint(h.path, i)];
+  return i === 0 || !a || !b ? sum : sum + a.distanceTo(b);
+}, 0);
 const leftMovesMore = hands.length === 2 && travel(hands[1]) > travel(hands[0]);
 const side = leftMovesMore ? 1 : -1;
-camera.position.copy(centre).add(new THREE.Vector3(0.6, side, 0.55).normalize().multiplyScalar(size * 1.1 + 1.8));
+const direction = planar ? new THREE.Vector3(0.25, -1, 0.2) : new THREE.Vector3(0.6, side, 0.45);
+camera.position.copy(centre).add(direction.normalize().multiplyScalar(size * (planar ? 1.5 : 1.3) + 2.2));
 
 // ---- side panel ----
 document.title = `${data.scenario} replay`;
 document.getElementById('title').textContent = data.scenario;
+document.getElementById('description').textContent = data.description;
 const claims = document.getElementById('claims');
 for (const [list, css, mark] of [[data.passed_claims, 'pass', '✔'], [data.failed_claims, 'fail', '✘']]) {
   for (const claim of list) {
@@ -236,20 +245,16 @@ document.getElementById('legend').innerHTML = legend
   .map(([c, text]) => `<div><span class="key" style="background:#${c.toString(16).padStart(6, '0')}"></span>${text}</div>`)
   .join('');
 
-const norm = (names, i) => {
-  const values = names.map((n) => signal(n)?.[i]);
-  return values.some((v) => v === undefined || v === null) ? null : Math.hypot(...values);
-};
 // Levels whose storage is not zero throughout (levels the hierarchy uses).
 const levels = Object.keys(data.signals).filter((n) => /^S\d+$/.test(n) && signal(n).some((v) => v !== 0));
 const MODES = ['Normal', 'Hold', 'Brake'];
+const distance = (a, b) => (a && b ? a.distanceTo(b) : null);
 const rows = [
-  ['right TCP error (mm)', (i) => norm(['e0.x', 'e0.y', 'e0.z'], i), 1e3],
-  ['left TCP error (mm)', (i) => norm(['e1.x', 'e1.y', 'e1.z'], i), 1e3],
+  ...hands.filter((h) => h.goal).map((h) => [`${h.label}: distance to its goal (mm)`,
+    (i) => distance(pathPoint(h.path, i), pathPoint(h.goal, i)), 1e3]),
   ...levels.map((n) => [`storage of level ${n.slice(1)} (J)`, (i) => signal(n)[i], 1]),
   ['smallest collision distance (mm)', (i) => signal('min_distance')?.[i] ?? null, 1e3],
-  ['force on the right hand (N)', (i) => norm(['force.right.x', 'force.right.y', 'force.right.z'], i), 1],
-  ['force on the left hand (N)', (i) => norm(['force.left.x', 'force.left.y', 'force.left.z'], i), 1],
+  ...hands.filter((h) => h.force).map((h) => [`force on the ${h.label} (N)`, (i) => pathPoint(h.force, i)?.length() ?? null, 1]),
   ['contact detected', (i) => (signal('contact') ? (signal('contact')[i] ? 'yes' : 'no') : null), 1],
   ['output mode', (i) => (signal('mode') ? MODES[signal('mode')[i]] ?? '?' : null), 1],
 ].filter(([, value]) => value(0) !== null && value(0) !== undefined);
@@ -259,6 +264,38 @@ const cells = rows.map(([label]) => {
   row.insertCell().textContent = label;
   return row.insertCell();
 });
+
+// ---- story: the events of the run as marks on the time slider, a caption and a list ----
+const events = data.events;
+const marks = document.getElementById('marks');
+const story = document.getElementById('story');
+const caption = document.getElementById('caption');
+const fraction = (t) => (duration > 0 ? (t - times[0]) / duration : 0);
+const eventItems = events.map((event) => {
+  const mark = document.createElement('span');
+  mark.className = event.phase ? 'mark phase' : 'mark';
+  mark.style.left = `${100 * fraction(event.t)}%`;
+  mark.title = `${event.t.toFixed(2)} s: ${event.text}`;
+  marks.append(mark);
+  const item = document.createElement('li');
+  if (event.phase) item.className = 'phase';
+  item.innerHTML = `<a href="#t=${event.t.toFixed(2)}">${event.t.toFixed(2)} s</a> ${event.text}`;
+  story.append(item);
+  return item;
+});
+if (events.length === 0) story.innerHTML = '<li>none: the scenario names no phases, and the signals show no push, contact, goal step or platform motion</li>';
+
+// The caption names the phase the run is in (the scenario's latest phase before `t`) and the
+// latest event found in the signals in the 1.5 s before `t`.
+function showStory(t) {
+  const past = events.filter((e) => e.t <= t + 1e-9);
+  const phase = past.filter((e) => e.phase).slice(-1);
+  const recent = past.filter((e) => !e.phase && e.t > t - 1.5).slice(-1);
+  const shown = [...phase, ...recent];
+  caption.innerHTML = shown.map((e) => `<div>${e.t.toFixed(2)} s: ${e.text}</div>`).join('');
+  caption.style.visibility = shown.length > 0 ? 'visible' : 'hidden';
+  events.forEach((e, k) => eventItems[k].classList.toggle('past', e.t <= t + 1e-9));
+}
 
 // ---- playback ----
 const slider = document.getElementById('slider');
@@ -295,10 +332,11 @@ function show(i) {
   });
   skeletonGeometry.attributes.position.needsUpdate = true;
   for (const h of hands) {
-    if (h.goal && h.goal[0][i] !== null) h.goalMarker.position.set(h.goal[0][i], h.goal[1][i], h.goal[2][i]);
-    const force = h.f[0] ? new THREE.Vector3(h.f[0][i] ?? 0, h.f[1][i] ?? 0, h.f[2][i] ?? 0) : new THREE.Vector3();
-    h.arrow.visible = force.length() > 0.5;
-    const tip = new THREE.Vector3(h.p[0][i], h.p[1][i], h.p[2][i]);
+    const goal = h.goal ? pathPoint(h.goal, i) : null;
+    if (goal) h.goalMarker.position.copy(goal);
+    const force = h.force ? pathPoint(h.force, i) ?? new THREE.Vector3() : new THREE.Vector3();
+    const tip = pathPoint(h.path, i);
+    h.arrow.visible = tip !== null && force.length() > 0.5;
     if (h.arrow.visible) setArrow(h.arrow, tip, force);
     h.surface.visible = hasSurfaces && h.arrow.visible;
     if (h.surface.visible) {
@@ -306,6 +344,7 @@ function show(i) {
       h.surface.quaternion.setFromUnitVectors(new THREE.Vector3(0, 0, 1), force.clone().normalize());
     }
   }
+  showStory(times[i]);
   rows.forEach(([, value, scale], r) => {
     const v = value(i);
     cells[r].textContent = typeof v === 'number' ? (v * scale).toFixed(scale === 1 ? 2 : 1) : (v ?? '–');

@@ -1,6 +1,7 @@
 // Opens a replay.html in headless Chromium (Debian's /usr/bin/chromium, WebGL through
-// SwiftShader) and checks that it draws: the canvas is not blank, and the robot is drawn
-// differently at two times given as `#t=<seconds>`.
+// SwiftShader) and checks that it draws: the canvas is not blank, the robot is drawn
+// differently at two times given as `#t=<seconds>`, and every event of the run has its mark on
+// the time slider and its line in the side panel.
 // Usage: node test/replay.test.mjs <replay.html> <t1> <t2> [screenshot directory]
 import { chromium } from 'playwright-core';
 import { mkdirSync } from 'node:fs';
@@ -65,13 +66,20 @@ try {
     await page.screenshot({ path: `${shots}/replay_t${t}.png` });
     measured.push(await measureCanvas(page));
   }
+  const story = await page.evaluate(() => ({
+    events: JSON.parse(document.getElementById('replay-data').textContent).events.length,
+    marks: document.querySelectorAll('#marks .mark').length,
+    lines: document.querySelectorAll('#story a').length,
+  }));
   const drawn = measured.map((m) => m.drawn);
   const changed = measured[1].changed;
   console.log(`drawn share at t=${t1}: ${drawn[0].toFixed(3)}, at t=${t2}: ${drawn[1].toFixed(3)} (> ${MIN_DRAWN_SHARE})`);
   console.log(`pixels changed between the two times: ${changed.toFixed(4)} (> ${MIN_CHANGED_SHARE})`);
+  console.log(`events: ${story.events}, marks on the slider: ${story.marks}, lines in the panel: ${story.lines}`);
   console.log(`screenshots in ${shots}`);
   if (errors.length > 0) { console.error(`page errors: ${errors.join('; ')}`); failed = true; }
   if (drawn.some((share) => share < MIN_DRAWN_SHARE)) { console.error('the replay is blank'); failed = true; }
+  if (story.marks !== story.events || story.lines !== story.events) { console.error('an event has no mark or line'); failed = true; }
   if (changed < MIN_CHANGED_SHARE) { console.error('the robot is drawn the same at both times'); failed = true; }
 } finally {
   await browser.close();

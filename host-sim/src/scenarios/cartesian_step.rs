@@ -20,6 +20,7 @@ use nalgebra::{Translation3, Vector3};
 use super::{column_index, joint_columns, pose_error_columns, Outcome, RunOptions};
 use crate::controllers::{CartesianJointGains, CartesianJointImpedance};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
+use crate::replay::Robot;
 use crate::sim::{run_loop, SimConfig, Simulator, CONTROL_PERIOD_S};
 
 /// Registry name.
@@ -27,6 +28,17 @@ pub const NAME: &str = "cartesian_step";
 /// One-line description.
 pub const DESCRIPTION: &str =
     "Justin-like robot, Cartesian impedance: 0.1 m TCP step at 0.5 s, 20 N push at 2.5 s, 4 s";
+
+/// The replay's robot: Justin with the run's platform pose, the right TCP's error in `e1.*` and
+/// the push in `push.f*`.
+pub const REPLAY: Robot = Robot::right_hand_at_level_1(&[
+    ("q.base_x", "base.x"),
+    ("q.base_y", "base.y"),
+    ("q.base_theta", "base.theta"),
+    ("force.right.x", "push.fx"),
+    ("force.right.y", "push.fy"),
+    ("force.right.z", "push.fz"),
+]);
 /// Simulated time (s).
 pub const DURATION_S: f64 = 4.0;
 /// Time of the target step (s).

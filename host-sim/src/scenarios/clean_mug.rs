@@ -119,6 +119,16 @@ fn plan(start: [Placement<f64>; 2]) -> ToolPlan {
     ToolPlan { references, contacts, cartesian: None }
 }
 
+/// The phases the replay names: approach, touch, scrub, release.
+pub fn phases() -> Vec<(f64, String)> {
+    vec![
+        (1.0, "both hands move towards the faces of the mug between them".into()),
+        (TOUCH_S, format!("the hands touch the faces; their goals lie {:.0} cm inside the mug", BEHIND_M * 100.0)),
+        (SCRUB_S.0, format!("the right hand brushes {CIRCLES} circles on its face, the left hand holds")),
+        (SCRUB_S.1, "scrubbing ends: the hands let go and return".into()),
+    ]
+}
+
 /// Simulates and checks the claims (module docs).
 pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let mut config = whole_body::controller_config::<f64>().map_err(|e| format!("config: {e}"))?;

@@ -60,6 +60,7 @@ use plotters::prelude::*;
 
 use super::{Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
+use crate::replay::Robot;
 use crate::sim::{run_loop, SimConfig, Simulator, CONTROL_PERIOD_S};
 use crate::wheels::{WheelConfig, Wheels};
 
@@ -68,6 +69,21 @@ pub const NAME: &str = "icr_avoidance";
 /// One-line description.
 pub const DESCRIPTION: &str =
     "platform ICR singularity avoidance (Fig. 3.11-3.13): quintic Bezier trajectory to 2.1 rad/s past three wheels, avoidance OFF / ON / ON with legs";
+
+/// The replay's robot: Justin's platform in the run with avoidance and leg motion (`legs.*`),
+/// the upper body at the home configuration, the reference path as the platform's goal.
+pub const REPLAY: Robot = Robot::Justin {
+    tcp_errors: ["", ""],
+    aliases: &[
+        ("q.base_x", "legs.x"),
+        ("q.base_y", "legs.y"),
+        ("q.base_theta", "legs.theta"),
+        ("leg_length.0", "legs.leg.1"),
+        ("leg_length.1", "legs.leg.2"),
+        ("leg_length.2", "legs.leg.3"),
+        ("leg_length.3", "legs.leg.4"),
+    ],
+};
 /// Simulated time (s).
 pub const DURATION_S: f64 = 22.5;
 /// Knot spacing of the Bézier spline (s).

@@ -47,6 +47,7 @@ use nalgebra::{Matrix3, SVector, Translation3, Vector3};
 use super::{joint_columns, pose_error_columns, Outcome, RunOptions};
 use crate::mobile_controller::{MobileImpedance, MobileImpedanceSettings};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
+use crate::replay::Robot;
 use crate::sim::{run_loop, SimConfig, SimError, Simulator, CONTROL_PERIOD_S, DEFAULT_PHYSICS_STEP_S};
 
 /// Registry name.
@@ -54,6 +55,10 @@ pub const NAME: &str = "mobile_impedance";
 /// One-line description.
 pub const DESCRIPTION: &str =
     "Justin-like robot, mobile impedance (Table 5.2): 0.3 m forward-rest-backward TCP trajectory, compensation ON vs OFF (Fig. 5.5/5.6)";
+
+/// The replay's robot (also of `mobile_impedance_critical`): Justin with the run's platform
+/// position along x and the right TCP's error in `e1.*` (the compensated run).
+pub const REPLAY: Robot = Robot::right_hand_at_level_1(&[("q.base_x", "base.x")]);
 /// Simulated time (s), as in Fig. 5.5.
 pub const DURATION_S: f64 = 12.0;
 /// Forward ramp of the desired TCP (s).

@@ -17,7 +17,7 @@ use kernel::tasks::collision::SweptSphere;
 use crate::output::{self, Figure, Summary, TimeSeries};
 use crate::pil::Target;
 use crate::plant::{PlantKind, PlantModel};
-use crate::replay;
+use crate::replay::{self, Robot};
 use crate::sim::{SimConfig, Simulator};
 
 pub mod cartesian_step;
@@ -86,6 +86,9 @@ impl Progress {
 /// line figures, extra tables); returns their names.
 type FileWriter = fn(&Path, &Outcome) -> Result<Vec<&'static str>, String>;
 
+/// A phase of a run: when it begins (s) and what happens.
+type Phase = (f64, String);
+
 /// A registered scenario.
 struct Entry {
     name: &'static str,
@@ -93,8 +96,12 @@ struct Entry {
     simulate: fn(&RunOptions) -> Result<Outcome, String>,
     /// Extra output files beyond the standard ones, if the scenario has any.
     extra_files: Option<FileWriter>,
+    /// The robot `replay.html` draws, if the scenario's table is a run of a robot over time.
+    replay: Option<Robot>,
     /// The world-fixed collision volumes the replay draws (table, wall), if any.
     environment: Option<fn() -> Vec<SweptSphere<f64>>>,
+    /// The phases of the run the replay names (start time, caption), if the scenario gives them.
+    phases: Option<fn() -> Vec<Phase>>,
     /// What the outcome's table holds.
     table: Table,
 }
@@ -115,50 +122,72 @@ impl Entry {
         description: &'static str,
         simulate: fn(&RunOptions) -> Result<Outcome, String>,
     ) -> Self {
-        Self { name, description, simulate, extra_files: None, environment: None, table: Table::TimeSeries }
+        Self {
+            name,
+            description,
+            simulate,
+            extra_files: None,
+            replay: None,
+            environment: None,
+            phases: None,
+            table: Table::TimeSeries,
+        }
     }
 }
 
-/// The registry entry of scenario module `$module` (its `NAME`, `DESCRIPTION` and `simulate`).
+/// The registry entry of scenario module `$module` (its `NAME`, `DESCRIPTION` and `simulate`),
+/// with the robot its replay draws, if any.
 macro_rules! entry {
     ($module:ident) => {
         Entry::new($module::NAME, $module::DESCRIPTION, $module::simulate)
     };
+    ($module:ident, $robot:expr) => {
+        Entry { replay: Some($robot), ..entry!($module) }
+    };
+}
+
+/// The planar four-link arm of the thesis' Ch. 4 and 5 simulations with its TCP error columns.
+const fn planar4(tcp_error: [&'static str; 2]) -> Robot {
+    Robot::PlanarArm { links: 4, tcp_error }
 }
 
 /// The registry: every scenario `host-sim list` shows, in that order.
 const SCENARIOS: &[Entry] = &[
-    entry!(cartesian_step),
-    entry!(energy_planar4),
-    entry!(projectors_sim1),
-    entry!(stiffness_sim2),
-    entry!(unilateral_sim),
+    entry!(cartesian_step, cartesian_step::REPLAY),
+    entry!(energy_planar4, planar4(["", ""])),
+    entry!(projectors_sim1, planar4(["e1.x", "e2.y"])),
+    entry!(stiffness_sim2, planar4(["e1.x", "e1.y"])),
+    entry!(unilateral_sim, Robot::PlanarArm { links: 3, tcp_error: ["e2.x", "e2.y"] }),
     Entry {
         extra_files: Some(torso_workspace::write_files),
         table: Table::Grid(torso_workspace::GRID_FILE),
         ..entry!(torso_workspace)
     },
     entry!(sca_damping),
-    entry!(multilevel_sim1),
-    entry!(multilevel_sim2),
-    entry!(multilevel_sim3),
-    entry!(multilevel_arm),
-    entry!(mobile_impedance),
-    entry!(mobile_impedance_critical),
+    entry!(multilevel_sim1, planar4(["e1.x", "e1.y"])),
+    entry!(multilevel_sim2, planar4(["e1.x", "e1.y"])),
+    entry!(multilevel_sim3, planar4(["e1.x", "e1.y"])),
+    entry!(multilevel_arm, multilevel_arm::REPLAY),
+    entry!(mobile_impedance, mobile_impedance::REPLAY),
+    entry!(mobile_impedance_critical, mobile_impedance::REPLAY),
     Entry {
         extra_files: Some(stability_map::write_files),
         table: Table::Grid(stability_map::CSV_FILE),
         ..entry!(stability_map)
     },
-    Entry { extra_files: Some(icr_avoidance::write_files), ..entry!(icr_avoidance) },
-    entry!(wbc_step),
-    entry!(wbc_trajectory),
-    entry!(wbc_phri),
-    Entry { environment: Some(|| wbc_grasp::table().to_vec()), ..entry!(wbc_grasp) },
-    entry!(wipe_window),
-    entry!(sweep_floor),
-    entry!(clean_mug),
-    entry!(soak),
+    Entry { extra_files: Some(icr_avoidance::write_files), ..entry!(icr_avoidance, icr_avoidance::REPLAY) },
+    entry!(wbc_step, Robot::JUSTIN),
+    entry!(wbc_trajectory, Robot::JUSTIN),
+    Entry { phases: Some(wbc_phri::phases), ..entry!(wbc_phri, Robot::JUSTIN) },
+    Entry {
+        environment: Some(|| wbc_grasp::table().to_vec()),
+        phases: Some(wbc_grasp::phases),
+        ..entry!(wbc_grasp, Robot::JUSTIN)
+    },
+    entry!(wipe_window, Robot::JUSTIN),
+    entry!(sweep_floor, Robot::JUSTIN),
+    Entry { phases: Some(clean_mug::phases), ..entry!(clean_mug, Robot::JUSTIN) },
+    entry!(soak, Robot::JUSTIN),
 ];
 
 /// The scenarios: `(name, one-line description)`.
@@ -229,7 +258,7 @@ impl RunOptions {
 }
 
 /// Runs scenario `name` and writes `timeseries.csv`, `summary.json`, its SVG plots and, for a
-/// scenario of the Justin robot, `replay.html` into the output directory (created if missing);
+/// run of a robot over time, `replay.html` into the output directory (created if missing);
 /// prints a short result on stdout.
 ///
 /// Errors: unknown scenario (the message lists the names), a failed simulation, an I/O error,
@@ -257,10 +286,13 @@ pub fn run(name: &str, options: &RunOptions) -> Result<(), String> {
     if let Some(write) = entry.extra_files {
         files.extend(write(&out, &outcome)?);
     }
-    let replayable = replay::is_replayable(&outcome.series);
-    if replayable {
-        let environment = entry.environment.map(|volumes| volumes()).unwrap_or_default();
-        replay::write(&out, &outcome.series, &outcome.summary, &environment)?;
+    if let Some(robot) = entry.replay {
+        let story = replay::Story {
+            description: entry.description,
+            phases: entry.phases.map(|phases| phases()).unwrap_or_default(),
+            environment: entry.environment.map(|volumes| volumes()).unwrap_or_default(),
+        };
+        replay::write(&out, robot, &outcome.series, &outcome.summary, &story)?;
         files.push("replay.html");
     }
     let passed = outcome.summary.passed_claims();
@@ -274,7 +306,7 @@ pub fn run(name: &str, options: &RunOptions) -> Result<(), String> {
     }
     println!("wrote {} in {}", files.join(", "), out.display());
     println!("columns and units of {table_file}: docs/OUTPUT.md");
-    if replayable {
+    if entry.replay.is_some() {
         println!("watch the robot: open {} in a browser", out.join("replay.html").display());
     }
     if failed.is_empty() {

@@ -66,6 +66,7 @@ use nalgebra::{Matrix3, RowSVector, SMatrix, SVector, Translation3, Unit, UnitQu
 use super::multilevel_planar::{column, largest_rise, peak, points};
 use super::{joint_columns, Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
+use crate::replay::Robot;
 use crate::sim::{run_loop, SimConfig, Simulator, CONTROL_PERIOD_S};
 
 /// Registry name.
@@ -73,6 +74,18 @@ pub const NAME: &str = "multilevel_arm";
 /// One-line description.
 pub const DESCRIPTION: &str =
     "Justin-like right arm, 3-level compliance (Table 5.6): step at 0.1 s, S1 non-increasing, level 3 constrained minimum, tau_mu on/off";
+
+/// The replay's robot: Justin with the right arm's joints in `q.1` … `q.7`, the TCP's error in
+/// `e1.*` and the rest at the home configuration.
+pub const REPLAY: Robot = Robot::right_hand_at_level_1(&[
+    ("q.right_arm_joint1", "q.1"),
+    ("q.right_arm_joint2", "q.2"),
+    ("q.right_arm_joint3", "q.3"),
+    ("q.right_arm_joint4", "q.4"),
+    ("q.right_arm_joint5", "q.5"),
+    ("q.right_arm_joint6", "q.6"),
+    ("q.right_arm_joint7", "q.7"),
+]);
 
 /// Coordinates of the arm.
 pub const ARM_DOF: usize = 7;
@@ -626,16 +639,23 @@ fn figures(series: &TimeSeries, without: &TimeSeries) -> Result<Vec<(&'static st
             spans: step(),
         });
     }
-    let errors = Panel {
-        title: "task errors (Fig. 5.22)".into(),
-        y_label: "m, rad, -".into(),
-        lines: vec![
-            Line::new("level 1: |TCP translation error| (m)", points(&t, &column(series, "e1.norm")?)),
-            Line::new("level 2: TCP rotation angle (rad)", points(&t, &column(series, "e2.angle")?)),
-            Line::new("level 3: |q − q_des| (rad)", points(&t, &column(series, "e3.norm")?)),
-        ],
-        spans: step(),
-    };
+    let errors = vec![
+        Panel {
+            title: "task error of level 1 (Fig. 5.22)".into(),
+            y_label: "error (m)".into(),
+            lines: vec![Line::new("level 1: |TCP translation error|", points(&t, &column(series, "e1.norm")?))],
+            spans: step(),
+        },
+        Panel {
+            title: "task errors of levels 2 and 3 (Fig. 5.22)".into(),
+            y_label: "angle (rad)".into(),
+            lines: vec![
+                Line::new("level 2: TCP rotation angle", points(&t, &column(series, "e2.angle")?)),
+                Line::new("level 3: |q − q_des|", points(&t, &column(series, "e3.norm")?)),
+            ],
+            spans: step(),
+        },
+    ];
     Ok(vec![
         (
             "storage.svg",
@@ -655,7 +675,7 @@ fn figures(series: &TimeSeries, without: &TimeSeries) -> Result<Vec<(&'static st
         ),
         (
             "errors.svg",
-            Figure { title: format!("{NAME}: errors (Fig. 5.22)"), x_label: "time (s)".into(), panels: vec![errors] },
+            Figure { title: format!("{NAME}: errors (Fig. 5.22)"), x_label: "time (s)".into(), panels: errors },
         ),
     ])
 }

@@ -88,6 +88,19 @@ pub fn table() -> [SweptSphere<f64>; 4] {
     ]
 }
 
+/// The phases the replay names: reach, hold, return.
+pub fn phases() -> Vec<(f64, String)> {
+    vec![
+        (
+            REACH_AT_S,
+            format!("the left hand starts reaching for the object on the table ({REACH_S:.0} s, 6-DOF cubic)"),
+        ),
+        (REACH_AT_S + REACH_S, format!("the left hand's goal is at the object: hold for {HOLD_S:.0} s")),
+        (RETURN_AT_S, "the left hand returns to its start pose".into()),
+        (RETURN_AT_S + REACH_S, "the goal is back at the start".into()),
+    ]
+}
+
 /// Runs the scenario: setup, run, measures, claims, figures.
 pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let mut rig = setup(options)?;
@@ -145,9 +158,10 @@ struct Measures {
     /// Left TCP distance to the object and to its start (m).
     to_goal: Vec<f64>,
     to_start: Vec<f64>,
-    /// Platform position x, y (m).
+    /// Platform position x, y (m) and yaw (rad).
     bx: Vec<f64>,
     by: Vec<f64>,
+    yaw: Vec<f64>,
     /// Position and orientation error at the end of the hold (m, rad).
     goal_error: f64,
     orientation_error: f64,
@@ -177,7 +191,7 @@ impl Measures {
             .sum::<f64>()
             .sqrt();
         let return_error = to_start.last().copied().unwrap_or(f64::NAN);
-        let (bx, by) = (col(series, "q.base_x")?, col(series, "q.base_y")?);
+        let (bx, by, yaw) = (col(series, "q.base_x")?, col(series, "q.base_y")?, col(series, "q.base_theta")?);
         let base_peak = bx.iter().copied().fold(f64::NEG_INFINITY, f64::max);
         let front_gap = TABLE_EDGE_X_M - TABLE_RADIUS_M - (base_peak + PLATFORM_FRONT_M);
         Ok(Self {
@@ -187,6 +201,7 @@ impl Measures {
             to_start,
             bx,
             by,
+            yaw,
             goal_error,
             orientation_error,
             return_error,
@@ -233,20 +248,22 @@ fn claims(m: &Measures, goal: &Vector3<f64>, rig: &wbc::Rig, series: &TimeSeries
 
 /// The main figure: top view and side view (shared world x).
 fn top_view(m: &Measures, goal: &Vector3<f64>) -> Figure {
-    let Measures { tcp, bx, by, goal_error, front_gap, .. } = m;
+    let Measures { tcp, bx, by, yaw, goal_error, front_gap, .. } = m;
     let xy = |x: &[f64], y: &[f64]| x.iter().zip(y.iter()).step_by(20).map(|(x, y)| (*x, *y)).collect::<Vec<_>>();
     let (x0, x1) = (TABLE_EDGE_X_M, TABLE_EDGE_X_M + TABLE_DEPTH_M);
     let (y0, y1) = TABLE_Y_M;
     let outline = vec![(x0, y0), (x1, y0), (x1, y1), (x0, y1), (x0, y0)];
-    let footprint = |bx: f64, by: f64| {
+    // The platform's footprint at row `i`: its rectangle turned by its yaw.
+    let footprint = |i: usize| {
         let (fx, fy) = (PLATFORM_FRONT_M, 0.3 + 0.125);
-        vec![(bx - fx, by - fy), (bx + fx, by - fy), (bx + fx, by + fy), (bx - fx, by + fy), (bx - fx, by - fy)]
+        let at = |v: &[f64]| v.get(i).copied().unwrap_or(f64::NAN);
+        let (x, y, (sin, cos)) = (at(bx), at(by), at(yaw).sin_cos());
+        [(-fx, -fy), (fx, -fy), (fx, fy), (-fx, fy), (-fx, -fy)]
+            .map(|(u, v)| (x + cos * u - sin * v, y + sin * u + cos * v))
+            .to_vec()
     };
-    let closest = bx
-        .iter()
-        .zip(by.iter())
-        .fold((f64::NEG_INFINITY, 0.0), |best, (x, y)| if *x > best.0 { (*x, *y) } else { best });
-    let first = (bx.first().copied().unwrap_or(0.0), by.first().copied().unwrap_or(0.0));
+    let (closest_row, closest_x) =
+        bx.iter().enumerate().fold((0, f64::NEG_INFINITY), |best, (i, x)| if *x > best.1 { (i, *x) } else { best });
     let marker =
         |p: &Vector3<f64>, s: f64| vec![(p.x - s, p.y), (p.x + s, p.y), (p.x, p.y), (p.x, p.y - s), (p.x, p.y + s)];
     let top = Panel {
@@ -255,10 +272,10 @@ fn top_view(m: &Measures, goal: &Vector3<f64>) -> Figure {
         lines: vec![
             Line::new("platform centre", xy(bx, by)),
             Line::new("left hand (TCP)", xy(&tcp[0], &tcp[1])),
-            Line::new("platform footprint at its closest", footprint(closest.0, closest.1)),
+            Line::new("platform footprint at its closest", footprint(closest_row)),
             Line::dashed("table", outline),
             Line::new("object (goal)", marker(goal, 0.04)),
-            Line::dashed("platform footprint at the start", footprint(first.0, first.1)),
+            Line::dashed("platform footprint at the start", footprint(0)),
         ],
         spans: vec![],
     };
@@ -268,7 +285,7 @@ fn top_view(m: &Measures, goal: &Vector3<f64>) -> Figure {
         lines: vec![
             Line::new("left hand (TCP)", xy(&tcp[0], &tcp[2])),
             Line::new("platform box at its closest", {
-                let (b, f) = (closest.0, PLATFORM_FRONT_M);
+                let (b, f) = (closest_x, PLATFORM_FRONT_M);
                 vec![(b - f, 0.05), (b + f, 0.05), (b + f, 0.55 + 0.125), (b - f, 0.55 + 0.125), (b - f, 0.05)]
             }),
             Line::dashed(
@@ -322,17 +339,22 @@ fn time_histories(m: &Measures, series: &TimeSeries) -> Result<Figure, String> {
                 spans: spans(),
             },
             Panel {
-                title: "platform".into(),
-                y_label: "m, m/s".into(),
+                title: "platform position".into(),
+                y_label: "position (m)".into(),
                 lines: vec![
                     line(series, "base x", "q.base_x", 1.0)?,
                     line(series, "base y", "q.base_y", 1.0)?,
-                    line(series, "commanded v_x", "vcmd.x", 1.0)?,
                     Line::dashed(
                         "table edge − platform front",
                         points(t, &vec![TABLE_EDGE_X_M - PLATFORM_FRONT_M; t.len()], 100, 1.0),
                     ),
                 ],
+                spans: spans(),
+            },
+            Panel {
+                title: "platform velocity command".into(),
+                y_label: "velocity (m/s)".into(),
+                lines: vec![line(series, "commanded v_x", "vcmd.x", 1.0)?],
                 spans: spans(),
             },
             Panel {

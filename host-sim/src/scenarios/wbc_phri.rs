@@ -19,7 +19,9 @@
 use kernel::controller::config::Hand;
 use nalgebra::Vector3;
 
-use super::wbc_step::{col, common_claims, distance_to, line, max_in, tcp_columns, PUSH_FRAME};
+use super::wbc_step::{
+    col, common_claims, distance_to, line, max_in, platform_velocity_panels, tcp_columns, PUSH_FRAME,
+};
 use super::{Outcome, RunOptions};
 use crate::output::{Figure, Panel, Span, Summary, TimeSeries};
 use crate::wbc;
@@ -43,6 +45,16 @@ pub const RETURN_TOLERANCE_M: f64 = 0.01;
 pub const ORIENTATION_TOLERANCE_RAD: f64 = core::f64::consts::PI / 180.0;
 /// Base velocity against the push that counts as a reaction (m/s).
 pub const YIELD_SPEED_M_S: f64 = 0.01;
+
+/// The phases the replay names: the pushes.
+pub fn phases() -> Vec<(f64, String)> {
+    PUSHES
+        .iter()
+        .map(|(t, [x, y, z])| {
+            (*t, format!("a person pushes the right hand with {PUSH_N:.0} N along ({x}, {y}, {z}) for {PUSH_S} s"))
+        })
+        .collect()
+}
 
 /// Runs the scenario: setup, run, claims, figure.
 pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
@@ -186,33 +198,34 @@ fn figure(signals: &Signals, series: &TimeSeries) -> Result<Figure, String> {
     let spans =
         || PUSHES.iter().map(|(at, _)| Span { label: "push".into(), from: *at, to: at + PUSH_S }).collect::<Vec<_>>();
     let deflection = crate::output::Line::new("‖p − p_start‖", super::wbc_step::points(t, error, 10, 1e3));
+    let [translation, rotation] = platform_velocity_panels(series, &spans())?;
     Ok(Figure {
         title: "wbc_phri: 40 N pushes on the right hand, whole-body compliance (cf. Fig. 6.7)".into(),
         x_label: "time (s)".into(),
         panels: vec![
-            Panel { title: "TCP deflection".into(), y_label: "mm".into(), lines: vec![deflection], spans: spans() },
             Panel {
-                title: "platform velocity command".into(),
-                y_label: "m/s, rad/s".into(),
-                lines: vec![
-                    line(series, "v_x", "vcmd.x", 1.0)?,
-                    line(series, "v_y", "vcmd.y", 1.0)?,
-                    line(series, "ω", "vcmd.theta", 1.0)?,
-                ],
+                title: "TCP deflection".into(),
+                y_label: "deflection (mm)".into(),
+                lines: vec![deflection],
+                spans: spans(),
+            },
+            translation,
+            rotation,
+            Panel {
+                title: "external torque estimate".into(),
+                y_label: "torque (Nm)".into(),
+                lines: vec![line(series, "‖τ_ext‖", "tau_ext_norm", 1.0)?],
                 spans: spans(),
             },
             Panel {
-                title: "external torque estimate and contact".into(),
-                y_label: "Nm, flag×10".into(),
-                lines: vec![
-                    line(series, "‖τ_ext‖", "tau_ext_norm", 1.0)?,
-                    line(series, "contact ×10", "contact", 10.0)?,
-                ],
+                title: "contact detected by the controller".into(),
+                y_label: "contact (1: detected)".into(),
+                lines: vec![line(series, "contact", "contact", 1.0)?],
                 spans: spans(),
             },
             Panel {
                 title: "energy".into(),
-                y_label: "J".into(),
+                y_label: "energy (J)".into(),
                 lines: vec![
                     line(series, "kinetic", "kinetic_j", 1.0)?,
                     line(series, "potential", "potential_j", 1.0)?,

@@ -57,6 +57,25 @@ pub fn points(t: &[f64], y: &[f64], stride: usize, scale: f64) -> Vec<(f64, f64)
     t.iter().zip(y.iter()).step_by(stride.max(1)).map(|(t, y)| (*t, y * scale)).collect()
 }
 
+/// The platform's commanded velocity as two panels, one unit each: translation `v_x, v_y` (m/s)
+/// and rotation `ω` (rad/s), with `spans`.
+pub fn platform_velocity_panels(series: &TimeSeries, spans: &[Span]) -> Result<[Panel; 2], String> {
+    Ok([
+        Panel {
+            title: "platform velocity command: translation".into(),
+            y_label: "velocity (m/s)".into(),
+            lines: vec![line(series, "v_x", "vcmd.x", 1.0)?, line(series, "v_y", "vcmd.y", 1.0)?],
+            spans: spans.to_vec(),
+        },
+        Panel {
+            title: "platform velocity command: rotation".into(),
+            y_label: "angular velocity (rad/s)".into(),
+            lines: vec![line(series, "ω", "vcmd.theta", 1.0)?],
+            spans: spans.to_vec(),
+        },
+    ])
+}
+
 /// A line of column `name` against time (scaled).
 pub fn line(series: &TimeSeries, label: &str, name: &str, scale: f64) -> Result<Line, String> {
     let t = col(series, "t")?;
@@ -236,14 +255,21 @@ fn figures(series: &TimeSeries, goal: &Vector3<f64>) -> Result<Vec<(&'static str
                 spans: step.clone(),
             },
             Panel {
-                title: "platform".into(),
-                y_label: "x (m), θ (rad), v (m/s)".into(),
-                lines: vec![
-                    line(series, "base x", "q.base_x", 1.0)?,
-                    line(series, "base y", "q.base_y", 1.0)?,
-                    line(series, "base θ", "q.base_theta", 1.0)?,
-                    line(series, "commanded v_x", "vcmd.x", 1.0)?,
-                ],
+                title: "platform position".into(),
+                y_label: "position (m)".into(),
+                lines: vec![line(series, "base x", "q.base_x", 1.0)?, line(series, "base y", "q.base_y", 1.0)?],
+                spans: step.clone(),
+            },
+            Panel {
+                title: "platform yaw".into(),
+                y_label: "yaw (rad)".into(),
+                lines: vec![line(series, "base θ", "q.base_theta", 1.0)?],
+                spans: step.clone(),
+            },
+            Panel {
+                title: "platform velocity command".into(),
+                y_label: "velocity (m/s)".into(),
+                lines: vec![line(series, "commanded v_x", "vcmd.x", 1.0)?],
                 spans: step.clone(),
             },
             Panel {

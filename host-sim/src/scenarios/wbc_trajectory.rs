@@ -16,7 +16,9 @@ use kernel::controller::config::{Hand, MAX_LEVELS};
 use kernel::controller::messages::Command;
 use nalgebra::{SVector, Vector3};
 
-use super::wbc_step::{col, common_claims, distance_to, line, points, pose_of, subtask_lines, tcp_columns};
+use super::wbc_step::{
+    col, common_claims, distance_to, line, platform_velocity_panels, points, pose_of, subtask_lines, tcp_columns,
+};
 use super::{Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
 use crate::wbc;
@@ -169,6 +171,7 @@ fn figures(run: &Run, tracking: &[f64]) -> Result<Vec<(&'static str, Figure)>, S
             points(&t, &levels.iter().map(|v| v.get(l).copied().unwrap_or(f64::NAN)).collect::<Vec<_>>(), 10, 1.0),
         )
     };
+    let [translation, rotation] = platform_velocity_panels(series, &spans())?;
     let main = Figure {
         title: "wbc_trajectory: right TCP 1 m forward and back, k_tra = 500 N/m, k_rot = 100 Nm/rad (cf. Fig. 6.5)"
             .into(),
@@ -190,16 +193,8 @@ fn figures(run: &Run, tracking: &[f64]) -> Result<Vec<(&'static str, Figure)>, S
                 lines: vec![Line::new("tracking error", points(&t, tracking, 10, 1e3))],
                 spans: spans(),
             },
-            Panel {
-                title: "platform velocity command".into(),
-                y_label: "m/s, rad/s".into(),
-                lines: vec![
-                    line(series, "v_x", "vcmd.x", 1.0)?,
-                    line(series, "v_y", "vcmd.y", 1.0)?,
-                    line(series, "ω", "vcmd.theta", 1.0)?,
-                ],
-                spans: spans(),
-            },
+            translation,
+            rotation,
         ],
     };
     let torques = Figure {

@@ -596,19 +596,21 @@ pub fn tool_figures(
     let mut tcp_panels = Vec::new();
     for (i, r) in run.references.iter().enumerate() {
         for (label, axis) in axes {
+            let mut lines = vec![
+                Line::new(
+                    "measured",
+                    run.samples.iter().filter_map(|s| s.measured.get(i).map(|p| (s.t, p.dot(axis)))).collect(),
+                ),
+                Line::dashed(
+                    "commanded",
+                    run.samples.iter().filter_map(|s| s.reference.get(i).map(|p| (s.t, p.dot(axis)))).collect(),
+                ),
+            ];
+            lines.extend(surface_lines(run, r.hand, axis));
             tcp_panels.push(Panel {
                 title: format!("{} TCP, {label}", hand_name(r.hand)),
                 y_label: "position (m)".into(),
-                lines: vec![
-                    Line::new(
-                        "measured",
-                        run.samples.iter().filter_map(|s| s.measured.get(i).map(|p| (s.t, p.dot(axis)))).collect(),
-                    ),
-                    Line::dashed(
-                        "commanded",
-                        run.samples.iter().filter_map(|s| s.reference.get(i).map(|p| (s.t, p.dot(axis)))).collect(),
-                    ),
-                ],
+                lines,
                 spans: spans.to_vec(),
             });
         }
@@ -631,6 +633,16 @@ pub fn tool_figures(
             },
         ),
     ]
+}
+
+/// The contact surfaces of `hand` whose normal is along `axis`, as lines at their position along
+/// it over the run.
+fn surface_lines<'a>(run: &'a ToolRun, hand: Hand, axis: &'a Vector3<f64>) -> impl Iterator<Item = Line> + 'a {
+    let span = [run.samples.first(), run.samples.last()];
+    run.contacts.iter().filter(move |c| c.hand == hand && c.surface.normal.dot(axis).abs() > 0.99).map(move |c| {
+        let at = c.surface.point.dot(axis);
+        Line::new(format!("{} (contact surface)", c.label), span.iter().flatten().map(|s| (s.t, at)).collect())
+    })
 }
 
 /// The window run.
