@@ -14,8 +14,10 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
     /// the kinematics of `data` (after `forward_kinematics`), then advances the governor of each
     /// hand with `Some` limits (a hand with `None` is reset). If the 12 × 12 solve fails (a
     /// non-finite input), the estimate is zero and the corrections are held. Cost two frame
-    /// Jacobians, the 12 × 12 Gram matrix as N rank-one updates and one 12 × 12 Cholesky, all
-    /// as loops over the column-major storage.
+    /// Jacobians (the columns off a TCP's support path are zero and skipped), the lower
+    /// triangle of the 12 × 12 Gram matrix as N rank-one updates restricted to the hands a
+    /// column moves (21 multiply-adds for an arm joint, 78 for a shared one) and one 12 × 12
+    /// Cholesky, all as loops over the column-major storage.
     /// Errors: [`DynamicsError::UnknownFrame`] for a TCP frame outside the model.
     #[allow(clippy::too_many_arguments, reason = "the controller's pieces, each used once")]
     pub fn update<const B: usize, const F: usize>(
@@ -29,41 +31,57 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
         dt: T,
     ) -> Result<(), DynamicsError> {
         // J_h = blockdiag(A_hᵀ, A_hᵀ) J_h,world column by column; J_u (platform columns zero)
-        // stacked for both hands into the 12 × N matrix, one 12-entry column per coordinate.
+        // stacked for both hands into the 12 × N matrix, one 12-entry column per coordinate,
+        // written in place (every entry of `self.stacked` is written).
         let mut full = [SMatrix::<T, 6, N>::zeros(); 2];
-        let mut stacked = SMatrix::<T, 12, N>::zeros();
         for (h, ((tcp, limits), jacobian)) in layout.tcp.iter().zip(hands.iter()).zip(full.iter_mut()).enumerate() {
-            let axes = limits.map_or_else(Matrix3::identity, |l| l.axes);
+            let [a0, a1, a2] = limits.map_or_else(Matrix3::identity, |l| l.axes).data.0;
             frame_jacobian(model, data, *tcp, jacobian)?;
             for (k, (column, target)) in
-                jacobian.as_mut_slice().chunks_exact_mut(6).zip(stacked.as_mut_slice().chunks_exact_mut(12)).enumerate()
+                jacobian.data.0.iter_mut().zip(self.stacked.as_mut_slice().chunks_exact_mut(12)).enumerate()
             {
-                for half in column.chunks_exact_mut(3) {
-                    let world = [
-                        half.first().copied().unwrap_or_else(T::zero),
-                        half.get(1).copied().unwrap_or_else(T::zero),
-                        half.get(2).copied().unwrap_or_else(T::zero),
-                    ];
-                    // (Aᵀ x)_i = column i of A · x.
-                    for (x, a) in half.iter_mut().zip(axes.as_slice().chunks_exact(3)) {
-                        *x = a.iter().zip(world.iter()).fold(T::zero(), |s, (a, w)| s + *a * *w);
-                    }
-                }
-                if layout.platform.is_platform(k) {
+                let Some(rows) = target.get_mut(6 * h..6 * h + 6) else { continue };
+                if column.iter().all(|x| *x == T::zero()) {
+                    // Off the TCP's support path: zero in every frame.
+                    rows.fill(T::zero());
                     continue;
                 }
-                if let Some(rows) = target.get_mut(6 * h..6 * h + 6) {
+                // (Aᵀ x)_i = column i of A · x, for the linear and the angular half.
+                let [x0, x1, x2, x3, x4, x5] = *column;
+                let rotate = |[a, b, c]: &[T; 3], x: T, y: T, z: T| *a * x + *b * y + *c * z;
+                *column = [
+                    rotate(&a0, x0, x1, x2),
+                    rotate(&a1, x0, x1, x2),
+                    rotate(&a2, x0, x1, x2),
+                    rotate(&a0, x3, x4, x5),
+                    rotate(&a1, x3, x4, x5),
+                    rotate(&a2, x3, x4, x5),
+                ];
+                if layout.platform.is_platform(k) {
+                    rows.fill(T::zero());
+                } else {
                     rows.copy_from_slice(column);
                 }
             }
         }
-        // Gram matrix J_u J_uᵀ + μ I as a sum of rank-one terms over the columns, and J_u τ̂_ext.
-        let mut gram = SMatrix::<T, 12, 12>::identity() * parameters.regularisation;
+        // Gram matrix J_u J_uᵀ + μ I (lower triangle, the one the factorisation reads) as a sum
+        // of rank-one terms over the columns, and J_u τ̂_ext. A column of one hand only (an arm
+        // joint) adds to that hand's 6 × 6 diagonal block; a shared one (torso) to all three
+        // blocks.
+        let mut gram = SMatrix::<T, 12, 12>::zeros();
+        for g in gram.as_mut_slice().iter_mut().step_by(13) {
+            *g = parameters.regularisation;
+        }
         let mut projected = SVector::<T, 12>::zeros();
-        for (column, r) in stacked.as_slice().chunks_exact(12).zip(residual.iter()) {
-            for (g_column, c_j) in gram.as_mut_slice().chunks_exact_mut(12).zip(column.iter()) {
-                if *c_j != T::zero() {
-                    for (g, c_i) in g_column.iter_mut().zip(column.iter()) {
+        for (column, r) in self.stacked.as_slice().chunks_exact(12).zip(residual.iter()) {
+            let second_nonzero = column.get(6..).is_some_and(|half| half.iter().any(|x| *x != T::zero()));
+            for (j, (g_column, c_j)) in gram.as_mut_slice().chunks_exact_mut(12).zip(column.iter()).enumerate() {
+                if *c_j == T::zero() {
+                    continue;
+                }
+                let end = if j < 6 && !second_nonzero { 6 } else { 12 };
+                if let (Some(g), Some(c)) = (g_column.get_mut(j..end), column.get(j..end)) {
+                    for (g, c_i) in g.iter_mut().zip(c.iter()) {
                         *g += *c_i * *c_j;
                     }
                 }
@@ -72,7 +90,6 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
                 *p += *c * *r;
             }
         }
-        self.stacked = stacked;
         self.effective = [None; 2];
         let mut external = projected;
         let solved = cholesky_in_place(gram.as_mut_slice(), 12)
