@@ -73,21 +73,26 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
             *g = parameters.regularisation;
         }
         let mut projected = SVector::<T, 12>::zeros();
-        for (column, r) in self.stacked.as_slice().chunks_exact(12).zip(residual.iter()) {
-            let second_nonzero = column.get(6..).is_some_and(|half| half.iter().any(|x| *x != T::zero()));
-            for (j, (g_column, c_j)) in gram.as_mut_slice().chunks_exact_mut(12).zip(column.iter()).enumerate() {
-                if *c_j == T::zero() {
-                    continue;
+        for (column, r) in self.stacked.data.0.iter().zip(residual.iter()) {
+            let [a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5] = *column;
+            let (first, second) = ([a0, a1, a2, a3, a4, a5], [b0, b1, b2, b3, b4, b5]);
+            let moves = |half: &[T; 6]| half.iter().any(|x| *x != T::zero());
+            let (first_moves, second_moves) = (moves(&first), moves(&second));
+            let (left, right) = gram.data.0.split_at_mut(6);
+            if first_moves {
+                add_outer(left, 0, &first, &first, true);
+                if second_moves {
+                    add_outer(left, 6, &second, &first, false);
                 }
-                let end = if j < 6 && !second_nonzero { 6 } else { 12 };
-                if let (Some(g), Some(c)) = (g_column.get_mut(j..end), column.get(j..end)) {
-                    for (g, c_i) in g.iter_mut().zip(c.iter()) {
-                        *g += *c_i * *c_j;
-                    }
+                for (p, x) in projected.iter_mut().zip(first.iter()) {
+                    *p += *x * *r;
                 }
             }
-            for (p, c) in projected.iter_mut().zip(column.iter()) {
-                *p += *c * *r;
+            if second_moves {
+                add_outer(right, 6, &second, &second, true);
+                for (p, x) in projected.iter_mut().skip(6).zip(second.iter()) {
+                    *p += *x * *r;
+                }
             }
         }
         self.effective = [None; 2];
@@ -107,5 +112,21 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
         }
         self.govern(parameters, layout, hands, &full, &external, dt);
         Ok(())
+    }
+}
+
+/// `G_ij += x_{i−offset} y_j` for the six columns `j` of `columns` and the rows
+/// `i ∈ [offset, offset + 6)`; on a diagonal block (`x = y`, columns `offset..offset + 6` of the
+/// matrix, `diagonal`) only the rows `i ≥ j + offset`, the lower triangle. Fixed trip counts:
+/// the loops unroll into straight multiply-adds.
+#[inline(always)]
+fn add_outer<T: RealField + Copy>(columns: &mut [[T; 12]], offset: usize, x: &[T; 6], y: &[T; 6], diagonal: bool) {
+    for (j, (column, y_j)) in columns.iter_mut().zip(y.iter()).enumerate() {
+        let first = if diagonal { j } else { 0 };
+        for i in first..6 {
+            if let (Some(g), Some(x_i)) = (column.get_mut(offset + i), x.get(i)) {
+                *g += *x_i * *y_j;
+            }
+        }
     }
 }
