@@ -194,7 +194,7 @@ impl<
         let residual = *self.state.observer.residual();
         self.state
             .force_limiter
-            .update(
+            .update_with_jacobians(
                 &self.settings.config.force_limit,
                 &self.settings.model,
                 &self.work.data,
@@ -202,6 +202,7 @@ impl<
                 &residual,
                 &hands,
                 dt,
+                &mut self.work.tcp_jacobians,
             )
             .map_err(Fault::Dynamics)?;
         self.state.telemetry.contact_wrench = self.state.force_limiter.applied();
@@ -243,6 +244,7 @@ impl<
                     joint_goal: &self.state.joint_goal,
                     mass,
                     inertia,
+                    tcp_jacobians: &self.work.tcp_jacobians,
                 },
                 &mut self.work.data,
                 &mut scratch,

@@ -30,24 +30,50 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
         hands: &[Option<HandLimits<T>>; 2],
         dt: T,
     ) -> Result<(), DynamicsError> {
+        let mut world = [SMatrix::<T, 6, N>::zeros(); 2];
+        self.update_with_jacobians(parameters, model, data, layout, residual, hands, dt, &mut world)
+    }
+
+    /// [`Self::update`] that leaves the world-aligned TCP Jacobians `(J_v; J_ω)` of both hands
+    /// (what [`frame_jacobian`] writes for `layout.tcp`) in `world`, for the Cartesian tasks of
+    /// the same cycle.
+    #[allow(clippy::too_many_arguments, reason = "the controller's pieces, each used once")]
+    pub fn update_with_jacobians<const B: usize, const F: usize>(
+        &mut self,
+        parameters: &ForceLimitParameters<T>,
+        model: &Model<T, N, B, F>,
+        data: &Data<T, N, B, F>,
+        layout: &RobotLayout<N>,
+        residual: &SVector<T, N>,
+        hands: &[Option<HandLimits<T>>; 2],
+        dt: T,
+        world: &mut [SMatrix<T, 6, N>; 2],
+    ) -> Result<(), DynamicsError> {
         // J_h = blockdiag(A_hᵀ, A_hᵀ) J_h,world column by column; J_u (platform columns zero)
         // stacked for both hands into the 12 × N matrix, one 12-entry column per coordinate,
         // written in place (every entry of `self.stacked` is written).
         let mut full = [SMatrix::<T, 6, N>::zeros(); 2];
-        for (h, ((tcp, limits), jacobian)) in layout.tcp.iter().zip(hands.iter()).zip(full.iter_mut()).enumerate() {
+        for (h, (((tcp, limits), jacobian), world)) in
+            layout.tcp.iter().zip(hands.iter()).zip(full.iter_mut()).zip(world.iter_mut()).enumerate()
+        {
             let [a0, a1, a2] = limits.map_or_else(Matrix3::identity, |l| l.axes).data.0;
-            frame_jacobian(model, data, *tcp, jacobian)?;
-            for (k, (column, target)) in
-                jacobian.data.0.iter_mut().zip(self.stacked.as_mut_slice().chunks_exact_mut(12)).enumerate()
+            frame_jacobian(model, data, *tcp, world)?;
+            for (k, ((column, source), target)) in jacobian
+                .data
+                .0
+                .iter_mut()
+                .zip(world.data.0.iter())
+                .zip(self.stacked.as_mut_slice().chunks_exact_mut(12))
+                .enumerate()
             {
                 let Some(rows) = target.get_mut(6 * h..6 * h + 6) else { continue };
-                if column.iter().all(|x| *x == T::zero()) {
+                if source.iter().all(|x| *x == T::zero()) {
                     // Off the TCP's support path: zero in every frame.
                     rows.fill(T::zero());
                     continue;
                 }
                 // (Aᵀ x)_i = column i of A · x, for the linear and the angular half.
-                let [x0, x1, x2, x3, x4, x5] = *column;
+                let [x0, x1, x2, x3, x4, x5] = *source;
                 let rotate = |[a, b, c]: &[T; 3], x: T, y: T, z: T| *a * x + *b * y + *c * z;
                 *column = [
                     rotate(&a0, x0, x1, x2),
@@ -73,7 +99,7 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
             *g = parameters.regularisation;
         }
         let mut projected = SVector::<T, 12>::zeros();
-        for (column, r) in self.stacked.data.0.iter().zip(residual.iter()) {
+        for (column, r) in self.stacked.data.0.iter().zip(residual.as_slice().iter()) {
             let [a0, a1, a2, a3, a4, a5, b0, b1, b2, b3, b4, b5] = *column;
             let (first, second) = ([a0, a1, a2, a3, a4, a5], [b0, b1, b2, b3, b4, b5]);
             let moves = |half: &[T; 6]| half.iter().any(|x| *x != T::zero());
@@ -84,13 +110,13 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
                 if second_moves {
                     add_outer(left, 6, &second, &first, false);
                 }
-                for (p, x) in projected.iter_mut().zip(first.iter()) {
+                for (p, x) in projected.as_mut_slice().iter_mut().zip(first.iter()) {
                     *p += *x * *r;
                 }
             }
             if second_moves {
                 add_outer(right, 6, &second, &second, true);
-                for (p, x) in projected.iter_mut().skip(6).zip(second.iter()) {
+                for (p, x) in projected.as_mut_slice().iter_mut().skip(6).zip(second.iter()) {
                     *p += *x * *r;
                 }
             }

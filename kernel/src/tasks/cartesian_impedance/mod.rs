@@ -343,7 +343,7 @@ pub fn cartesian_impedance<T: RealField + Copy, const N: usize, const B: usize, 
     target: &CartesianTarget<T>,
     rows: &mut TaskRows<T, N, R>,
 ) -> Result<CartesianReport<T>, TaskError> {
-    evaluate(model, data, MassFactor::Dense, task, target, rows)
+    evaluate(model, data, MassFactor::Dense, task, target, None, rows)
 }
 
 /// [`cartesian_impedance`] with the damping design on a tree-sparse factor `M = Lᵀ L` of
@@ -366,7 +366,29 @@ pub fn cartesian_impedance_factored<
     target: &CartesianTarget<T>,
     rows: &mut TaskRows<T, N, R>,
 ) -> Result<CartesianReport<T>, TaskError> {
-    evaluate(model, data, MassFactor::Tree(mass), task, target, rows)
+    evaluate(model, data, MassFactor::Tree(mass), task, target, None, rows)
+}
+
+/// [`cartesian_impedance_factored`] with the world-aligned Jacobian `(J_v; J_ω)` of the task's
+/// frame given by the caller: `jacobian` is what [`frame_jacobian`] writes for `task`'s frame at
+/// `data` (the controller computes it once per cycle for the contact-force limiter and the
+/// task). The same rows, bit for bit, as [`cartesian_impedance_factored`] for that Jacobian.
+pub fn cartesian_impedance_with_jacobian<
+    T: RealField + Copy,
+    const N: usize,
+    const B: usize,
+    const F: usize,
+    const R: usize,
+>(
+    model: &Model<T, N, B, F>,
+    data: &Data<T, N, B, F>,
+    mass: Option<&TreeFactorization<T, N>>,
+    task: &CartesianImpedance<T>,
+    target: &CartesianTarget<T>,
+    jacobian: &SMatrix<T, 6, N>,
+    rows: &mut TaskRows<T, N, R>,
+) -> Result<CartesianReport<T>, TaskError> {
+    evaluate(model, data, MassFactor::Tree(mass), task, target, Some(jacobian), rows)
 }
 
 /// Where the damping design gets `M⁻¹` from.
@@ -384,6 +406,7 @@ fn evaluate<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
     mass: MassFactor<'_, T, N>,
     task: &CartesianImpedance<T>,
     target: &CartesianTarget<T>,
+    world_jacobian: Option<&SMatrix<T, 6, N>>,
     rows: &mut TaskRows<T, N, R>,
 ) -> Result<CartesianReport<T>, TaskError> {
     let config = &task.config;
@@ -398,8 +421,14 @@ fn evaluate<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
     if rows.len().saturating_add(config.axes.count()) > R {
         return Err(TaskError::Capacity { capacity: R });
     }
-    let mut jacobian = SMatrix::<T, 6, N>::zeros();
-    frame_jacobian(model, data, config.frame, &mut jacobian)?;
+    let mut jacobian = match world_jacobian {
+        Some(given) => *given,
+        None => {
+            let mut computed = SMatrix::<T, 6, N>::zeros();
+            frame_jacobian(model, data, config.frame, &mut computed)?;
+            computed
+        }
+    };
     let placement = data.frame_placements.get(config.frame.0).ok_or(DynamicsError::UnknownFrame)?;
     let kinematics = task_kinematics(placement, &mut jacobian, target, config.stiffness_frame);
 
