@@ -269,23 +269,16 @@ fn task_kinematics<T: RealField + Copy, const N: usize>(
     let translation = at * offset;
     let rotation = at * epsilon * two;
     let rotation_map = at * e_matrix;
-    let apply = |m: &Matrix3<T>, x: &[T]| -> [T; 3] {
-        let (x0, x1, x2) = (
-            x.first().copied().unwrap_or_else(T::zero),
-            x.get(1).copied().unwrap_or_else(T::zero),
-            x.get(2).copied().unwrap_or_else(T::zero),
-        );
-        let m = m.as_slice();
-        let e = |i: usize| m.get(i).copied().unwrap_or_else(T::zero);
-        [e(0) * x0 + e(3) * x1 + e(6) * x2, e(1) * x0 + e(4) * x1 + e(7) * x2, e(2) * x0 + e(5) * x1 + e(8) * x2]
+    // m x for the column arrays of m.
+    let apply = |m: &Matrix3<T>, x0: T, x1: T, x2: T| -> [T; 3] {
+        let [[e0, e1, e2], [e3, e4, e5], [e6, e7, e8]] = m.data.0;
+        [e0 * x0 + e3 * x1 + e6 * x2, e1 * x0 + e4 * x1 + e7 * x2, e2 * x0 + e5 * x1 + e8 * x2]
     };
-    for column in jacobian.as_mut_slice().chunks_exact_mut(6) {
-        let Some((linear, angular)) = column.split_at_mut_checked(3) else { continue };
-        let new_linear = apply(&at, linear);
-        let new_angular = apply(&rotation_map, angular);
-        for (x, y) in linear.iter_mut().zip(new_linear).chain(angular.iter_mut().zip(new_angular)) {
-            *x = y;
-        }
+    for column in jacobian.data.0.iter_mut() {
+        let [x0, x1, x2, x3, x4, x5] = *column;
+        let [l0, l1, l2] = apply(&at, x0, x1, x2);
+        let [r0, r1, r2] = apply(&rotation_map, x3, x4, x5);
+        *column = [l0, l1, l2, r0, r1, r2];
     }
     // ∂e_t/∂t = −Aᵀ (ṗ_des + ω_A × (p − p_des)). At fixed q, R R_desᵀ turns with the spatial
     // angular velocity −R R_desᵀ ω_des, so ∂e_r/∂t = −2 Aᵀ (ω_A × ε) − Aᵀ E R R_desᵀ ω_des.
