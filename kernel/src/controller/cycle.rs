@@ -468,7 +468,14 @@ impl<
         }
         t.potential_energy = potential;
         let half: T = convert(0.5);
-        t.kinetic_energy = half * self.work.data.v.dot(&(closed_loop * self.work.data.v));
+        // M̃ q̇ as a sum of the columns of M̃, in column order.
+        let mut momentum = SVector::<T, N>::zeros();
+        for (column, v) in closed_loop.data.0.iter().zip(self.work.data.v.as_slice().iter()) {
+            for (p, m) in momentum.as_mut_slice().iter_mut().zip(column.iter()) {
+                *p += *v * *m;
+            }
+        }
+        t.kinetic_energy = half * self.work.data.v.dot(&momentum);
         t.base_velocity = *velocity;
 
         self.state.hold_gravity = self.work.data.gravity_torque;
