@@ -96,7 +96,7 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
         }
         // −J_Lᵀ e: one dot product over the limited rows per column of the stacked Jacobian.
         let mut torque = SVector::<T, N>::zeros();
-        for (t, column) in torque.iter_mut().zip(self.stacked.data.0.iter()) {
+        for (t, column) in torque.as_mut_slice().iter_mut().zip(self.stacked.data.0.iter()) {
             *t = -rows
                 .iter()
                 .zip(excess.iter())
@@ -175,23 +175,25 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
             }
         }
         factor.right_solve_mut(&mut x);
+        // The lower triangle of the R × R Gram matrix of the packed rows, as rank-one updates
+        // over the columns of X (fixed trip counts): `X_L X_Lᵀ` in its leading `k × k` block,
+        // `X_L x_τᵀ` in its row `k`.
+        let mut gram = [[T::zero(); R]; R];
         for column in x.data.0.iter() {
-            let (Some(xs), Some(&x_t)) = (column.get(..count), column.get(count)) else { continue };
-            // Column j of the Gram matrix, rows i ≥ j (the lower triangle).
-            for (j, (g_column, x_j)) in reflected.chunks_exact_mut(count.max(1)).zip(xs.iter()).enumerate() {
-                if let (Some(g), Some(x_i)) = (g_column.get_mut(j..), xs.get(j..)) {
-                    for (g, x_i) in g.iter_mut().zip(x_i.iter()) {
+            for (j, (g, x_j)) in gram.iter_mut().zip(column.iter()).enumerate() {
+                for i in j..R {
+                    if let (Some(g), Some(x_i)) = (g.get_mut(i), column.get(i)) {
                         *g += *x_i * *x_j;
                     }
                 }
             }
-            for (f, x_i) in force.iter_mut().zip(xs.iter()) {
-                *f += *x_i * x_t;
-            }
         }
-        for (j, g_column) in reflected.chunks_exact_mut(count.max(1)).take(count).enumerate() {
-            if let Some(g) = g_column.get_mut(j) {
-                *g += regularisation;
+        for (j, ((target, g), f)) in
+            reflected.chunks_exact_mut(count.max(1)).zip(gram.iter()).zip(force.iter_mut()).take(count).enumerate()
+        {
+            *f = g.get(count).copied().unwrap_or_else(T::zero);
+            for (i, (t, value)) in target.iter_mut().zip(g.iter()).enumerate().skip(j) {
+                *t = if i == j { *value + regularisation } else { *value };
             }
         }
         true
