@@ -390,7 +390,7 @@ impl<
         let (lower, upper) =
             torque_box(&self.settings.model.limits.effort, rate, &self.state.previous_torque, dt, &active);
         let mut torque = saturate_with_priority(compensation, levels, &lower, &upper, &active, saturation);
-        for (t, a) in torque.iter_mut().zip(active.iter()) {
+        for (t, a) in torque.as_mut_slice().iter_mut().zip(active.iter()) {
             if !a {
                 *t = T::zero();
             }
@@ -407,7 +407,7 @@ impl<
         self.state.previous_torque = *torque;
         self.state.previous_base_velocity = Vector3::from(platform.velocity);
         let out = &mut self.state.output;
-        for (o, t) in out.torque.iter_mut().zip(torque.iter().skip(PLATFORM_DOF)) {
+        for (o, t) in out.torque.iter_mut().zip(torque.as_slice().iter().skip(PLATFORM_DOF)) {
             *o = *t;
         }
         out.platform = platform;
@@ -432,7 +432,7 @@ impl<
             return Err(Fault::NonFiniteOutput);
         }
         let mut measured = SVector::<T, N>::zeros();
-        for (m, t) in measured.iter_mut().skip(PLATFORM_DOF).zip(frame.joints.torque.iter()) {
+        for (m, t) in measured.as_mut_slice().iter_mut().skip(PLATFORM_DOF).zip(frame.joints.torque.iter()) {
             *m = *t;
         }
         let observed = self.settings.config.layout.coordinates(JointGroup::UpperBody);
