@@ -6,7 +6,7 @@ use nalgebra::{Matrix3, RealField, SMatrix, SVector, Vector6};
 use super::limiter::{ForceLimitParameters, ForceLimiter, HandLimits};
 use crate::controller::layout::RobotLayout;
 use crate::dynamics::{frame_jacobian, DynamicsError};
-use crate::math::cholesky::{cholesky_in_place, solve_lower_in_place, solve_lower_transpose_in_place};
+use crate::math::cholesky::{cholesky_fixed, solve_lower_in_place, solve_lower_transpose_in_place};
 use crate::model::{Data, Model};
 
 impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
@@ -123,7 +123,7 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
         }
         self.effective = [None; 2];
         let mut external = projected;
-        let solved = cholesky_in_place(gram.as_mut_slice(), 12)
+        let solved = cholesky_fixed(&mut gram.data.0)
             && solve_lower_in_place(gram.as_slice(), external.as_mut_slice())
             && solve_lower_transpose_in_place(gram.as_slice(), external.as_mut_slice());
         if !solved {

@@ -5,7 +5,7 @@
 use nalgebra::{Matrix6, RealField, SMatrix, SVector, Vector6};
 
 use crate::dynamics::TreeFactorization;
-use crate::math::cholesky::{cholesky_in_place, solve_lower_in_place};
+use crate::math::cholesky::{cholesky_fixed, cholesky_in_place, solve_lower_in_place};
 use crate::math::damping::{double_diagonalization_factored, DampingError, ReflectedInertia};
 use crate::model::Data;
 
@@ -133,7 +133,7 @@ fn design_from_inverse_inertia<T: RealField + Copy>(
     // A rounding-level pivot would pass the factorization inside the design but give a
     // meaningless (huge) damping along the lost direction: treat it as singular.
     let mut pivots = *inverse_inertia;
-    if !cholesky_in_place(pivots.as_mut_slice(), 6) {
+    if !cholesky_fixed(&mut pivots.data.0) {
         return Err(DampingFallback::TaskJacobianSingular);
     }
     let floor = nalgebra::convert::<f64, T>(100.0) * T::default_epsilon() * inverse_inertia.diagonal().amax();
