@@ -197,7 +197,7 @@ impl<
         let residual = *self.state.observer.residual();
         self.state
             .force_limiter
-            .update(
+            .update_with_jacobians(
                 &self.settings.config.force_limit,
                 &self.settings.model,
                 &self.work.data,
@@ -205,6 +205,7 @@ impl<
                 &residual,
                 &hands,
                 dt,
+                &mut self.work.tcp_jacobians,
             )
             .map_err(Fault::Dynamics)?;
         self.state.telemetry.contact_wrench = self.state.force_limiter.applied();
@@ -246,6 +247,7 @@ impl<
                     joint_goal: &self.state.joint_goal,
                     mass,
                     inertia,
+                    tcp_jacobians: &self.work.tcp_jacobians,
                 },
                 &mut self.work.data,
                 &mut scratch,
@@ -391,7 +393,7 @@ impl<
         let (lower, upper) =
             torque_box(&self.settings.model.limits.effort, rate, &self.state.previous_torque, dt, &active);
         let mut torque = saturate_with_priority(compensation, levels, &lower, &upper, &active, saturation);
-        for (t, a) in torque.iter_mut().zip(active.iter()) {
+        for (t, a) in torque.as_mut_slice().iter_mut().zip(active.iter()) {
             if !a {
                 *t = T::zero();
             }
@@ -408,7 +410,7 @@ impl<
         self.state.previous_torque = *torque;
         self.state.previous_base_velocity = Vector3::from(platform.velocity);
         let out = &mut self.state.output;
-        for (o, t) in out.torque.iter_mut().zip(torque.iter().skip(PLATFORM_DOF)) {
+        for (o, t) in out.torque.iter_mut().zip(torque.as_slice().iter().skip(PLATFORM_DOF)) {
             *o = *t;
         }
         out.platform = platform;
@@ -433,7 +435,7 @@ impl<
             return Err(Fault::NonFiniteOutput);
         }
         let mut measured = SVector::<T, N>::zeros();
-        for (m, t) in measured.iter_mut().skip(PLATFORM_DOF).zip(frame.joints.torque.iter()) {
+        for (m, t) in measured.as_mut_slice().iter_mut().skip(PLATFORM_DOF).zip(frame.joints.torque.iter()) {
             *m = *t;
         }
         let observed = self.settings.config.layout.coordinates(JointGroup::UpperBody);
@@ -470,7 +472,14 @@ impl<
         }
         t.potential_energy = potential;
         let half: T = convert(0.5);
-        t.kinetic_energy = half * self.work.data.v.dot(&(closed_loop * self.work.data.v));
+        // M̃ q̇ as a sum of the columns of M̃, in column order.
+        let mut momentum = SVector::<T, N>::zeros();
+        for (column, v) in closed_loop.data.0.iter().zip(self.work.data.v.as_slice().iter()) {
+            for (p, m) in momentum.as_mut_slice().iter_mut().zip(column.iter()) {
+                *p += *v * *m;
+            }
+        }
+        t.kinetic_energy = half * self.work.data.v.dot(&momentum);
         t.base_velocity = *velocity;
 
         self.state.hold_gravity = self.work.data.gravity_torque;

@@ -48,11 +48,18 @@ impl<T: RealField + Copy, const U: usize> SensorFrame<T, U> {
     pub(super) fn coordinates<const N: usize>(&self) -> (SVector<T, N>, SVector<T, N>) {
         let mut q = SVector::<T, N>::zeros();
         let mut v = SVector::<T, N>::zeros();
-        let positions = self.platform.pose.iter().chain(self.joints.position.iter());
-        let velocities = self.platform.velocity.iter().chain(self.joints.velocity.iter());
-        for ((qi, vi), (p, r)) in q.iter_mut().zip(v.iter_mut()).zip(positions.zip(velocities)) {
-            *qi = *p;
-            *vi = *r;
+        // The platform's three coordinates first, then the joints (slice copies).
+        for (target, (platform, joints)) in [q.as_mut_slice(), v.as_mut_slice()]
+            .into_iter()
+            .zip([(&self.platform.pose, &self.joints.position), (&self.platform.velocity, &self.joints.velocity)])
+        {
+            let Some((head, tail)) = target.split_at_mut_checked(target.len().min(platform.len())) else { continue };
+            for (x, p) in head.iter_mut().zip(platform.iter()) {
+                *x = *p;
+            }
+            for (x, j) in tail.iter_mut().zip(joints.iter()) {
+                *x = *j;
+            }
         }
         (q, v)
     }

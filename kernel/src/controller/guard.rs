@@ -66,10 +66,16 @@ pub fn torque_box<T: RealField + Copy, const N: usize>(
 ) -> (SVector<T, N>, SVector<T, N>) {
     let mut lower = SVector::<T, N>::zeros();
     let mut upper = SVector::<T, N>::zeros();
-    for (i, ((((lo, hi), e), r), p)) in
-        lower.iter_mut().zip(upper.iter_mut()).zip(effort.iter()).zip(rate.iter()).zip(previous.iter()).enumerate()
+    for (((((lo, hi), e), r), p), a) in lower
+        .as_mut_slice()
+        .iter_mut()
+        .zip(upper.as_mut_slice().iter_mut())
+        .zip(effort.as_slice().iter())
+        .zip(rate.as_slice().iter())
+        .zip(previous.as_slice().iter())
+        .zip(active.iter())
     {
-        if !active.get(i).copied().unwrap_or(false) {
+        if !a {
             continue;
         }
         let step = *r * dt;
@@ -94,9 +100,10 @@ pub fn rate_exceeded<T: RealField + Copy, const N: usize>(
     active: &[bool; N],
 ) -> bool {
     desired
+        .as_slice()
         .iter()
-        .zip(previous.iter())
-        .zip(rate.iter())
+        .zip(previous.as_slice().iter())
+        .zip(rate.as_slice().iter())
         .zip(active.iter())
         .any(|(((d, p), r), a)| *a && (*d - *p).abs() > *r * dt)
 }
@@ -111,8 +118,15 @@ fn largest_scale<T: RealField + Copy, const N: usize>(
     active: &[bool; N],
 ) -> Option<T> {
     let mut scale = T::one();
-    for (i, (((b, a), lo), hi)) in base.iter().zip(add.iter()).zip(lower.iter()).zip(upper.iter()).enumerate() {
-        if !active.get(i).copied().unwrap_or(false) {
+    for ((((b, a), lo), hi), active) in base
+        .as_slice()
+        .iter()
+        .zip(add.as_slice().iter())
+        .zip(lower.as_slice().iter())
+        .zip(upper.as_slice().iter())
+        .zip(active.iter())
+    {
+        if !active {
             continue;
         }
         if *b < *lo || *b > *hi {

@@ -103,20 +103,21 @@ pub struct RobotLayout<const N: usize> {
 impl<const N: usize> RobotLayout<N> {
     /// The coordinates of `group`.
     pub fn coordinates(&self, group: JointGroup) -> [bool; N] {
-        let mut mask = [false; N];
-        for (i, m) in mask.iter_mut().enumerate() {
-            let torso = self.torso.get(i).copied().unwrap_or(false);
-            let right = self.arms[0].get(i).copied().unwrap_or(false);
-            let left = self.arms[1].get(i).copied().unwrap_or(false);
-            *m = match group {
-                JointGroup::Platform => self.platform.is_platform(i),
-                JointGroup::Torso => torso,
-                JointGroup::Arm(Hand::Right) => right,
-                JointGroup::Arm(Hand::Left) => left,
-                JointGroup::UpperBody => !self.platform.is_platform(i),
-            };
+        match group {
+            JointGroup::Torso => self.torso,
+            JointGroup::Arm(hand) => *hand.of(&self.arms),
+            JointGroup::Platform | JointGroup::UpperBody => {
+                // The platform coordinates from the (at most three) platform axes.
+                let platform = group == JointGroup::Platform;
+                let mut mask = [!platform; N];
+                for c in self.platform.axes().iter().filter_map(|a| a.coordinate()) {
+                    if let Some(m) = mask.get_mut(c) {
+                        *m = platform;
+                    }
+                }
+                mask
+            }
         }
-        mask
     }
 }
 
@@ -139,5 +140,41 @@ mod tests {
             *hand.of_mut(&mut per_hand) += 1;
         }
         assert_eq!(per_hand, [11, 21]);
+    }
+
+    /// [`super::RobotLayout::coordinates`] against the per-coordinate definition (platform: a
+    /// platform axis drives it; upper body: none does; torso and arms: their masks).
+    #[test]
+    fn coordinates_match_the_per_coordinate_definition() {
+        #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
+        use crate::model::FrameId;
+        use crate::platform::{PlatformAxis, PlatformLayout};
+        let layouts = [
+            PlatformLayout::try_new::<7>([PlatformAxis::Admitted(0), PlatformAxis::Admitted(1), PlatformAxis::Absent])
+                .unwrap(),
+            PlatformLayout::try_new::<7>([PlatformAxis::Absent, PlatformAxis::Absent, PlatformAxis::Absent]).unwrap(),
+            PlatformLayout::try_new::<7>([PlatformAxis::Admitted(4), PlatformAxis::Absent, PlatformAxis::Admitted(6)])
+                .unwrap(),
+        ];
+        for platform in layouts {
+            let layout = super::RobotLayout::<7> {
+                tcp: [FrameId(0), FrameId(1)],
+                platform,
+                torso: [false, false, true, false, false, false, false],
+                arms: [
+                    [false, false, false, true, false, false, false],
+                    [false, false, false, false, false, true, false],
+                ],
+            };
+            for group in JointGroup::ALL {
+                let expected: [bool; 7] = core::array::from_fn(|i| match group {
+                    JointGroup::Platform => layout.platform.is_platform(i),
+                    JointGroup::UpperBody => !layout.platform.is_platform(i),
+                    JointGroup::Torso => layout.torso[i],
+                    JointGroup::Arm(hand) => hand.of(&layout.arms)[i],
+                });
+                assert_eq!(layout.coordinates(group), expected, "{group:?}");
+            }
+        }
     }
 }

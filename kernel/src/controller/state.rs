@@ -3,7 +3,7 @@
 //! telemetry) and what it only uses within a cycle ([`Workspace`]: the dynamics, the collision
 //! geometry, the stack and the projection).
 
-use nalgebra::{RealField, SVector, Vector3, Vector6};
+use nalgebra::{RealField, SMatrix, SVector, Vector3, Vector6};
 
 use super::active_hierarchy::ActiveHierarchy;
 use super::capacity::{MAX_LEVELS, MAX_ROWS, MAX_TASK_ROWS};
@@ -101,6 +101,8 @@ pub(super) struct Workspace<
     pub(super) rows: TaskRows<T, N, MAX_TASK_ROWS>,
     /// The Cartesian damping force of each hand this cycle (task axes), outside the force limits.
     pub(super) cartesian_damping: PerHand<Vector6<T>>,
+    /// The world-aligned TCP Jacobians of this cycle (contact-force limiter and Cartesian tasks).
+    pub(super) tcp_jacobians: PerHand<SMatrix<T, 6, N>>,
 }
 
 impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const V: usize, const P: usize>
@@ -119,6 +121,7 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
             projection: HierarchyData::default(),
             rows: TaskRows::new(),
             cartesian_damping: [Vector6::zeros(); 2],
+            tcp_jacobians: [SMatrix::zeros(); 2],
         }
     }
 }

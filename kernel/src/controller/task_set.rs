@@ -4,7 +4,7 @@
 //! parameters to the configuration, and here its object and its arm of [`evaluate`].
 
 use heapless::Vec;
-use nalgebra::{Matrix3, RealField, SVector, Vector3, Vector6};
+use nalgebra::{Matrix3, RealField, SMatrix, SVector, Vector3, Vector6};
 
 use super::capacity::MAX_TASK_ROWS;
 use super::config::{CartesianParameters, CollisionFieldParameters, ControllerConfig, TaskKind};
@@ -16,7 +16,7 @@ use super::trajectory::{JointTrajectory, PoseTrajectory};
 use crate::dynamics::TreeFactorization;
 use crate::model::{Data, Model};
 use crate::tasks::cartesian_impedance::{
-    cartesian_impedance_factored, AxisMask, CartesianImpedance, CartesianImpedanceConfig, StiffnessFrame,
+    cartesian_impedance_with_jacobian, AxisMask, CartesianImpedance, CartesianImpedanceConfig, StiffnessFrame,
 };
 use crate::tasks::collision::{
     collision_rows_shared, CollisionData, CollisionModel, CollisionParameters, PairRowCache,
@@ -185,6 +185,8 @@ pub(super) struct EvaluationContext<
     pub(super) mass: Option<&'a TreeFactorization<T, N>>,
     /// The tree-sparse factor of the closed-loop inertia (5.17) (collision and torso rows).
     pub(super) inertia: &'a TreeFactorization<T, N>,
+    /// The world-aligned TCP Jacobians at `data` (from the contact-force limiter).
+    pub(super) tcp_jacobians: &'a PerHand<SMatrix<T, 6, N>>,
 }
 
 /// Appends the rows of one task to `rows` and records its telemetry.
@@ -213,7 +215,9 @@ pub(super) fn evaluate<
                     *x = T::zero();
                 }
             }
-            let report = cartesian_impedance_factored(cx.model, data, cx.mass, task, &trajectory.sample(), rows);
+            let jacobian = hand.of(cx.tcp_jacobians);
+            let report =
+                cartesian_impedance_with_jacobian(cx.model, data, cx.mass, task, &trajectory.sample(), jacobian, rows);
             data.v = velocity;
             let report = report.map_err(Fault::Task)?;
             *hand.of_mut(&mut telemetry.tcp_error) = report.error;

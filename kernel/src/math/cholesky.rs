@@ -90,6 +90,39 @@ pub fn solve_lower_transpose_in_place<T: RealField + Copy>(l: &[T], y: &mut [T])
     true
 }
 
+/// [`cholesky_in_place`] for a size `D` known at compile time, on the column arrays `a` of a
+/// `D×D` matrix (`SMatrix::data.0`): the same left-looking order and operations (the same
+/// result, bit for bit) with fixed-length loops. Returns `false` on a pivot that is not
+/// positive.
+pub fn cholesky_fixed<T: RealField + Copy, const D: usize>(a: &mut [[T; D]; D]) -> bool {
+    for j in 0..D {
+        let Some((previous, rest)) = a.split_at_mut_checked(j) else { return false };
+        let Some(column) = rest.first_mut() else { return false };
+        for l_column in previous.iter() {
+            let Some(&l_jk) = l_column.get(j) else { return false };
+            if l_jk != T::zero() {
+                for i in j..D {
+                    if let (Some(x), Some(l)) = (column.get_mut(i), l_column.get(i)) {
+                        *x -= l_jk * *l;
+                    }
+                }
+            }
+        }
+        let Some(diagonal) = column.get_mut(j) else { return false };
+        if (*diagonal).partial_cmp(&T::zero()) != Some(core::cmp::Ordering::Greater) {
+            return false;
+        }
+        let root = sqrt(*diagonal);
+        *diagonal = root;
+        for i in (j + 1)..D {
+            if let Some(x) = column.get_mut(i) {
+                *x /= root;
+            }
+        }
+    }
+    true
+}
+
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
@@ -131,5 +164,36 @@ mod tests {
         let mut nan = Matrix2::new(f32::NAN, 0.0, 0.0, 1.0);
         assert!(!cholesky_in_place(nan.as_mut_slice(), 2));
         assert!(!solve_lower_in_place(&[1.0_f32; 3], &mut [1.0, 2.0]));
+    }
+
+    /// [`cholesky_fixed`] equals [`cholesky_in_place`] bit for bit (random SPD matrices, f64 and
+    /// f32, and a failing one).
+    #[test]
+    fn fixed_size_factor_equals_the_slice_factor() {
+        fn check<T: RealField + Copy, const D: usize>(seed: u64) {
+            let mut x = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+            let b = nalgebra::SMatrix::<f64, D, D>::from_fn(|_, _| {
+                x ^= x << 13;
+                x ^= x >> 7;
+                x ^= x << 17;
+                (x >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+            });
+            let spd: nalgebra::SMatrix<T, D, D> =
+                (b * b.transpose() + nalgebra::SMatrix::<f64, D, D>::identity() * 0.1).cast();
+            let (mut slice, mut fixed) = (spd, spd);
+            assert!(cholesky_in_place(slice.as_mut_slice(), D));
+            assert!(cholesky_fixed(&mut fixed.data.0));
+            assert_eq!(slice, fixed);
+            let indefinite = -spd;
+            let (mut slice, mut fixed) = (indefinite, indefinite);
+            assert!(!cholesky_in_place(slice.as_mut_slice(), D));
+            assert!(!cholesky_fixed(&mut fixed.data.0));
+        }
+        for seed in 1..20 {
+            check::<f64, 6>(seed);
+            check::<f32, 6>(seed);
+            check::<f64, 12>(seed);
+            check::<f32, 12>(seed);
+        }
     }
 }

@@ -18,7 +18,7 @@ pub const MAX_SWEEPS: usize = 16;
 ///
 /// Cyclic Jacobi: sweeps over the pairs `p < q` in row order, each rotation zeroing `a_pq`
 /// (`t = sign(τ)/(|τ| + √(1 + τ²))`, `τ = (a_qq − a_pp)/(2 a_pq)`), applied to the columns and
-/// rows of `A` and the columns of `V` as loops over the column-major storage. Stops when the
+/// rows of `A` and the columns of `V` as fixed-length loops over the column arrays. Stops when the
 /// off-diagonal Frobenius norm is at most `ε ‖A‖_F`, and after at most [`MAX_SWEEPS`] sweeps.
 /// Cost ≤ `MAX_SWEEPS · D(D−1)/2` plane rotations of `3·D` entries each.
 pub fn symmetric_eigen<T: RealField + Copy, const D: usize>(a: &SMatrix<T, D, D>) -> (SVector<T, D>, SMatrix<T, D, D>) {
@@ -26,14 +26,14 @@ pub fn symmetric_eigen<T: RealField + Copy, const D: usize>(a: &SMatrix<T, D, D>
     let mut v = SMatrix::<T, D, D>::identity();
     let tiny = T::default_epsilon() * T::default_epsilon();
     for _ in 0..MAX_SWEEPS {
-        let (off, total) = norms::<T, D>(a.as_slice());
+        let (off, total) = norms::<T, D>(&a.data.0);
         if off <= T::default_epsilon() * (total + tiny) {
             break;
         }
         for p in 0..D {
             for q in (p + 1)..D {
-                let (Some(&apq), Some(&app), Some(&aqq)) = (a.get(q * D + p), a.get(p * D + p), a.get(q * D + q))
-                else {
+                let (Some(column_p), Some(column_q)) = (a.data.0.get(p), a.data.0.get(q)) else { continue };
+                let (Some(&app), Some(&apq), Some(&aqq)) = (column_p.get(p), column_q.get(p), column_q.get(q)) else {
                     continue;
                 };
                 if apq.abs() <= tiny {
@@ -44,19 +44,19 @@ pub fn symmetric_eigen<T: RealField + Copy, const D: usize>(a: &SMatrix<T, D, D>
                 let t = if tau == T::zero() { T::one() } else { t };
                 let c = T::one() / sqrt(T::one() + t * t);
                 let s = t * c;
-                rotate_columns::<T, D>(a.as_mut_slice(), p, q, c, s);
-                rotate_rows::<T, D>(a.as_mut_slice(), p, q, c, s);
-                rotate_columns::<T, D>(v.as_mut_slice(), p, q, c, s);
+                rotate_columns(&mut a.data.0, p, q, c, s);
+                rotate_rows(&mut a.data.0, p, q, c, s);
+                rotate_columns(&mut v.data.0, p, q, c, s);
             }
         }
     }
     (a.diagonal(), v)
 }
 
-/// `(‖A − diag A‖_F, ‖A‖_F)` of the column-major `D×D` storage `a`.
-fn norms<T: RealField + Copy, const D: usize>(a: &[T]) -> (T, T) {
+/// `(‖A − diag A‖_F, ‖A‖_F)` of the `D×D` matrix with columns `a`.
+fn norms<T: RealField + Copy, const D: usize>(a: &[[T; D]; D]) -> (T, T) {
     let (mut off, mut diagonal) = (T::zero(), T::zero());
-    for (j, column) in a.chunks_exact(D).enumerate() {
+    for (j, column) in a.iter().enumerate() {
         for (i, x) in column.iter().enumerate() {
             if i == j {
                 diagonal += *x * *x;
@@ -68,27 +68,37 @@ fn norms<T: RealField + Copy, const D: usize>(a: &[T]) -> (T, T) {
     (sqrt(off), sqrt(off + diagonal))
 }
 
-/// Columns `p < q` (contiguous in the column-major storage `m`) ←
-/// `(c·col_p − s·col_q, s·col_p + c·col_q)`.
-fn rotate_columns<T: RealField + Copy, const D: usize>(m: &mut [T], p: usize, q: usize, c: T, s: T) {
-    let Some((head, tail)) = m.split_at_mut_checked(q * D) else { return };
-    let (Some(column_p), Some(column_q)) = (head.get_mut(p * D..(p + 1) * D), tail.get_mut(..D)) else { return };
-    for (xp, xq) in column_p.iter_mut().zip(column_q.iter_mut()) {
-        let (a, b) = (*xp, *xq);
-        *xp = c * a - s * b;
-        *xq = s * a + c * b;
+/// Columns `p < q` of `m` (column arrays, copied out and back: fixed-length loops without
+/// bounds checks) ← `(c·col_p − s·col_q, s·col_p + c·col_q)`.
+fn rotate_columns<T: RealField + Copy, const D: usize>(m: &mut [[T; D]; D], p: usize, q: usize, c: T, s: T) {
+    let (Some(&column_p), Some(&column_q)) = (m.get(p), m.get(q)) else { return };
+    let (mut new_p, mut new_q) = (column_p, column_q);
+    for ((xp, xq), (a, b)) in new_p.iter_mut().zip(new_q.iter_mut()).zip(column_p.iter().zip(column_q.iter())) {
+        *xp = c * *a - s * *b;
+        *xq = s * *a + c * *b;
+    }
+    if let Some(target) = m.get_mut(p) {
+        *target = new_p;
+    }
+    if let Some(target) = m.get_mut(q) {
+        *target = new_q;
     }
 }
 
-/// Rows `p < q` (entries `p`, `q` of every column of the storage `m`) ←
+/// Rows `p < q` (entries `p`, `q` of every column array of `m`) ←
 /// `(c·row_p − s·row_q, s·row_p + c·row_q)`.
-fn rotate_rows<T: RealField + Copy, const D: usize>(m: &mut [T], p: usize, q: usize, c: T, s: T) {
-    for column in m.chunks_exact_mut(D) {
-        let Some((head, tail)) = column.split_at_mut_checked(q) else { return };
-        let (Some(xp), Some(xq)) = (head.get_mut(p), tail.first_mut()) else { return };
-        let (a, b) = (*xp, *xq);
-        *xp = c * a - s * b;
-        *xq = s * a + c * b;
+fn rotate_rows<T: RealField + Copy, const D: usize>(m: &mut [[T; D]; D], p: usize, q: usize, c: T, s: T) {
+    if p >= D || q >= D {
+        return;
+    }
+    for column in m.iter_mut() {
+        let (Some(&a), Some(&b)) = (column.get(p), column.get(q)) else { return };
+        if let Some(x) = column.get_mut(p) {
+            *x = c * a - s * b;
+        }
+        if let Some(x) = column.get_mut(q) {
+            *x = s * a + c * b;
+        }
     }
 }
 

@@ -24,8 +24,9 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
     /// the Cartesian damping force of each hand (task axes). Returns the torque `−J_Lᵀ e` that
     /// moves every limited axis' rigid-contact force onto its bound (with the damping rule of
     /// the module docs). Zero without an enabled limit or if a solve fails.
-    /// Cost: one substitution with `factor` per limited row plus one for `τ`
-    /// (`reflected_dense`, `reflected_tree`), one 12 × 12 Cholesky.
+    /// The `k` limited rows are packed: one substitution with `factor` per limited row plus
+    /// one for `τ` (`reflected_dense`, `reflected_tree`; on the tree factor four rows at once
+    /// while `k ≤ 3`), one `k × k` Cholesky.
     pub fn limit_command<'m>(
         &self,
         regularisation: T,
@@ -34,155 +35,167 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
         damping: &[Vector6<T>; 2],
     ) -> CommandLimit<T, N> {
         let none = CommandLimit { torque: SVector::zeros(), limited: [[false; 6]; 2] };
-        // The limited rows L: an axis of a hand with an enabled limit and a finite bound.
-        let mut selected = [false; 12];
+        // The limited rows L (indices into the stacked J_u, ascending): an axis of a hand with
+        // an enabled limit and a finite bound.
+        let mut rows = [0_usize; 12];
+        let mut count = 0;
         for (h, bounds) in self.effective.iter().enumerate() {
             let Some((lower, upper)) = bounds else { continue };
             for (axis, (low, high)) in lower.iter().zip(upper.iter()).enumerate() {
-                if let Some(s) = selected.get_mut(6 * h + axis) {
-                    *s = low.is_finite() || high.is_finite();
+                if let (true, Some(r)) = (low.is_finite() || high.is_finite(), rows.get_mut(count)) {
+                    *r = 6 * h + axis;
+                    count += 1;
                 }
             }
         }
-        if !selected.iter().any(|s| *s) {
+        let Some(rows) = rows.get(..count).filter(|r| !r.is_empty()) else {
             return none;
-        }
-        let (solved, mut reflected, mut force) = match factor.into() {
-            InertiaFactor::Dense(factor) => self.reflected_dense(regularisation, task_torque, factor, &selected),
-            InertiaFactor::Tree(factor) => self.reflected_tree(regularisation, task_torque, factor, &selected),
+        };
+        // J_L M⁻¹ J_Lᵀ + μ I (count × count, column-major, lower triangle) and J_L M⁻¹ τ.
+        let mut reflected = [T::zero(); 144];
+        let mut force = [T::zero(); 12];
+        let solved = match factor.into() {
+            InertiaFactor::Dense(factor) => {
+                self.reflected_dense(regularisation, task_torque, factor, rows, &mut reflected, &mut force)
+            }
+            InertiaFactor::Tree(factor) if count < 4 => {
+                self.reflected_tree::<4>(regularisation, task_torque, factor, rows, &mut reflected, &mut force)
+            }
+            InertiaFactor::Tree(factor) => {
+                self.reflected_tree::<13>(regularisation, task_torque, factor, rows, &mut reflected, &mut force)
+            }
+        };
+        let (Some(reflected), Some(force)) = (reflected.get_mut(..count * count), force.get_mut(..count)) else {
+            return none;
         };
         let solved = solved
-            && cholesky_in_place(reflected.as_mut_slice(), 12)
-            && solve_lower_in_place(reflected.as_slice(), force.as_mut_slice())
-            && solve_lower_transpose_in_place(reflected.as_slice(), force.as_mut_slice());
+            && cholesky_in_place(reflected, count)
+            && solve_lower_in_place(reflected, force)
+            && solve_lower_transpose_in_place(reflected, force);
         if !(solved && force.iter().all(|x| x.is_finite())) {
             return none;
         }
-        let mut excess = SVector::<T, 12>::zeros();
+        let mut excess = [T::zero(); 12];
         let mut limited = [[false; 6]; 2];
-        for (h, ((bounds, flags), damping)) in
-            self.effective.iter().zip(limited.iter_mut()).zip(damping.iter()).enumerate()
-        {
-            let Some((lower, upper)) = bounds else { continue };
-            for (axis, flag) in flags.iter_mut().enumerate() {
-                let row = 6 * h + axis;
-                let get = |v: &Vector6<T>| v.get(axis).copied().unwrap_or_else(T::zero);
-                let (Some(f), Some(e)) = (force.get(row), excess.get_mut(row)) else { continue };
-                let d = get(damping);
-                let (low, high) = (get(lower) + d.max(T::zero()), get(upper) + d.min(T::zero()));
-                let over = *f - f.max(low).min(high);
-                *e = over;
-                *flag = over != T::zero();
-            }
+        for ((row, f), e) in rows.iter().zip(force.iter()).zip(excess.iter_mut()) {
+            let (h, axis) = (row / 6, row % 6);
+            let (Some(Some((lower, upper))), Some(damping), Some(flags)) =
+                (self.effective.get(h), damping.get(h), limited.get_mut(h))
+            else {
+                continue;
+            };
+            let (Some(low), Some(high), Some(d), Some(flag)) =
+                (lower.get(axis), upper.get(axis), damping.get(axis), flags.get_mut(axis))
+            else {
+                continue;
+            };
+            let (low, high) = (*low + d.max(T::zero()), *high + d.min(T::zero()));
+            let over = *f - f.max(low).min(high);
+            *e = over;
+            *flag = over != T::zero();
         }
-        // −J_Lᵀ e: one dot product per column of the stacked Jacobian.
-        let dot = |a: &[T], b: &[T]| a.iter().zip(b.iter()).fold(T::zero(), |s, (x, y)| s + *x * *y);
+        // −J_Lᵀ e: one dot product over the limited rows per column of the stacked Jacobian.
         let mut torque = SVector::<T, N>::zeros();
-        for (t, column) in torque.iter_mut().zip(self.stacked.as_slice().chunks_exact(12)) {
-            *t = -dot(column, excess.as_slice());
+        for (t, column) in torque.as_mut_slice().iter_mut().zip(self.stacked.data.0.iter()) {
+            *t = -rows
+                .iter()
+                .zip(excess.iter())
+                .fold(T::zero(), |s, (r, e)| s + column.get(*r).copied().unwrap_or_else(T::zero) * *e);
         }
         CommandLimit { torque, limited }
     }
 
-    /// The reflected inertia `J_L M⁻¹ J_Lᵀ + μ I` of the limited rows (identity on the others;
-    /// the lower triangle is written) and `J_L M⁻¹ τ` with the dense `M = L Lᵀ`:
-    /// `Y = L⁻¹ J_Lᵀ` (forward substitution of the selected rows only, loops on the column-major
-    /// factor) and `z = L⁻¹ τ`, then `Yᵀ Y` and `Yᵀ z`. `false` if a substitution failed.
+    /// The reflected inertia `J_L M⁻¹ J_Lᵀ + μ I` of the limited `rows` (packed `k × k`
+    /// column-major into `reflected`, the lower triangle is written) and `J_L M⁻¹ τ` (into
+    /// `force`) with the dense `M = L Lᵀ`: `Y = L⁻¹ J_Lᵀ` (forward substitution, loops on the
+    /// column-major factor) and `z = L⁻¹ τ`, then `Yᵀ Y` and `Yᵀ z`. `false` if a substitution
+    /// failed.
     fn reflected_dense(
         &self,
         regularisation: T,
         task_torque: &SVector<T, N>,
         factor: &Cholesky<T, Const<N>>,
-        selected: &[bool; 12],
-    ) -> (bool, SMatrix<T, 12, 12>, SVector<T, 12>) {
-        // With M = L Lᵀ: Y = L⁻¹ J_Lᵀ (forward substitution of the selected rows only) and
-        // z = L⁻¹ τ; the reflected inertia J_L M⁻¹ J_Lᵀ = Yᵀ Y (identity on the other rows) and
-        // J_L M⁻¹ τ = Yᵀ z.
+        rows: &[usize],
+        reflected: &mut [T; 144],
+        force: &mut [T; 12],
+    ) -> bool {
+        let count = rows.len();
         let l = factor.l_dirty().as_slice();
         let mut z = *task_torque;
         let mut reduced = SMatrix::<T, N, 12>::zeros();
         let mut solved = solve_lower_in_place(l, z.as_mut_slice());
-        for (i, (column, s)) in reduced.as_mut_slice().chunks_exact_mut(N).zip(selected.iter()).enumerate() {
-            if !s {
-                continue;
-            }
-            for (y, j) in column.iter_mut().zip(self.stacked.as_slice().chunks_exact(12)) {
-                *y = j.get(i).copied().unwrap_or_else(T::zero);
+        for (column, r) in reduced.as_mut_slice().chunks_exact_mut(N).zip(rows.iter()) {
+            for (y, j) in column.iter_mut().zip(self.stacked.data.0.iter()) {
+                *y = j.get(*r).copied().unwrap_or_else(T::zero);
             }
             solved &= solve_lower_in_place(l, column);
         }
-        let mut reflected = SMatrix::<T, 12, 12>::identity();
-        let mut force = SVector::<T, 12>::zeros();
         let dot = |a: &[T], b: &[T]| a.iter().zip(b.iter()).fold(T::zero(), |s, (x, y)| s + *x * *y);
-        for (i, ((yi, si), (r_column, f))) in reduced
+        for (i, (yi, (r_column, f))) in reduced
             .as_slice()
             .chunks_exact(N)
-            .zip(selected.iter())
-            .zip(reflected.as_mut_slice().chunks_exact_mut(12).zip(force.iter_mut()))
+            .zip(reflected.chunks_exact_mut(count.max(1)).zip(force.iter_mut()))
+            .take(count)
             .enumerate()
         {
-            if !si {
-                continue;
-            }
             *f = dot(yi, z.as_slice());
             // Column i, rows j ≥ i (the lower triangle the factorisation reads).
-            for (j, ((yj, sj), x)) in
-                reduced.as_slice().chunks_exact(N).zip(selected.iter()).zip(r_column.iter_mut()).enumerate().skip(i)
-            {
-                if *sj {
-                    *x = dot(yi, yj) + if i == j { regularisation } else { T::zero() };
-                }
+            for (j, (yj, x)) in reduced.as_slice().chunks_exact(N).zip(r_column.iter_mut()).enumerate().skip(i) {
+                *x = dot(yi, yj) + if i == j { regularisation } else { T::zero() };
             }
         }
-        (solved, reflected, force)
+        solved
     }
 
     /// [`Self::reflected_dense`] on the tree-sparse `M = Lᵀ L`: `X = S L⁻¹` for the stack `S`
-    /// of the selected rows of `J_u` and `τᵀ` ([`TreeFactorization::right_solve_mut`]), then
-    /// `J_L M⁻¹ J_Lᵀ = X_L X_Lᵀ` and `J_L M⁻¹ τ = X_L x_τᵀ` over the columns of `X`.
-    fn reflected_tree(
+    /// of the limited rows of `J_u` and `τᵀ` packed into `R > rows.len()` rows
+    /// ([`TreeFactorization::right_solve_mut`]), then `J_L M⁻¹ J_Lᵀ = X_L X_Lᵀ` and
+    /// `J_L M⁻¹ τ = X_L x_τᵀ` as rank-one updates over the columns of `X`. `false` if `R` is
+    /// too small.
+    fn reflected_tree<const R: usize>(
         &self,
         regularisation: T,
         task_torque: &SVector<T, N>,
         factor: &TreeFactorization<T, N>,
-        selected: &[bool; 12],
-    ) -> (bool, SMatrix<T, 12, 12>, SVector<T, 12>) {
-        let mut x = SMatrix::<T, 13, N>::zeros();
+        rows: &[usize],
+        reflected: &mut [T; 144],
+        force: &mut [T; 12],
+    ) -> bool {
+        let count = rows.len();
+        if count >= R || count == 0 {
+            return false;
+        }
+        let mut x = SMatrix::<T, R, N>::zeros();
         for ((column, j), t) in x.data.0.iter_mut().zip(self.stacked.data.0.iter()).zip(task_torque.iter()) {
-            for ((c, v), s) in column.iter_mut().zip(j.iter()).zip(selected.iter()) {
-                if *s {
-                    *c = *v;
-                }
+            for (c, r) in column.iter_mut().zip(rows.iter()) {
+                *c = j.get(*r).copied().unwrap_or_else(T::zero);
             }
-            if let Some(c) = column.get_mut(12) {
+            if let Some(c) = column.get_mut(count) {
                 *c = *t;
             }
         }
         factor.right_solve_mut(&mut x);
-        // The rows of X as contiguous columns: the Gram entries are dot products.
-        let rows = x.transpose();
-        let Some((torque_row, _)) = rows.data.0.split_last() else {
-            return (false, SMatrix::identity(), SVector::zeros());
-        };
-        let dot = |a: &[T; N], b: &[T; N]| a.iter().zip(b.iter()).fold(T::zero(), |s, (x, y)| s + *x * *y);
-        let mut reflected = SMatrix::<T, 12, 12>::identity();
-        let mut force = SVector::<T, 12>::zeros();
-        for (i, ((r_column, f), (x_i, si))) in
-            reflected.data.0.iter_mut().zip(force.iter_mut()).zip(rows.data.0.iter().zip(selected.iter())).enumerate()
-        {
-            if !si {
-                continue;
-            }
-            *f = dot(x_i, torque_row);
-            // Column i, rows j ≥ i (the lower triangle the factorisation reads).
-            for (j, ((r, x_j), sj)) in
-                r_column.iter_mut().zip(rows.data.0.iter()).zip(selected.iter()).enumerate().skip(i)
-            {
-                if *sj {
-                    *r = dot(x_i, x_j) + if i == j { regularisation } else { T::zero() };
+        // The lower triangle of the R × R Gram matrix of the packed rows, as rank-one updates
+        // over the columns of X (fixed trip counts): `X_L X_Lᵀ` in its leading `k × k` block,
+        // `X_L x_τᵀ` in its row `k`.
+        let mut gram = [[T::zero(); R]; R];
+        for column in x.data.0.iter() {
+            for (j, (g, x_j)) in gram.iter_mut().zip(column.iter()).enumerate() {
+                for i in j..R {
+                    if let (Some(g), Some(x_i)) = (g.get_mut(i), column.get(i)) {
+                        *g += *x_i * *x_j;
+                    }
                 }
             }
         }
-        (true, reflected, force)
+        for (j, ((target, g), f)) in
+            reflected.chunks_exact_mut(count.max(1)).zip(gram.iter()).zip(force.iter_mut()).take(count).enumerate()
+        {
+            *f = g.get(count).copied().unwrap_or_else(T::zero);
+            for (i, (t, value)) in target.iter_mut().zip(g.iter()).enumerate().skip(j) {
+                *t = if i == j { *value + regularisation } else { *value };
+            }
+        }
+        true
     }
 }

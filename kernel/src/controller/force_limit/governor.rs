@@ -62,9 +62,9 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
                 *e = Some(bounds);
             }
             // J_r,hᵀ P_h F̂: the platform columns of J_h only.
-            for (k, (r, column)) in self.relief.iter_mut().zip(jacobian.as_slice().chunks_exact(6)).enumerate() {
-                if layout.platform.is_platform(k) {
-                    *r += column.iter().zip(reaction.iter()).fold(T::zero(), |s, (j, f)| s + *j * *f);
+            for k in layout.platform.axes().iter().filter_map(|a| a.coordinate()) {
+                if let (Some(r), Some(column)) = (self.relief.get_mut(k), jacobian.data.0.get(k)) {
+                    *r += column.iter().zip(reaction.as_slice().iter()).fold(T::zero(), |s, (j, f)| s + *j * *f);
                 }
             }
         }

@@ -5,7 +5,7 @@
 use nalgebra::{Matrix6, RealField, SMatrix, SVector, Vector6};
 
 use crate::dynamics::TreeFactorization;
-use crate::math::cholesky::{cholesky_in_place, solve_lower_in_place};
+use crate::math::cholesky::{cholesky_fixed, cholesky_in_place, solve_lower_in_place};
 use crate::math::damping::{double_diagonalization_factored, DampingError, ReflectedInertia};
 use crate::model::Data;
 
@@ -90,15 +90,26 @@ pub(super) fn damping_matrix_tree<T: RealField + Copy, const N: usize>(
     let factor = factor.ok_or(DampingFallback::MassMatrixNotPositiveDefinite)?;
     let mut reduced = *task_jacobian;
     factor.right_solve_mut(&mut reduced);
+    // The lower triangle as rank-one updates over the nonzero columns of X (fixed-length loops
+    // on the column arrays), then mirrored: Λ⁻¹ is exactly symmetric.
     let mut inverse_inertia = Matrix6::<T>::zeros();
-    for column in reduced.as_slice().chunks_exact(6) {
+    for column in reduced.data.0.iter() {
         if column.iter().all(|x| *x == T::zero()) {
             continue;
         }
-        for (target, xj) in inverse_inertia.as_mut_slice().chunks_exact_mut(6).zip(column.iter()) {
-            if *xj != T::zero() {
-                for (t, xi) in target.iter_mut().zip(column.iter()) {
+        for (j, (target, xj)) in inverse_inertia.data.0.iter_mut().zip(column.iter()).enumerate() {
+            for i in j..6 {
+                if let (Some(t), Some(xi)) = (target.get_mut(i), column.get(i)) {
                     *t += *xi * *xj;
+                }
+            }
+        }
+    }
+    for j in 0..6 {
+        for i in (j + 1)..6 {
+            if let Some(x) = inverse_inertia.get((i, j)).copied() {
+                if let Some(y) = inverse_inertia.get_mut((j, i)) {
+                    *y = x;
                 }
             }
         }
@@ -122,7 +133,7 @@ fn design_from_inverse_inertia<T: RealField + Copy>(
     // A rounding-level pivot would pass the factorization inside the design but give a
     // meaningless (huge) damping along the lost direction: treat it as singular.
     let mut pivots = *inverse_inertia;
-    if !cholesky_in_place(pivots.as_mut_slice(), 6) {
+    if !cholesky_fixed(&mut pivots.data.0) {
         return Err(DampingFallback::TaskJacobianSingular);
     }
     let floor = nalgebra::convert::<f64, T>(100.0) * T::default_epsilon() * inverse_inertia.diagonal().amax();

@@ -269,23 +269,16 @@ fn task_kinematics<T: RealField + Copy, const N: usize>(
     let translation = at * offset;
     let rotation = at * epsilon * two;
     let rotation_map = at * e_matrix;
-    let apply = |m: &Matrix3<T>, x: &[T]| -> [T; 3] {
-        let (x0, x1, x2) = (
-            x.first().copied().unwrap_or_else(T::zero),
-            x.get(1).copied().unwrap_or_else(T::zero),
-            x.get(2).copied().unwrap_or_else(T::zero),
-        );
-        let m = m.as_slice();
-        let e = |i: usize| m.get(i).copied().unwrap_or_else(T::zero);
-        [e(0) * x0 + e(3) * x1 + e(6) * x2, e(1) * x0 + e(4) * x1 + e(7) * x2, e(2) * x0 + e(5) * x1 + e(8) * x2]
+    // m x for the column arrays of m.
+    let apply = |m: &Matrix3<T>, x0: T, x1: T, x2: T| -> [T; 3] {
+        let [[e0, e1, e2], [e3, e4, e5], [e6, e7, e8]] = m.data.0;
+        [e0 * x0 + e3 * x1 + e6 * x2, e1 * x0 + e4 * x1 + e7 * x2, e2 * x0 + e5 * x1 + e8 * x2]
     };
-    for column in jacobian.as_mut_slice().chunks_exact_mut(6) {
-        let Some((linear, angular)) = column.split_at_mut_checked(3) else { continue };
-        let new_linear = apply(&at, linear);
-        let new_angular = apply(&rotation_map, angular);
-        for (x, y) in linear.iter_mut().zip(new_linear).chain(angular.iter_mut().zip(new_angular)) {
-            *x = y;
-        }
+    for column in jacobian.data.0.iter_mut() {
+        let [x0, x1, x2, x3, x4, x5] = *column;
+        let [l0, l1, l2] = apply(&at, x0, x1, x2);
+        let [r0, r1, r2] = apply(&rotation_map, x3, x4, x5);
+        *column = [l0, l1, l2, r0, r1, r2];
     }
     // ∂e_t/∂t = −Aᵀ (ṗ_des + ω_A × (p − p_des)). At fixed q, R R_desᵀ turns with the spatial
     // angular velocity −R R_desᵀ ω_des, so ∂e_r/∂t = −2 Aᵀ (ω_A × ε) − Aᵀ E R R_desᵀ ω_des.
@@ -343,7 +336,7 @@ pub fn cartesian_impedance<T: RealField + Copy, const N: usize, const B: usize, 
     target: &CartesianTarget<T>,
     rows: &mut TaskRows<T, N, R>,
 ) -> Result<CartesianReport<T>, TaskError> {
-    evaluate(model, data, MassFactor::Dense, task, target, rows)
+    evaluate(model, data, MassFactor::Dense, task, target, None, rows)
 }
 
 /// [`cartesian_impedance`] with the damping design on a tree-sparse factor `M = Lᵀ L` of
@@ -366,7 +359,29 @@ pub fn cartesian_impedance_factored<
     target: &CartesianTarget<T>,
     rows: &mut TaskRows<T, N, R>,
 ) -> Result<CartesianReport<T>, TaskError> {
-    evaluate(model, data, MassFactor::Tree(mass), task, target, rows)
+    evaluate(model, data, MassFactor::Tree(mass), task, target, None, rows)
+}
+
+/// [`cartesian_impedance_factored`] with the world-aligned Jacobian `(J_v; J_ω)` of the task's
+/// frame given by the caller: `jacobian` is what [`frame_jacobian`] writes for `task`'s frame at
+/// `data` (the controller computes it once per cycle for the contact-force limiter and the
+/// task). The same rows, bit for bit, as [`cartesian_impedance_factored`] for that Jacobian.
+pub fn cartesian_impedance_with_jacobian<
+    T: RealField + Copy,
+    const N: usize,
+    const B: usize,
+    const F: usize,
+    const R: usize,
+>(
+    model: &Model<T, N, B, F>,
+    data: &Data<T, N, B, F>,
+    mass: Option<&TreeFactorization<T, N>>,
+    task: &CartesianImpedance<T>,
+    target: &CartesianTarget<T>,
+    jacobian: &SMatrix<T, 6, N>,
+    rows: &mut TaskRows<T, N, R>,
+) -> Result<CartesianReport<T>, TaskError> {
+    evaluate(model, data, MassFactor::Tree(mass), task, target, Some(jacobian), rows)
 }
 
 /// Where the damping design gets `M⁻¹` from.
@@ -384,6 +399,7 @@ fn evaluate<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
     mass: MassFactor<'_, T, N>,
     task: &CartesianImpedance<T>,
     target: &CartesianTarget<T>,
+    world_jacobian: Option<&SMatrix<T, 6, N>>,
     rows: &mut TaskRows<T, N, R>,
 ) -> Result<CartesianReport<T>, TaskError> {
     let config = &task.config;
@@ -398,8 +414,14 @@ fn evaluate<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
     if rows.len().saturating_add(config.axes.count()) > R {
         return Err(TaskError::Capacity { capacity: R });
     }
-    let mut jacobian = SMatrix::<T, 6, N>::zeros();
-    frame_jacobian(model, data, config.frame, &mut jacobian)?;
+    let mut jacobian = match world_jacobian {
+        Some(given) => *given,
+        None => {
+            let mut computed = SMatrix::<T, 6, N>::zeros();
+            frame_jacobian(model, data, config.frame, &mut computed)?;
+            computed
+        }
+    };
     let placement = data.frame_placements.get(config.frame.0).ok_or(DynamicsError::UnknownFrame)?;
     let kinematics = task_kinematics(placement, &mut jacobian, target, config.stiffness_frame);
 

@@ -390,3 +390,42 @@ fn invalid_parameters_and_inputs_are_rejected() {
     );
     assert!(rows.is_empty());
 }
+
+/// [`cartesian_impedance_with_jacobian`] with the frame Jacobian of [`frame_jacobian`] gives the
+/// rows and report of [`cartesian_impedance_factored`] bit for bit (the controller shares the
+/// TCP Jacobians of the contact-force limiter with the Cartesian tasks).
+fn shared_jacobian_is_bit_identical<T: RealField + Copy>() {
+    let model = branched::<T>();
+    for seed in 0..30_u64 {
+        let frame = if seed % 2 == 0 { TCP } else { WRIST };
+        let stiffness_frame = if seed % 3 == 0 { StiffnessFrame::World } else { StiffnessFrame::Desired };
+        let axes = if seed % 4 == 0 { AxisMask::TRANSLATION } else { AxisMask::ALL };
+        let task = CartesianImpedance::try_new(config::<T>(frame, axes, stiffness_frame)).unwrap();
+        let (q, v): (SVector<T, N>, SVector<T, N>) = (state(seed, 2.0).cast(), state(seed ^ 9, 1.5).cast());
+        let target = offset_target(&model, frame, &q, seed ^ 31);
+        let mut data = Data::new(&model);
+        forward_kinematics(&model, &mut data, &q, &v).unwrap();
+        crba(&model, &mut data);
+        let mut tree = TreeFactorization::new(&model);
+        let mass = tree.factorize(&data.mass_matrix).is_ok().then_some(&tree);
+        let mut world = SMatrix::<T, 6, N>::zeros();
+        frame_jacobian(&model, &data, frame, &mut world).unwrap();
+        let (mut own_rows, mut shared_rows) = (TaskRows::<T, N, 6>::new(), TaskRows::<T, N, 6>::new());
+        let own = cartesian_impedance_factored(&model, &data, mass, &task, &target, &mut own_rows).unwrap();
+        let shared =
+            cartesian_impedance_with_jacobian(&model, &data, mass, &task, &target, &world, &mut shared_rows).unwrap();
+        assert_eq!(own, shared, "seed {seed}");
+        assert_eq!(own_rows.rows(), shared_rows.rows(), "seed {seed}");
+        assert_eq!(own_rows.len(), axes.count(), "seed {seed}");
+    }
+}
+
+#[test]
+fn shared_jacobian_is_bit_identical_f64() {
+    shared_jacobian_is_bit_identical::<f64>();
+}
+
+#[test]
+fn shared_jacobian_is_bit_identical_f32() {
+    shared_jacobian_is_bit_identical::<f32>();
+}
