@@ -6,7 +6,9 @@
 //! convention of [`crate::output`]. Every scenario drives its robot with the one scenario loop,
 //! [`crate::sim::run_loop`], builds its simulator with [`RunOptions::simulator`] (or the
 //! whole-body rig with [`crate::wbc::rig`]) so `--plant` reaches it, and reports its progress
-//! through [`RunOptions::progress`]. Errors are one-line messages. Tests call the scenario
+//! through [`RunOptions::progress`]. `--pil` and `--scalar f32` choose the controller of the
+//! whole-body rig ([`crate::wbc::Driver`]); [`run`] refuses them for the scenarios that do not
+//! run it (the thesis' planar and mobile-base models run their own controllers in `f64`). Errors are one-line messages. Tests call the scenario
 //! functions directly and assert the same numbers the summary reports.
 
 use std::path::{Path, PathBuf};
@@ -18,6 +20,7 @@ use crate::output::{self, Figure, Summary, TimeSeries};
 use crate::pil::Target;
 use crate::plant::{PlantKind, PlantModel};
 use crate::replay;
+use crate::scalar::Scalar;
 use crate::sim::{SimConfig, Simulator};
 
 pub mod cartesian_step;
@@ -97,6 +100,9 @@ struct Entry {
     environment: Option<fn() -> Vec<SweptSphere<f64>>>,
     /// What the outcome's table holds.
     table: Table,
+    /// Whether the scenario runs the whole-body rig ([`crate::wbc::rig`]), whose controller
+    /// `--pil` and `--scalar` choose.
+    whole_body_rig: bool,
 }
 
 /// What a scenario's [`Outcome::series`] holds, and so the file it is written to.
@@ -115,7 +121,15 @@ impl Entry {
         description: &'static str,
         simulate: fn(&RunOptions) -> Result<Outcome, String>,
     ) -> Self {
-        Self { name, description, simulate, extra_files: None, environment: None, table: Table::TimeSeries }
+        Self {
+            name,
+            description,
+            simulate,
+            extra_files: None,
+            environment: None,
+            table: Table::TimeSeries,
+            whole_body_rig: false,
+        }
     }
 }
 
@@ -123,6 +137,13 @@ impl Entry {
 macro_rules! entry {
     ($module:ident) => {
         Entry::new($module::NAME, $module::DESCRIPTION, $module::simulate)
+    };
+}
+
+/// The registry entry of scenario module `$module` that runs the whole-body rig.
+macro_rules! rig_entry {
+    ($module:ident) => {
+        Entry { whole_body_rig: true, ..entry!($module) }
     };
 }
 
@@ -151,14 +172,14 @@ const SCENARIOS: &[Entry] = &[
         ..entry!(stability_map)
     },
     Entry { extra_files: Some(icr_avoidance::write_files), ..entry!(icr_avoidance) },
-    entry!(wbc_step),
-    entry!(wbc_trajectory),
-    entry!(wbc_phri),
-    Entry { environment: Some(|| wbc_grasp::table().to_vec()), ..entry!(wbc_grasp) },
-    entry!(wipe_window),
-    entry!(sweep_floor),
-    entry!(clean_mug),
-    entry!(soak),
+    rig_entry!(wbc_step),
+    rig_entry!(wbc_trajectory),
+    rig_entry!(wbc_phri),
+    Entry { environment: Some(|| wbc_grasp::table().to_vec()), ..rig_entry!(wbc_grasp) },
+    rig_entry!(wipe_window),
+    rig_entry!(sweep_floor),
+    rig_entry!(clean_mug),
+    rig_entry!(soak),
 ];
 
 /// The scenarios: `(name, one-line description)`.
@@ -178,6 +199,8 @@ pub struct RunOptions {
     pub plant: PlantKind,
     /// The firmware target that controls the whole-body rig under QEMU, if any ([`crate::pil`]).
     pub pil: Option<Target>,
+    /// The scalar of the whole-body rig's host controller ([`crate::scalar`]; ignored with `pil`).
+    pub scalar: Scalar,
     /// Whether the scenario reports its progress on stderr.
     pub progress: Progress,
 }
@@ -189,13 +212,14 @@ pub const DEFAULT_RECORD_EVERY: u64 = 10;
 pub const PLANT_SEED: u64 = 0x91a7_5eed;
 
 impl Default for RunOptions {
-    /// `out/<scenario>`, every 10th row, the ideal plant, the host controller, silent.
+    /// `out/<scenario>`, every 10th row, the ideal plant, the host controller in `f64`, silent.
     fn default() -> Self {
         Self {
             dir: None,
             record_every: DEFAULT_RECORD_EVERY,
             plant: PlantKind::Ideal,
             pil: None,
+            scalar: Scalar::F64,
             progress: Progress::Silent,
         }
     }
@@ -232,13 +256,23 @@ impl RunOptions {
 /// scenario of the Justin robot, `replay.html` into the output directory (created if missing);
 /// prints a short result on stdout.
 ///
-/// Errors: unknown scenario (the message lists the names), a failed simulation, an I/O error,
-/// or failed claims (after all outputs are written).
+/// Errors: unknown scenario (the message lists the names), `--pil` or `--scalar f32` for a
+/// scenario without the whole-body rig, a failed simulation, an I/O error, or failed claims
+/// (after all outputs are written).
 pub fn run(name: &str, options: &RunOptions) -> Result<(), String> {
     let Some(entry) = SCENARIOS.iter().find(|s| s.name == name) else {
         let names: Vec<&str> = SCENARIOS.iter().map(|s| s.name).collect();
         return Err(format!("unknown scenario `{name}`; known: {}", names.join(", ")));
     };
+    let chosen = [(options.pil.is_some(), "--pil"), (options.scalar != Scalar::F64, "--scalar f32")];
+    if let Some((_, option)) = chosen.iter().find(|(chosen, _)| *chosen && !entry.whole_body_rig) {
+        let rigs: Vec<&str> = SCENARIOS.iter().filter(|s| s.whole_body_rig).map(|s| s.name).collect();
+        return Err(format!(
+            "{option}: {name} does not run the whole-body controller (its own controller runs on the host in f64); \
+             the scenarios that do: {}",
+            rigs.join(", ")
+        ));
+    }
     let out = options.dir.clone().unwrap_or_else(|| Path::new("out").join(name));
     let mut outcome = (entry.simulate)(options)?;
     outcome.summary.value("plant", options.plant.name());

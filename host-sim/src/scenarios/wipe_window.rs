@@ -35,7 +35,7 @@
 
 use fixtures::justin::whole_body::{ServiceTask, WIPE_WINDOW};
 use fixtures::justin::{self, whole_body};
-use kernel::controller::config::{CartesianParameters, ControllerConfig, Hand, JointGroup, TaskKind, TaskSpec};
+use kernel::controller::config::{CartesianParameters, Hand, JointGroup, TaskKind, TaskSpec};
 use kernel::controller::messages::{Command, Pose};
 use kernel::model::Placement;
 use nalgebra::{Rotation3, SVector, Unit, UnitQuaternion, Vector3};
@@ -43,7 +43,7 @@ use nalgebra::{Rotation3, SVector, Unit, UnitQuaternion, Vector3};
 use super::{Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
 use crate::sim::Surface;
-use crate::wbc::{self, Rig};
+use crate::wbc::{self, ConfigChanges, Rig};
 
 /// Registry name.
 pub const NAME: &str = "wipe_window";
@@ -297,7 +297,7 @@ pub struct ToolRun {
     pub first_fault: Option<(f64, String)>,
 }
 
-/// Runs a Table 7.1 tool: rig at `q0` with `config` and the Ch. 6 hierarchy, switches to the
+/// Runs a Table 7.1 tool: rig at `q0` with the configuration of Ch. 6 with `changes` and the Ch. 6 hierarchy, switches to the
 /// tool's Cartesian parameters and hierarchy at the first cycle, streams the references of
 /// `plan` (built from the measured start TCP poses `[right, left]`) and records the contacts.
 #[allow(clippy::too_many_arguments, reason = "one call per scenario, every argument differs")]
@@ -306,12 +306,12 @@ pub fn run_tool(
     task: &ServiceTask,
     extra_tasks: &[TaskSpec],
     q0: &SVector<f64, { justin::N }>,
-    config: ControllerConfig<f64, { justin::N }>,
+    changes: ConfigChanges,
     duration_s: f64,
     plan: impl FnOnce([Placement<f64>; 2]) -> ToolPlan,
     options: &RunOptions,
 ) -> Result<ToolRun, String> {
-    let mut rig = wbc::rig(q0, &[], config, &whole_body::fig_6_3_hierarchy(Hand::Right), options)?;
+    let mut rig = wbc::rig(q0, &[], changes, &whole_body::fig_6_3_hierarchy(Hand::Right), options)?;
     let start = [
         rig.sim.frame_placement(justin::RIGHT_TCP).map_err(|e| e.to_string())?,
         rig.sim.frame_placement(justin::LEFT_TCP).map_err(|e| e.to_string())?,
@@ -635,8 +635,8 @@ pub fn tool_figures(
 
 /// The window run.
 pub fn run(options: &RunOptions) -> Result<ToolRun, String> {
-    let config = whole_body::controller_config::<f64>().map_err(|e| format!("config: {e}"))?;
-    run_tool(NAME, &WIPE_WINDOW, &PLATFORM_IMPEDANCE, &justin::home_configuration(), config, DURATION_S, plan, options)
+    let changes = ConfigChanges::NONE;
+    run_tool(NAME, &WIPE_WINDOW, &PLATFORM_IMPEDANCE, &justin::home_configuration(), changes, DURATION_S, plan, options)
 }
 
 fn plan(start: [Placement<f64>; 2]) -> ToolPlan {
