@@ -76,11 +76,13 @@ impl F32Controller {
     }
 }
 
-/// A planner command in `f32`, as the planner sends it to a board (every number rounded to
-/// the nearest `f32`; the command's own validation runs when it is applied).
+/// A planner command in `f32`, as the planner sends it to a board: every number rounded to the
+/// nearest `f32`, infinite force limits kept (through CBOR, which stores floats as they are;
+/// JSON has no infinity). The command's own validation runs when it is applied.
 pub fn narrow_command(command: &Command<f64>) -> Result<Command<f32>, String> {
-    let value = serde_json::to_value(command).map_err(|e| format!("command: {e}"))?;
-    serde_json::from_value(value).map_err(|e| format!("command in f32: {e}"))
+    let mut bytes = Vec::new();
+    ciborium::into_writer(command, &mut bytes).map_err(|e| format!("command: {e}"))?;
+    ciborium::from_reader(bytes.as_slice()).map_err(|e| format!("command in f32: {e}"))
 }
 
 /// An actuator frame in `f64` (exact: every `f32` is an `f64`).
@@ -104,4 +106,37 @@ fn narrow_volume(volume: &SweptSphere<f64>) -> SweptSphere<f32> {
         Core::Triangle(t) => Core::Triangle(t.each_ref().map(|p| p.cast())),
     };
     SweptSphere { core, radius: volume.radius as f32 }
+}
+
+#[cfg(test)]
+#[allow(clippy::indexing_slicing, reason = "test")]
+mod tests {
+    use kernel::controller::config::{CartesianParameters, Hand};
+    use kernel::controller::messages::Command;
+
+    use super::narrow_command;
+
+    #[test]
+    fn commands_narrow_to_the_nearest_f32_and_keep_infinite_force_limits() {
+        let (inf, narrow) = (f64::INFINITY, |v: [f64; 6]| v.map(|x| x as f32));
+        let parameters = CartesianParameters {
+            translational_stiffness: [500.0, 0.1, 800.0],
+            rotational_stiffness: [100.0; 3],
+            damping_ratio: 0.7,
+            force_lower: [-inf, -20.0, -20.0, -inf, -inf, -inf],
+            force_upper: [10.0, inf, 20.0, inf, inf, inf],
+        };
+        let expected = CartesianParameters {
+            translational_stiffness: [500.0, 0.1_f32, 800.0],
+            rotational_stiffness: [100.0; 3],
+            damping_ratio: 0.7_f32,
+            force_lower: narrow(parameters.force_lower),
+            force_upper: narrow(parameters.force_upper),
+        };
+        assert_eq!((expected.force_lower[0], expected.force_upper[1]), (f32::NEG_INFINITY, f32::INFINITY));
+        assert_eq!(
+            narrow_command(&Command::SetCartesian { hand: Hand::Left, parameters }),
+            Ok(Command::SetCartesian { hand: Hand::Left, parameters: expected })
+        );
+    }
 }

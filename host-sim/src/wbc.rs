@@ -71,8 +71,8 @@ pub enum Driver {
     HostF64,
     /// The same controller in `f32` on the host ([`crate::scalar`]).
     HostF32(F32Controller),
-    /// The firmware image under QEMU ([`crate::pil`]).
-    Firmware(Firmware),
+    /// The firmware image under QEMU ([`crate::pil`]); boxed: its link buffers are large.
+    Firmware(Box<Firmware>),
 }
 
 impl Driver {
@@ -85,7 +85,9 @@ impl Driver {
         hierarchy: &[TaskSpec],
     ) -> Result<Self, String> {
         match (options.pil, options.scalar) {
-            (Some(target), _) => firmware_for(target, environment, changes, hierarchy).map(Self::Firmware),
+            (Some(target), _) => {
+                firmware_for(target, environment, changes, hierarchy).map(|f| Self::Firmware(Box::new(f)))
+            }
             (None, Scalar::F32) => F32Controller::new(environment, changes, hierarchy).map(Self::HostF32),
             (None, Scalar::F64) => Ok(Self::HostF64),
         }
@@ -94,7 +96,7 @@ impl Driver {
     /// The firmware, when it drives the robot.
     pub fn firmware(&self) -> Option<&Firmware> {
         match self {
-            Self::Firmware(firmware) => Some(firmware),
+            Self::Firmware(firmware) => Some(firmware.as_ref()),
             Self::HostF64 | Self::HostF32(_) => None,
         }
     }

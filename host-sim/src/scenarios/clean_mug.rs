@@ -40,7 +40,7 @@ use super::wipe_window::{
     tool_orientation, Circles, Contact, ToolPlan, ToolReference, Waypoints, HOLD_S,
 };
 use super::{Outcome, RunOptions};
-use crate::output::{Span, Summary};
+use crate::output::Span;
 use crate::sim::Surface;
 use crate::wbc::ConfigChanges;
 
@@ -126,7 +126,7 @@ pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let run = run_tool(NAME, &CLEAN_MUG, &[], &justin::home_configuration(), changes, DURATION_S, plan, options)?;
     let limit = CLEAN_MUG.force_upper[2];
     let travel = base_travel(&run.samples);
-    let mut summary = Summary::new(NAME);
+    let mut summary = run.summary.clone();
     let all = labelled_contact_metrics(&mut summary, &run, SCRUB_S);
     let share = all.iter().map(|m| m.contact_share).fold(1.0_f64, f64::min);
     let circle_x = measured_range(&run.samples, 0, &Vector3::x(), SCRUB_S);

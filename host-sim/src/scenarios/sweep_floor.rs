@@ -39,7 +39,7 @@ use super::wipe_window::{
     tool_orientation, Contact, ToolPlan, ToolReference, Waypoints, HOLD_S,
 };
 use super::{Outcome, RunOptions};
-use crate::output::{Span, Summary};
+use crate::output::Span;
 use crate::sim::Surface;
 use crate::wbc::ConfigChanges;
 
@@ -134,7 +134,7 @@ pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let run = run_tool(NAME, &SWEEP_FLOOR, &[], &justin::home_configuration(), changes, DURATION_S, plan, options)?;
     let limit = -SWEEP_FLOOR.force_lower[2];
     let travel = base_travel(&run.samples);
-    let mut summary = Summary::new(NAME);
+    let mut summary = run.summary.clone();
     let all = labelled_contact_metrics(&mut summary, &run, SWEEP_S);
     let share = all.iter().map(|m| m.contact_share).fold(1.0_f64, f64::min);
     let mut range = f64::INFINITY;

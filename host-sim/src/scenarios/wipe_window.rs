@@ -279,6 +279,9 @@ pub struct ToolSample {
 
 /// The result of [`run_tool`].
 pub struct ToolRun {
+    /// The scenario's summary, begun with the controller that drove the robot
+    /// ([`Rig::describe_controller`]).
+    pub summary: Summary,
     /// Rig series extended by the tool columns.
     pub series: TimeSeries,
     /// The tool samples, one per control cycle.
@@ -376,7 +379,10 @@ pub fn run_tool(
     let finite = series.rows().iter().all(|r| r.iter().all(|x| x.is_finite() || x.is_nan()))
         && samples.iter().all(|s| s.normal_n.iter().chain(s.base.iter()).all(|x| x.is_finite()));
     let series = extend_series(&series, &samples, &contacts, &references)?;
+    let mut summary = Summary::new(name);
+    rig.describe_controller(&mut summary);
     Ok(ToolRun {
+        summary,
         series,
         samples,
         contacts,
@@ -691,7 +697,7 @@ pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let limited = limited_share(&run.samples, 0, STROKES_S);
     let stroke_range = measured_range(&run.samples, 0, &Vector3::y(), STROKES_S);
     let travel = base_travel(&run.samples);
-    let mut summary = Summary::new(NAME);
+    let mut summary = run.summary.clone();
     summary
         .metric("first_touch_s", m.first_touch_s)
         .metric("settled_peak_contact_force_n", m.settled_peak_n)
