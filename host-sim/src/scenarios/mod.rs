@@ -7,9 +7,10 @@
 //! [`crate::sim::run_loop`], builds its simulator with [`RunOptions::simulator`] (or the
 //! whole-body rig with [`crate::wbc::rig`]) so `--plant` reaches it, and reports its progress
 //! through [`RunOptions::progress`]. `--pil` and `--scalar f32` choose the controller of the
-//! whole-body rig ([`crate::wbc::Driver`]); [`run`] refuses them for the scenarios that do not
-//! run it (the thesis' planar and mobile-base models run their own controllers in `f64`). Errors are one-line messages. Tests call the scenario
-//! functions directly and assert the same numbers the summary reports.
+//! whole-body rig ([`crate::wbc::Driver`]); [`run`] refuses them, before running, for the
+//! scenarios without that rig (they run their own controllers in `f64`). Errors are one-line
+//! messages. Tests call the scenario functions directly and assert the same numbers the
+//! summary reports.
 
 use std::path::{Path, PathBuf};
 

@@ -300,9 +300,10 @@ pub struct ToolRun {
     pub first_fault: Option<(f64, String)>,
 }
 
-/// Runs a Table 7.1 tool: rig at `q0` with the configuration of Ch. 6 with `changes` and the Ch. 6 hierarchy, switches to the
-/// tool's Cartesian parameters and hierarchy at the first cycle, streams the references of
-/// `plan` (built from the measured start TCP poses `[right, left]`) and records the contacts.
+/// Runs a Table 7.1 tool: rig at `q0` with the configuration of Ch. 6 with `changes` and the
+/// Ch. 6 hierarchy, switches to the tool's Cartesian parameters and hierarchy at the first
+/// cycle, streams the references of `plan` (built from the measured start TCP poses
+/// `[right, left]`) and records the contacts.
 #[allow(clippy::too_many_arguments, reason = "one call per scenario, every argument differs")]
 pub fn run_tool(
     name: &str,
