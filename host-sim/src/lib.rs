@@ -16,6 +16,7 @@
 //! - [`replay`]: `replay.html`, the 3-D replay of a run of a robot (Justin, a planar arm, the platform).
 //! - [`wbc`]: the simulated Justin under the kernel's whole-body controller.
 //! - [`pil`]: processor-in-the-loop: the firmware image under QEMU as the rig's controller.
+//! - [`scalar`]: `--scalar`: the rig's controller in `f32` on the host, fed as a board is fed.
 //!
 //! Errors at this level are reported as one-line messages; nothing here panics on bad input.
 
@@ -27,6 +28,7 @@ pub mod output;
 pub mod pil;
 pub mod plant;
 pub mod replay;
+pub mod scalar;
 pub mod scenarios;
 pub mod sim;
 pub mod urdf;

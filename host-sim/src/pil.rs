@@ -23,13 +23,12 @@ use std::io::{BufReader, Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdout, Command as Process, Stdio};
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use embedded_io_adapters::std::FromStd;
 use fixtures::justin;
-use hal::{JointSample, PlatformCommand, PlatformSample};
+use hal::{JointSample, PlatformSample};
 use kernel::controller::faults::SafeOutput;
 use kernel::controller::messages::{encode_command, Command};
 use kernel::controller::{ActuatorFrame, SensorFrame};
@@ -37,6 +36,8 @@ use link::{
     encode, write_frame, ActuatorMsg, Frame, FrameReader, LinkError, OutputMode, Payload, RuntimeStats, SensorMsg,
     MAX_ENCODED, MAX_MESSAGE_BYTES,
 };
+
+use crate::scalar::{narrow_command, widen_actuator_frame};
 
 /// Upper-body joints of a frame.
 const U: usize = justin::UPPER_DOF;
@@ -81,15 +82,6 @@ impl Target {
         };
         format!("firmware {core} f32")
     }
-}
-
-/// Whether a firmware was started in this process.
-static STARTED: AtomicBool = AtomicBool::new(false);
-
-/// Whether a [`Firmware`] was started in this process (a scenario without the whole-body rig
-/// never starts one, and ignores the `--pil` option).
-pub fn started() -> bool {
-    STARTED.load(Ordering::Relaxed)
 }
 
 /// The `firmware/` project beside this crate.
@@ -167,7 +159,6 @@ impl Firmware {
         let mut firmware = Self::connect(target, qemu, &listener, timeout, log)?;
         firmware.counts = counts.map(|(_, file)| file);
         firmware.qemu_alive()?;
-        STARTED.store(true, Ordering::Relaxed);
         eprintln!("pil: {} on QEMU {} connected (log: {})", target.label(), target.machine(), log_path.display());
         Ok(firmware)
     }
@@ -273,8 +264,7 @@ impl Firmware {
 
     /// Sends a planner command (converted to `f32`); the firmware applies it before the next frame.
     pub fn apply(&mut self, command: &Command<f64>) -> Result<(), String> {
-        let value = serde_json::to_value(command).map_err(|e| format!("command: {e}"))?;
-        let command: Command<f32> = serde_json::from_value(value).map_err(|e| format!("command in f32: {e}"))?;
+        let command = narrow_command(command)?;
         let mut bytes = [0u8; MAX_MESSAGE_BYTES];
         let encoded = encode_command(&command, &mut bytes).map_err(|e| format!("command: {e}"))?;
         let bytes = heapless::Vec::from_slice(encoded).map_err(|_| "command too long".to_string())?;
@@ -435,20 +425,16 @@ pub fn sensor_message(frame: &SensorFrame<f64, U>) -> Result<SensorMsg, String> 
 /// The actuator frame in `f64`.
 fn actuator_frame(answer: &ActuatorMsg) -> Result<ActuatorFrame<f64, U>, String> {
     let torque: [f32; U] = answer.torque.as_slice().try_into().map_err(|_| "wrong joint count in the answer")?;
-    let platform = answer.platform_command();
-    Ok(ActuatorFrame {
-        torque: torque.map(f64::from),
-        platform: PlatformCommand {
-            velocity: platform.velocity.map(f64::from),
-            leg_rates: platform.leg_rates.map(f64::from),
-        },
+    Ok(widen_actuator_frame(&ActuatorFrame {
+        torque,
+        platform: answer.platform_command(),
         brake: answer.brake,
         mode: match answer.mode {
             OutputMode::Normal => SafeOutput::Normal,
             OutputMode::Hold => SafeOutput::Hold,
             OutputMode::Brake => SafeOutput::Brake,
         },
-    })
+    }))
 }
 
 #[cfg(test)]

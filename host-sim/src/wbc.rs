@@ -3,7 +3,8 @@
 //!
 //! Per control cycle ([`Rig::cycle`]): read the joint and platform samples through the `hal`
 //! traits, number the frame with the control-cycle counter (the simulator counts physics
-//! steps), call the controller's `step`, write the torques and the platform command back, and
+//! steps), call the [`Driver`]'s `step` (the host controller in `f64` or `f32`, or the firmware
+//! under QEMU), write the torques and the platform command back, and
 //! record one row in the scenario convention of docs/OUTPUT.md (`t`, `q.*`, `dq.*`, `tau.*`, the
 //! TCP errors `e0.*` (right) and `e1.*` (left), the storage `S<level>` per level, the activation
 //! `a.<task>` per hierarchy entry, the controller's platform commands and diagnostics, the TCP
@@ -16,10 +17,11 @@ use kernel::controller::faults::SafeOutput;
 use kernel::controller::messages::Command;
 use kernel::controller::{ActuatorFrame, SensorFrame};
 use kernel::tasks::collision::SweptSphere;
-use nalgebra::SVector;
+use nalgebra::{RealField, SVector};
 
 use crate::output::{Summary, TimeSeries};
 use crate::pil::Firmware;
+use crate::scalar::{F32Controller, Scalar};
 use crate::scenarios::RunOptions;
 use crate::sim::{
     run_loop, CycleInfo, JointStops, Physics, SimConfig, SimError, Simulator, StepReport, CONTROL_PERIOD_S,
@@ -46,63 +48,151 @@ pub const BASE_LAG_S: f64 = 0.05;
 pub struct Rig {
     /// The simulated robot.
     pub sim: JustinSim,
-    /// The controller.
+    /// The host controller in `f64`: it drives the robot with [`Driver::HostF64`], and runs
+    /// alongside on the same frames otherwise (its telemetry fills the columns; its torques are
+    /// the reference of [`Rig::torque_difference`]).
     pub controller: RigController,
+    /// The controller whose output drives the robot.
+    pub driver: Driver,
     /// Faults seen so far (cycles with a safe output).
     pub faulty_cycles: u64,
     /// Smallest collision distance seen (m) over all pairs.
     pub min_distance_m: f64,
-    /// The firmware under QEMU, when the run's options name a PIL target: its
-    /// output drives the robot; `controller` runs alongside on the same frames for the
-    /// telemetry and the comparison.
-    pub firmware: Option<Firmware>,
-    /// Largest joint-torque difference |τ_firmware − τ_host| (Nm) over the first
-    /// [`COMPARISON_S`], on the same frames.
-    pub firmware_torque_difference: f64,
+    /// Largest joint-torque difference |τ_driver − τ_host f64| (Nm) over the first
+    /// [`COMPARISON_S`], on the same frames (0 with [`Driver::HostF64`]).
+    pub torque_difference: f64,
     /// The output applied in the last cycle.
     output: ActuatorFrame<f64, { justin::UPPER_DOF }>,
 }
 
-/// The span over which the firmware's torques are compared with the host controller's (s).
+/// The controller that drives the rig's robot.
+pub enum Driver {
+    /// The rig's own host controller in `f64`.
+    HostF64,
+    /// The same controller in `f32` on the host ([`crate::scalar`]).
+    HostF32(F32Controller),
+    /// The firmware image under QEMU ([`crate::pil`]); boxed: its link buffers are large.
+    Firmware(Box<Firmware>),
+}
+
+impl Driver {
+    /// The driver the run's options ask for: the firmware when they name a PIL target (the
+    /// image runs `f32`), else the host controller in their scalar.
+    fn for_options(
+        options: &RunOptions,
+        environment: &[SweptSphere<f64>],
+        changes: ConfigChanges,
+        hierarchy: &[TaskSpec],
+    ) -> Result<Self, String> {
+        match (options.pil, options.scalar) {
+            (Some(target), _) => {
+                firmware_for(target, environment, changes, hierarchy).map(|f| Self::Firmware(Box::new(f)))
+            }
+            (None, Scalar::F32) => F32Controller::new(environment, changes, hierarchy).map(Self::HostF32),
+            (None, Scalar::F64) => Ok(Self::HostF64),
+        }
+    }
+
+    /// The firmware, when it drives the robot.
+    pub fn firmware(&self) -> Option<&Firmware> {
+        match self {
+            Self::Firmware(firmware) => Some(firmware.as_ref()),
+            Self::HostF64 | Self::HostF32(_) => None,
+        }
+    }
+
+    /// What `summary.json` records as the controller.
+    pub fn label(&self) -> String {
+        match self {
+            Self::HostF64 => "host f64".into(),
+            Self::HostF32(_) => "host f32".into(),
+            Self::Firmware(firmware) => firmware.target().label(),
+        }
+    }
+
+    /// The output for `frame`, given the host `f64` controller's output `host` on it.
+    fn step(
+        &mut self,
+        frame: &SensorFrame<f64, { justin::UPPER_DOF }>,
+        host: ActuatorFrame<f64, { justin::UPPER_DOF }>,
+    ) -> Result<ActuatorFrame<f64, { justin::UPPER_DOF }>, String> {
+        match self {
+            Self::HostF64 => Ok(host),
+            Self::HostF32(controller) => controller.step(frame),
+            Self::Firmware(firmware) => firmware.step(frame),
+        }
+    }
+
+    /// Applies a planner command (the host `f64` controller has applied it already).
+    fn apply(&mut self, command: &Command<f64>) -> Result<(), String> {
+        match self {
+            Self::HostF64 => Ok(()),
+            Self::HostF32(controller) => controller.apply(command),
+            Self::Firmware(firmware) => firmware.apply(command),
+        }
+    }
+}
+
+/// The span over which the driver's torques are compared with the host `f64` controller's (s).
 pub const COMPARISON_S: f64 = 0.5;
 
-/// Builds the rig: the robot at `q0` at rest on the plant of `options`, the collision model with
-/// `environment` volumes (world frame), the controller with `config` and `hierarchy`, and the
-/// firmware under QEMU when `options` name a PIL target.
-pub fn rig(
-    q0: &SVector<f64, { justin::N }>,
-    environment: &[SweptSphere<f64>],
-    config: ControllerConfig<f64, { justin::N }>,
+/// What a scenario changes in the configuration of Ch. 6 ([`whole_body::controller_config`]):
+/// the rig builds the configuration in each controller's scalar and applies these.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ConfigChanges {
+    /// Platform axes `(x, y, θ)` the admittance moves (Ch. 6: all three; `false` holds the
+    /// base at rest like a braked platform).
+    pub free_base_axes: [bool; 3],
+}
+
+impl ConfigChanges {
+    /// The configuration of Ch. 6 unchanged.
+    pub const NONE: Self = Self { free_base_axes: [true; 3] };
+
+    /// [`whole_body::controller_config`] in `T` with these changes.
+    pub fn config<T: RealField + Copy>(self) -> Result<ControllerConfig<T, { justin::N }>, String> {
+        let mut config = whole_body::controller_config::<T>().map_err(|e| format!("config: {e}"))?;
+        config.platform.admittance.free_axes = self.free_base_axes;
+        Ok(config)
+    }
+}
+
+/// The rig's whole-body controller in `T`: the collision model with `environment` volumes
+/// (world frame), the configuration with `changes`, and `hierarchy`.
+pub fn whole_body_controller<T: RealField + Copy>(
+    environment: &[SweptSphere<T>],
+    changes: ConfigChanges,
     hierarchy: &[TaskSpec],
-    options: &RunOptions,
-) -> Result<Rig, String> {
+) -> Result<justin::whole_body::WholeBodyController<T, VOLUMES, PAIRS>, String> {
     if environment.len() > MAX_ENVIRONMENT {
         return Err(format!("at most {MAX_ENVIRONMENT} environment volumes"));
     }
-    let model = justin::model::<f64>().map_err(|e| format!("model: {e}"))?;
-    let collision_model = collision::collision_model_with_environment::<f64, VOLUMES, PAIRS>(&model, environment)
+    let model = justin::model::<T>().map_err(|e| format!("model: {e}"))?;
+    let collision_model = collision::collision_model_with_environment::<T, VOLUMES, PAIRS>(&model, environment)
         .map_err(|e| format!("collision model: {e}"))?;
-    let controller = RigController::try_new(model.clone(), collision_model, config, hierarchy)
-        .map_err(|e| format!("controller: {e}"))?;
+    justin::whole_body::WholeBodyController::try_new(model, collision_model, changes.config()?, hierarchy)
+        .map_err(|e| format!("controller: {e}"))
+}
+
+/// Builds the rig: the robot at `q0` at rest on the plant of `options`, the host `f64`
+/// controller ([`whole_body_controller`]) and the [`Driver`] the options ask for.
+pub fn rig(
+    q0: &SVector<f64, { justin::N }>,
+    environment: &[SweptSphere<f64>],
+    changes: ConfigChanges,
+    hierarchy: &[TaskSpec],
+    options: &RunOptions,
+) -> Result<Rig, String> {
+    let controller = whole_body_controller::<f64>(environment, changes, hierarchy)?;
+    let model = justin::model::<f64>().map_err(|e| format!("model: {e}"))?;
     let mut sim: JustinSim = options
         .simulator(model, SimConfig { base_lag_s: BASE_LAG_S, ..SimConfig::default() })
         .map_err(|e| format!("simulator: {e}"))?;
     sim.set_state(*q0, SVector::zeros()).map_err(|e| format!("initial state: {e}"))?;
     sim.set_joint_stops(Some(JointStops::JUSTIN)).map_err(|e| format!("joint stops: {e}"))?;
-    let firmware = match options.pil {
-        Some(target) => Some(firmware_for(target, environment, &config, hierarchy)?),
-        None => None,
-    };
+    let driver = Driver::for_options(options, environment, changes, hierarchy)?;
     let output = *controller.output();
-    Ok(Rig {
-        sim,
-        controller,
-        faulty_cycles: 0,
-        min_distance_m: f64::INFINITY,
-        firmware,
-        firmware_torque_difference: 0.0,
-        output,
-    })
+    Ok(Rig { sim, controller, driver, faulty_cycles: 0, min_distance_m: f64::INFINITY, torque_difference: 0.0, output })
 }
 
 /// Starts the firmware, if the rig is the one the image is built with: no environment volumes,
@@ -110,12 +200,11 @@ pub fn rig(
 fn firmware_for(
     target: crate::pil::Target,
     environment: &[SweptSphere<f64>],
-    config: &ControllerConfig<f64, { justin::N }>,
+    changes: ConfigChanges,
     hierarchy: &[TaskSpec],
 ) -> Result<Firmware, String> {
-    let image_config = whole_body::controller_config::<f64>().map_err(|e| format!("config: {e}"))?;
     if !environment.is_empty()
-        || *config != image_config
+        || changes != ConfigChanges::NONE
         || hierarchy != whole_body::fig_6_3_hierarchy(Hand::Right).as_slice()
     {
         return Err("--pil: the firmware image runs controller_config and the Fig. 6.3 hierarchy for the right \
@@ -128,8 +217,7 @@ fn firmware_for(
 /// The default rig of Ch. 6: Justin at its home pose, the configuration of
 /// [`whole_body::controller_config`] and the Fig. 6.3 hierarchy for `hand`.
 pub fn chapter_6_rig(hand: Hand, environment: &[SweptSphere<f64>], options: &RunOptions) -> Result<Rig, String> {
-    let config = whole_body::controller_config::<f64>().map_err(|e| format!("config: {e}"))?;
-    rig(&justin::home_configuration(), environment, config, &whole_body::fig_6_3_hierarchy(hand), options)
+    rig(&justin::home_configuration(), environment, ConfigChanges::NONE, &whole_body::fig_6_3_hierarchy(hand), options)
 }
 
 /// The columns [`Rig::record`] writes, in order.
@@ -182,8 +270,8 @@ pub fn columns() -> Vec<String> {
 }
 
 impl Rig {
-    /// One control cycle: sense, step (the firmware's output when it is attached), actuate.
-    /// Returns the output mode.
+    /// One control cycle: sense, step the host `f64` controller and the [`Driver`] on the same
+    /// frame, actuate with the driver's output. Returns the output mode.
     pub fn cycle(&mut self, info: &CycleInfo) -> Result<SafeOutput, String> {
         let sim_error = |e: SimError| e.to_string();
         let mut joints = JointTorqueInterface::read(&mut self.sim).map_err(sim_error)?;
@@ -192,13 +280,10 @@ impl Rig {
         platform.cycle = info.cycle + 1;
         let frame = SensorFrame { joints, platform };
         let host = *self.controller.step(&frame);
-        let output = match self.firmware.as_mut() {
-            Some(firmware) => firmware.step(&frame)?,
-            None => host,
-        };
+        let output = self.driver.step(&frame, host)?;
         if info.time_s < COMPARISON_S {
             let difference = output.torque.iter().zip(host.torque.iter()).map(|(a, b)| (a - b).abs());
-            self.firmware_torque_difference = difference.fold(self.firmware_torque_difference, f64::max);
+            self.torque_difference = difference.fold(self.torque_difference, f64::max);
         }
         self.output = output;
         self.sim.write_torque(&output.torque).map_err(sim_error)?;
@@ -259,22 +344,21 @@ impl Rig {
         Ok(row)
     }
 
-    /// Applies a planner command to the controller (and to the firmware, when attached).
+    /// Applies a planner command to the host `f64` controller and to the driver.
     pub fn apply(&mut self, command: &Command<f64>) -> Result<(), String> {
         self.controller.apply(command).map_err(|e| e.to_string())?;
-        self.firmware.as_mut().map_or(Ok(()), |firmware| firmware.apply(command))
+        self.driver.apply(command)
     }
 
-    /// Records which controller ran (`"host f64"` or the firmware's label) and, with the
-    /// firmware, the torque difference to the host controller, the firmware's statistics and,
-    /// with the counting plugin loaded, the instructions per step (max, median).
+    /// Records which controller drove the robot ([`Driver::label`]) and, unless it is the host
+    /// `f64` controller, its torque difference to that one; with the firmware also its
+    /// statistics and, with the counting plugin loaded, the instructions per step (max, median).
     pub fn describe_controller(&self, summary: &mut Summary) {
-        let Some(firmware) = &self.firmware else {
-            summary.value("controller", "host f64");
-            return;
-        };
-        summary.value("controller", firmware.target().label());
-        summary.metric("firmware_torque_difference_first_0_5_s_nm", self.firmware_torque_difference);
+        summary.value("controller", self.driver.label());
+        if !matches!(self.driver, Driver::HostF64) {
+            summary.metric("torque_difference_to_host_f64_first_0_5_s_nm", self.torque_difference);
+        }
+        let Some(firmware) = self.driver.firmware() else { return };
         if let Some(stats) = firmware.stats {
             summary
                 .value("firmware_cycles", stats.cycles)

@@ -27,9 +27,9 @@ fn the_firmware_controls_the_robot_like_the_host_controller() {
     assert_eq!(rig.faulty_cycles, 0);
     // f32 on the board against f64 on the host, on the same frames (gravity torques up to
     // ~100 Nm): agreement to f32 rounding of the whole step.
-    assert!(rig.firmware_torque_difference < 0.01, "{} Nm", rig.firmware_torque_difference);
-    assert!(rig.firmware_torque_difference > 0.0, "the firmware's torques are not the host's");
-    let firmware = rig.firmware.as_ref().unwrap();
+    assert!(rig.torque_difference < 0.01, "{} Nm", rig.torque_difference);
+    assert!(rig.torque_difference > 0.0, "the firmware's torques are not the host's");
+    let firmware = rig.driver.firmware().unwrap();
     let stats = firmware.stats.unwrap();
     assert_eq!(stats.link_faults, 0);
     assert!(stats.cycles > 0 && stats.cycles <= 300, "{stats:?}");

@@ -15,7 +15,7 @@
 //! references are placed [`BEHIND_M`] behind the faces (40 N of spring force, limited to 20 N).
 //!
 //! No base motion (Table 7.1: "both arms, torso"): the platform admittance is locked
-//! (`free_axes = [false; 3]` in the scenario's copy of [`whole_body::controller_config`]), so
+//! (`free_base_axes = [false; 3]` in the rig's [`crate::wbc::ConfigChanges`]), so
 //! the base is held at rest (`ṙ_des = 0`) like a braked platform. A joint impedance of the
 //! platform would still let the contact forces move the base by `F/k`.
 //!
@@ -29,8 +29,8 @@
 //! whole run, and the static and mean forces stay within it; contact kept during the scrubbing;
 //! the brush circles are executed; the base does not move; no fault.
 
+use fixtures::justin;
 use fixtures::justin::whole_body::CLEAN_MUG;
-use fixtures::justin::{self, whole_body};
 use kernel::controller::config::Hand;
 use kernel::model::Placement;
 use nalgebra::{Unit, Vector3};
@@ -40,8 +40,9 @@ use super::wipe_window::{
     tool_orientation, Circles, Contact, ToolPlan, ToolReference, Waypoints, HOLD_S,
 };
 use super::{Outcome, RunOptions};
-use crate::output::{Span, Summary};
+use crate::output::Span;
 use crate::sim::Surface;
+use crate::wbc::ConfigChanges;
 
 /// Registry name.
 pub const NAME: &str = "clean_mug";
@@ -131,12 +132,11 @@ pub fn phases() -> Vec<(f64, String)> {
 
 /// Simulates and checks the claims (module docs).
 pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
-    let mut config = whole_body::controller_config::<f64>().map_err(|e| format!("config: {e}"))?;
-    config.platform.admittance.free_axes = [false; 3];
-    let run = run_tool(NAME, &CLEAN_MUG, &[], &justin::home_configuration(), config, DURATION_S, plan, options)?;
+    let changes = ConfigChanges { free_base_axes: [false; 3] };
+    let run = run_tool(NAME, &CLEAN_MUG, &[], &justin::home_configuration(), changes, DURATION_S, plan, options)?;
     let limit = CLEAN_MUG.force_upper[2];
     let travel = base_travel(&run.samples);
-    let mut summary = Summary::new(NAME);
+    let mut summary = run.summary.clone();
     let all = labelled_contact_metrics(&mut summary, &run, SCRUB_S);
     let share = all.iter().map(|m| m.contact_share).fold(1.0_f64, f64::min);
     let circle_x = measured_range(&run.samples, 0, &Vector3::x(), SCRUB_S);

@@ -6,8 +6,11 @@
 //! convention of [`crate::output`]. Every scenario drives its robot with the one scenario loop,
 //! [`crate::sim::run_loop`], builds its simulator with [`RunOptions::simulator`] (or the
 //! whole-body rig with [`crate::wbc::rig`]) so `--plant` reaches it, and reports its progress
-//! through [`RunOptions::progress`]. Errors are one-line messages. Tests call the scenario
-//! functions directly and assert the same numbers the summary reports.
+//! through [`RunOptions::progress`]. `--pil` and `--scalar f32` choose the controller of the
+//! whole-body rig ([`crate::wbc::Driver`]); [`run`] refuses them, before running, for the
+//! scenarios without that rig (they run their own controllers in `f64`). Errors are one-line
+//! messages. Tests call the scenario functions directly and assert the same numbers the
+//! summary reports.
 
 use std::path::{Path, PathBuf};
 
@@ -18,6 +21,7 @@ use crate::output::{self, Figure, Summary, TimeSeries};
 use crate::pil::Target;
 use crate::plant::{PlantKind, PlantModel};
 use crate::replay::{self, Robot};
+use crate::scalar::Scalar;
 use crate::sim::{SimConfig, Simulator};
 
 pub mod cartesian_step;
@@ -104,6 +108,9 @@ struct Entry {
     phases: Option<fn() -> Vec<Phase>>,
     /// What the outcome's table holds.
     table: Table,
+    /// Whether the scenario runs the whole-body rig ([`crate::wbc::rig`]), whose controller
+    /// `--pil` and `--scalar` choose.
+    whole_body_rig: bool,
 }
 
 /// What a scenario's [`Outcome::series`] holds, and so the file it is written to.
@@ -131,6 +138,7 @@ impl Entry {
             environment: None,
             phases: None,
             table: Table::TimeSeries,
+            whole_body_rig: false,
         }
     }
 }
@@ -149,6 +157,13 @@ macro_rules! entry {
 /// The planar four-link arm of the thesis' Ch. 4 and 5 simulations with its TCP error columns.
 const fn planar4(tcp_error: [&'static str; 2]) -> Robot {
     Robot::PlanarArm { links: 4, tcp_error }
+}
+
+/// The registry entry of scenario module `$module` that runs the whole-body rig (Justin).
+macro_rules! rig_entry {
+    ($module:ident) => {
+        Entry { whole_body_rig: true, ..entry!($module, Robot::JUSTIN) }
+    };
 }
 
 /// The registry: every scenario `host-sim list` shows, in that order.
@@ -176,18 +191,18 @@ const SCENARIOS: &[Entry] = &[
         ..entry!(stability_map)
     },
     Entry { extra_files: Some(icr_avoidance::write_files), ..entry!(icr_avoidance, icr_avoidance::REPLAY) },
-    entry!(wbc_step, Robot::JUSTIN),
-    entry!(wbc_trajectory, Robot::JUSTIN),
-    Entry { phases: Some(wbc_phri::phases), ..entry!(wbc_phri, Robot::JUSTIN) },
+    rig_entry!(wbc_step),
+    rig_entry!(wbc_trajectory),
+    Entry { phases: Some(wbc_phri::phases), ..rig_entry!(wbc_phri) },
     Entry {
         environment: Some(|| wbc_grasp::table().to_vec()),
         phases: Some(wbc_grasp::phases),
-        ..entry!(wbc_grasp, Robot::JUSTIN)
+        ..rig_entry!(wbc_grasp)
     },
-    entry!(wipe_window, Robot::JUSTIN),
-    entry!(sweep_floor, Robot::JUSTIN),
-    Entry { phases: Some(clean_mug::phases), ..entry!(clean_mug, Robot::JUSTIN) },
-    entry!(soak, Robot::JUSTIN),
+    rig_entry!(wipe_window),
+    rig_entry!(sweep_floor),
+    Entry { phases: Some(clean_mug::phases), ..rig_entry!(clean_mug) },
+    rig_entry!(soak),
 ];
 
 /// The scenarios: `(name, one-line description)`.
@@ -207,6 +222,8 @@ pub struct RunOptions {
     pub plant: PlantKind,
     /// The firmware target that controls the whole-body rig under QEMU, if any ([`crate::pil`]).
     pub pil: Option<Target>,
+    /// The scalar of the whole-body rig's host controller ([`crate::scalar`]; ignored with `pil`).
+    pub scalar: Scalar,
     /// Whether the scenario reports its progress on stderr.
     pub progress: Progress,
 }
@@ -218,13 +235,14 @@ pub const DEFAULT_RECORD_EVERY: u64 = 10;
 pub const PLANT_SEED: u64 = 0x91a7_5eed;
 
 impl Default for RunOptions {
-    /// `out/<scenario>`, every 10th row, the ideal plant, the host controller, silent.
+    /// `out/<scenario>`, every 10th row, the ideal plant, the host controller in `f64`, silent.
     fn default() -> Self {
         Self {
             dir: None,
             record_every: DEFAULT_RECORD_EVERY,
             plant: PlantKind::Ideal,
             pil: None,
+            scalar: Scalar::F64,
             progress: Progress::Silent,
         }
     }
@@ -261,13 +279,23 @@ impl RunOptions {
 /// run of a robot over time, `replay.html` into the output directory (created if missing);
 /// prints a short result on stdout.
 ///
-/// Errors: unknown scenario (the message lists the names), a failed simulation, an I/O error,
-/// or failed claims (after all outputs are written).
+/// Errors: unknown scenario (the message lists the names), `--pil` or `--scalar f32` for a
+/// scenario without the whole-body rig, a failed simulation, an I/O error, or failed claims
+/// (after all outputs are written).
 pub fn run(name: &str, options: &RunOptions) -> Result<(), String> {
     let Some(entry) = SCENARIOS.iter().find(|s| s.name == name) else {
         let names: Vec<&str> = SCENARIOS.iter().map(|s| s.name).collect();
         return Err(format!("unknown scenario `{name}`; known: {}", names.join(", ")));
     };
+    let chosen = [(options.pil.is_some(), "--pil"), (options.scalar != Scalar::F64, "--scalar f32")];
+    if let Some((_, option)) = chosen.iter().find(|(chosen, _)| *chosen && !entry.whole_body_rig) {
+        let rigs: Vec<&str> = SCENARIOS.iter().filter(|s| s.whole_body_rig).map(|s| s.name).collect();
+        return Err(format!(
+            "{option}: {name} does not run the whole-body controller (its own controller runs on the host in f64); \
+             the scenarios that do: {}",
+            rigs.join(", ")
+        ));
+    }
     let out = options.dir.clone().unwrap_or_else(|| Path::new("out").join(name));
     let mut outcome = (entry.simulate)(options)?;
     outcome.summary.value("plant", options.plant.name());

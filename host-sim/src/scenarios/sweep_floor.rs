@@ -28,8 +28,8 @@
 //! is kept while sweeping; the sweeping motion is executed; the base moves; no fault; no
 //! self-collision.
 
+use fixtures::justin;
 use fixtures::justin::whole_body::SWEEP_FLOOR;
-use fixtures::justin::{self, whole_body};
 use kernel::controller::config::Hand;
 use kernel::model::Placement;
 use nalgebra::{Unit, Vector3};
@@ -39,8 +39,9 @@ use super::wipe_window::{
     tool_orientation, Contact, ToolPlan, ToolReference, Waypoints, HOLD_S,
 };
 use super::{Outcome, RunOptions};
-use crate::output::{Span, Summary};
+use crate::output::Span;
 use crate::sim::Surface;
+use crate::wbc::ConfigChanges;
 
 /// Registry name.
 pub const NAME: &str = "sweep_floor";
@@ -129,11 +130,11 @@ fn plan(start: [Placement<f64>; 2]) -> ToolPlan {
 
 /// Simulates and checks the claims (module docs).
 pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
-    let config = whole_body::controller_config::<f64>().map_err(|e| format!("config: {e}"))?;
-    let run = run_tool(NAME, &SWEEP_FLOOR, &[], &justin::home_configuration(), config, DURATION_S, plan, options)?;
+    let changes = ConfigChanges::NONE;
+    let run = run_tool(NAME, &SWEEP_FLOOR, &[], &justin::home_configuration(), changes, DURATION_S, plan, options)?;
     let limit = -SWEEP_FLOOR.force_lower[2];
     let travel = base_travel(&run.samples);
-    let mut summary = Summary::new(NAME);
+    let mut summary = run.summary.clone();
     let all = labelled_contact_metrics(&mut summary, &run, SWEEP_S);
     let share = all.iter().map(|m| m.contact_share).fold(1.0_f64, f64::min);
     let mut range = f64::INFINITY;

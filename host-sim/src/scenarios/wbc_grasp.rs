@@ -30,7 +30,7 @@ use nalgebra::{Rotation3, Vector3};
 use super::wbc_step::{col, common_claims, distance_to, line, points, pose_of, tcp_columns};
 use super::{Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
-use crate::wbc;
+use crate::wbc::{self, ConfigChanges};
 
 /// Registry name.
 pub const NAME: &str = "wbc_grasp";
@@ -116,8 +116,8 @@ pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
 
 /// The rig with the table and the Fig. 6.3 hierarchy for the left hand.
 fn setup(options: &RunOptions) -> Result<wbc::Rig, String> {
-    let config = whole_body::controller_config::<f64>().map_err(|e| format!("config: {e}"))?;
-    wbc::rig(&justin::home_configuration(), &table(), config, &whole_body::fig_6_3_hierarchy(Hand::Left), options)
+    let hierarchy = whole_body::fig_6_3_hierarchy(Hand::Left);
+    wbc::rig(&justin::home_configuration(), &table(), ConfigChanges::NONE, &hierarchy, options)
 }
 
 /// Runs [`DURATION_S`] with the reach and the return; returns the series, the left TCP's start

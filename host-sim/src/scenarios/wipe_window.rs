@@ -35,7 +35,7 @@
 
 use fixtures::justin::whole_body::{ServiceTask, WIPE_WINDOW};
 use fixtures::justin::{self, whole_body};
-use kernel::controller::config::{CartesianParameters, ControllerConfig, Hand, JointGroup, TaskKind, TaskSpec};
+use kernel::controller::config::{CartesianParameters, Hand, JointGroup, TaskKind, TaskSpec};
 use kernel::controller::messages::{Command, Pose};
 use kernel::model::Placement;
 use nalgebra::{Rotation3, SVector, Unit, UnitQuaternion, Vector3};
@@ -43,7 +43,7 @@ use nalgebra::{Rotation3, SVector, Unit, UnitQuaternion, Vector3};
 use super::{Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
 use crate::sim::Surface;
-use crate::wbc::{self, Rig};
+use crate::wbc::{self, ConfigChanges, Rig};
 
 /// Registry name.
 pub const NAME: &str = "wipe_window";
@@ -279,6 +279,9 @@ pub struct ToolSample {
 
 /// The result of [`run_tool`].
 pub struct ToolRun {
+    /// The scenario's summary, begun with the controller that drove the robot
+    /// ([`Rig::describe_controller`]).
+    pub summary: Summary,
     /// Rig series extended by the tool columns.
     pub series: TimeSeries,
     /// The tool samples, one per control cycle.
@@ -297,21 +300,22 @@ pub struct ToolRun {
     pub first_fault: Option<(f64, String)>,
 }
 
-/// Runs a Table 7.1 tool: rig at `q0` with `config` and the Ch. 6 hierarchy, switches to the
-/// tool's Cartesian parameters and hierarchy at the first cycle, streams the references of
-/// `plan` (built from the measured start TCP poses `[right, left]`) and records the contacts.
+/// Runs a Table 7.1 tool: rig at `q0` with the configuration of Ch. 6 with `changes` and the
+/// Ch. 6 hierarchy, switches to the tool's Cartesian parameters and hierarchy at the first
+/// cycle, streams the references of `plan` (built from the measured start TCP poses
+/// `[right, left]`) and records the contacts.
 #[allow(clippy::too_many_arguments, reason = "one call per scenario, every argument differs")]
 pub fn run_tool(
     name: &str,
     task: &ServiceTask,
     extra_tasks: &[TaskSpec],
     q0: &SVector<f64, { justin::N }>,
-    config: ControllerConfig<f64, { justin::N }>,
+    changes: ConfigChanges,
     duration_s: f64,
     plan: impl FnOnce([Placement<f64>; 2]) -> ToolPlan,
     options: &RunOptions,
 ) -> Result<ToolRun, String> {
-    let mut rig = wbc::rig(q0, &[], config, &whole_body::fig_6_3_hierarchy(Hand::Right), options)?;
+    let mut rig = wbc::rig(q0, &[], changes, &whole_body::fig_6_3_hierarchy(Hand::Right), options)?;
     let start = [
         rig.sim.frame_placement(justin::RIGHT_TCP).map_err(|e| e.to_string())?,
         rig.sim.frame_placement(justin::LEFT_TCP).map_err(|e| e.to_string())?,
@@ -376,7 +380,10 @@ pub fn run_tool(
     let finite = series.rows().iter().all(|r| r.iter().all(|x| x.is_finite() || x.is_nan()))
         && samples.iter().all(|s| s.normal_n.iter().chain(s.base.iter()).all(|x| x.is_finite()));
     let series = extend_series(&series, &samples, &contacts, &references)?;
+    let mut summary = Summary::new(name);
+    rig.describe_controller(&mut summary);
     Ok(ToolRun {
+        summary,
         series,
         samples,
         contacts,
@@ -647,8 +654,8 @@ fn surface_lines<'a>(run: &'a ToolRun, hand: Hand, axis: &'a Vector3<f64>) -> im
 
 /// The window run.
 pub fn run(options: &RunOptions) -> Result<ToolRun, String> {
-    let config = whole_body::controller_config::<f64>().map_err(|e| format!("config: {e}"))?;
-    run_tool(NAME, &WIPE_WINDOW, &PLATFORM_IMPEDANCE, &justin::home_configuration(), config, DURATION_S, plan, options)
+    let changes = ConfigChanges::NONE;
+    run_tool(NAME, &WIPE_WINDOW, &PLATFORM_IMPEDANCE, &justin::home_configuration(), changes, DURATION_S, plan, options)
 }
 
 fn plan(start: [Placement<f64>; 2]) -> ToolPlan {
@@ -703,7 +710,7 @@ pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let limited = limited_share(&run.samples, 0, STROKES_S);
     let stroke_range = measured_range(&run.samples, 0, &Vector3::y(), STROKES_S);
     let travel = base_travel(&run.samples);
-    let mut summary = Summary::new(NAME);
+    let mut summary = run.summary.clone();
     summary
         .metric("first_touch_s", m.first_touch_s)
         .metric("settled_peak_contact_force_n", m.settled_peak_n)
