@@ -325,10 +325,10 @@ impl<
         let active = self.settings.config.layout.coordinates(JointGroup::UpperBody);
         let limits =
             JointLimits { speed: &self.settings.model.limits.velocity, effort: &self.settings.model.limits.effort };
-        let drive = || {
+        let drive = |damping: &SVector<T, N>| {
             let count = self.work.projection.level_count.min(MAX_LEVELS);
             let levels = self.work.projection.level_torques.get(..count).unwrap_or(&[]);
-            let mut acceleration = levels.iter().fold(*self.state.observer.residual(), |t, l| t + l);
+            let mut acceleration = levels.iter().fold(self.state.observer.residual() + damping, |t, l| t + l);
             acceleration.gemv(-T::one(), &self.work.data.coriolis, v, T::one());
             for (a, upper) in acceleration.iter_mut().zip(active.iter()) {
                 if !upper {
