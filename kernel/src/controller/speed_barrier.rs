@@ -69,7 +69,10 @@
 //!   so passivity holds; it is a feedforward of torques computed before it (the levels, the
 //!   previous cycle's observer estimate, the damping), so it cannot feed back on itself within
 //!   a cycle. It costs `C q̇` and one solve with the factor of `M̃` (O(N²)), only in the cycles
-//!   where some joint is above the onset.
+//!   where some joint is above the onset. It lowers that event to 1.05 × the limit, not below:
+//!   each joint cancels only what the others drive without its own term, so the cancelling
+//!   torques of coupled joints still act on each other (the exact answer, the inertia of the
+//!   joints in the barrier with the others free, `((M̃⁻¹)_AA)⁻¹`, would cost a k × k solve).
 
 use nalgebra::{RealField, SVector};
 
