@@ -9,8 +9,8 @@ use host_sim::scenarios::{soak, RunOptions};
 #[test]
 fn the_soak_holds_its_claims_on_the_realistic_plant() {
     let realistic = RunOptions { plant: PlantKind::Realistic, ..RunOptions::default() };
-    let (metrics, series) = soak::run(3.0, soak::SEED, &realistic).unwrap();
-    let (ideal, _) = soak::run(3.0, soak::SEED, &RunOptions::default()).unwrap();
+    let (metrics, series) = soak::run(3.0, soak::SEED, None, &realistic).unwrap();
+    let (ideal, _) = soak::run(3.0, soak::SEED, None, &RunOptions::default()).unwrap();
     // The same seeded goals and pushes acted on both plants; the robot moved differently.
     assert!(metrics.goals >= 1 && metrics.pushes >= 1, "{metrics:?}");
     assert_eq!((metrics.goals, metrics.pushes), (ideal.goals, ideal.pushes));

@@ -14,6 +14,8 @@
 //! `SOAK_SEED` (environment, default [`SEED`]); with `--plant realistic` the same seed drives the
 //! plant's sensor noise. The simulated duration is `SOAK_SECONDS`
 //! (environment, default [`DEFAULT_SECONDS`]); `SOAK_SECONDS=3600` is the one-hour soak.
+//! `SOAK_RECORD_FROM` (s, environment) records a window for a closer look: no row before it,
+//! every cycle from it on (`--record-every` decimates as usual).
 //!
 //! Reported: the largest torque rate (absolute and relative to its limit), the largest
 //! `|τ_i|/τ_max,i`, the largest controller energy (kinetic energy with the closed-loop inertia
@@ -87,16 +89,23 @@ pub fn seed() -> Result<u64, String> {
 
 /// The simulated duration: `SOAK_SECONDS` or [`DEFAULT_SECONDS`].
 pub fn duration_s() -> Result<f64, String> {
-    match std::env::var("SOAK_SECONDS") {
-        Ok(s) => {
-            let value: f64 = s.trim().parse().map_err(|e| format!("SOAK_SECONDS={s}: {e}"))?;
-            if value.is_finite() && value > 0.0 {
-                Ok(value)
-            } else {
-                Err(format!("SOAK_SECONDS={s}: must be a positive number of seconds"))
-            }
-        }
-        Err(_) => Ok(DEFAULT_SECONDS),
+    seconds_from_env("SOAK_SECONDS").map(|s| s.unwrap_or(DEFAULT_SECONDS))
+}
+
+/// The start of the recorded window: `SOAK_RECORD_FROM`, or `None` (the whole run, one row
+/// every [`RECORD_EVERY`] cycles).
+pub fn record_from_s() -> Result<Option<f64>, String> {
+    seconds_from_env("SOAK_RECORD_FROM")
+}
+
+/// A positive number of seconds from the environment variable `name`, if set.
+fn seconds_from_env(name: &str) -> Result<Option<f64>, String> {
+    let Ok(s) = std::env::var(name) else { return Ok(None) };
+    let value: f64 = s.trim().parse().map_err(|e| format!("{name}={s}: {e}"))?;
+    if value.is_finite() && value > 0.0 {
+        Ok(Some(value))
+    } else {
+        Err(format!("{name}={s}: must be a positive number of seconds"))
     }
 }
 
@@ -155,13 +164,18 @@ pub struct SoakMetrics {
 /// Runs the soak for [`duration_s`] (see the module docs).
 pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let duration = duration_s()?;
-    let (metrics, series) = run(duration, seed()?, options)?;
+    let (metrics, series) = run(duration, seed()?, record_from_s()?, options)?;
     evaluate(&metrics, series)
 }
 
 /// The soak of `duration` simulated seconds with disturbances (and, on the realistic plant,
-/// sensor noise) from `seed`.
-pub fn run(duration: f64, seed: u64, options: &RunOptions) -> Result<(SoakMetrics, TimeSeries), String> {
+/// sensor noise) from `seed`, recording every cycle from `record_from` (s) if given.
+pub fn run(
+    duration: f64,
+    seed: u64,
+    record_from: Option<f64>,
+    options: &RunOptions,
+) -> Result<(SoakMetrics, TimeSeries), String> {
     let mut rig = wbc::chapter_6_rig(Hand::Right, &[], options)?;
     rig.sim.set_plant_model(options.plant_model(seed))?;
     let mut rng = Rng(seed.max(1));
@@ -174,7 +188,8 @@ pub fn run(duration: f64, seed: u64, options: &RunOptions) -> Result<(SoakMetric
         let cycle = info.cycle;
         rig.cycle(info).map_err(|e| format!("cycle {cycle}: {e}"))?;
         observer.observe(rig, info);
-        if cycle % RECORD_EVERY == 0 {
+        let recorded = record_from.map_or(cycle % RECORD_EVERY == 0, |from| info.time_s >= from);
+        if recorded {
             let mut row = rig.record(info).map_err(|e| format!("cycle {cycle}: {e}"))?;
             row.extend(observer.take_window());
             series.push(row)?;
@@ -418,7 +433,7 @@ mod tests {
 
     #[test]
     fn a_short_soak_holds_its_claims() {
-        let (metrics, series) = run(4.0, SEED, &RunOptions::default()).unwrap();
+        let (metrics, series) = run(4.0, SEED, None, &RunOptions::default()).unwrap();
         let outcome = evaluate(&metrics, series).unwrap();
         assert!(outcome.summary.failed_claims().is_empty(), "{:?} {metrics:?}", outcome.summary.failed_claims());
         assert!(metrics.goals >= 1 && metrics.pushes >= 1, "{metrics:?}");

@@ -324,12 +324,26 @@ impl<
     }
 
     /// The joint speed barrier ([`mod@super::speed_barrier`]) on the upper body, from the measured `v`
-    /// and the factor of the closed-loop inertia `M̃`.
+    /// and the factor of the closed-loop inertia `M̃`. The driving torque is the levels' sum plus
+    /// the observer's external-torque estimate minus the velocity terms `C q̇`.
     fn speed_barrier(&self, v: &SVector<T, N>, inertia: &TreeFactorization<T, N>) -> SVector<T, N> {
         let active = self.settings.config.layout.coordinates(JointGroup::UpperBody);
         let limits =
             JointLimits { speed: &self.settings.model.limits.velocity, effort: &self.settings.model.limits.effort };
-        speed_barrier(&self.settings.config.speed_barrier, v, limits, |i| joint_mobility(inertia, i), &active)
+        let drive = |damping: &SVector<T, N>| {
+            let count = self.work.projection.level_count.min(MAX_LEVELS);
+            let levels = self.work.projection.level_torques.get(..count).unwrap_or(&[]);
+            let mut acceleration = levels.iter().fold(self.state.observer.residual() + damping, |t, l| t + l);
+            acceleration.gemv(-T::one(), &self.work.data.coriolis, v, T::one());
+            for (a, upper) in acceleration.iter_mut().zip(active.iter()) {
+                if !upper {
+                    *a = T::zero();
+                }
+            }
+            inertia.solve_mut(&mut acceleration);
+            acceleration
+        };
+        speed_barrier(&self.settings.config.speed_barrier, v, limits, |i| joint_mobility(inertia, i), drive, &active)
     }
 
     /// While returning from the safe output ([`super::recovery`]): the levels' torques scaled by the
