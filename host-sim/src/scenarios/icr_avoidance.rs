@@ -832,7 +832,7 @@ fn figures(off: &[Sample], on: &[Sample], legs: &[Sample]) -> Vec<(&'static str,
 /// File name of the ICR plot.
 pub const ICR_FILE: &str = "icr_path.svg";
 
-/// Draws the ICR paths of the three runs in the platform frame (square, ±0.8 m as Fig. 3.11)
+/// Draws the ICR paths of the three runs in the platform frame (y ±0.8 m as Fig. 3.11, x to scale)
 /// with the wheels and their fields into [`ICR_FILE`] in `out`; the runner calls this after
 /// writing the [`Outcome`]. Returns the file name.
 pub fn write_files(out: &std::path::Path, outcome: &Outcome) -> Result<Vec<&'static str>, String> {
@@ -843,17 +843,28 @@ pub fn write_files(out: &std::path::Path, outcome: &Outcome) -> Result<Vec<&'sta
     Ok(vec![ICR_FILE])
 }
 
+/// Margin around the ICR plot and the sizes of its label areas (px).
+const ICR_MARGIN_PX: u32 = 15;
+const ICR_X_LABELS_PX: u32 = 45;
+const ICR_Y_LABELS_PX: u32 = 55;
+
 fn draw_icr(
     root: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
     series: &TimeSeries,
 ) -> Result<(), Box<dyn std::error::Error>> {
     root.fill(&WHITE)?;
-    let mut chart = ChartBuilder::on(root)
-        .caption("ICR in the platform frame for t > 6.5 s (cf. Fig. 3.11 top)", ("sans-serif", 20))
-        .margin(15)
-        .x_label_area_size(45)
-        .y_label_area_size(55)
-        .build_cartesian_2d(-0.8..0.8, -0.8..0.8)?;
+    let area = root.titled("ICR in the platform frame for t > 6.5 s (cf. Fig. 3.11 top)", ("sans-serif", 20))?;
+    // The plot area is what the margins and label areas leave; x spans ±0.8 m scaled by its
+    // aspect ratio, so that both axes have the same metres per pixel.
+    let (width, height) = area.dim_in_pixel();
+    let plot_width = f64::from(width) - f64::from(2 * ICR_MARGIN_PX + ICR_Y_LABELS_PX);
+    let plot_height = f64::from(height) - f64::from(2 * ICR_MARGIN_PX + ICR_X_LABELS_PX);
+    let half_x = 0.8 * plot_width / plot_height;
+    let mut chart = ChartBuilder::on(&area)
+        .margin(ICR_MARGIN_PX)
+        .x_label_area_size(ICR_X_LABELS_PX)
+        .y_label_area_size(ICR_Y_LABELS_PX)
+        .build_cartesian_2d(-half_x..half_x, -0.8..0.8)?;
     chart.configure_mesh().x_desc("x (m)").y_desc("y (m)").label_style(("sans-serif", 13)).draw()?;
     let field = RGBColor(200, 200, 200);
     for (i, psi) in fixtures::justin::LEG_DIRECTIONS.iter().enumerate() {
