@@ -89,17 +89,14 @@ pub use error::ConfigError;
 pub use frames::{ActuatorFrame, SensorFrame, PLATFORM_DOF};
 pub use telemetry::Telemetry;
 
-use active_hierarchy::ActiveHierarchy;
 use command::{decode_command, Command, CommandTarget};
 use config::{ControllerConfig, Hand, TaskSpec, MAX_TASK_ROWS};
 use cycle::Cycle;
 use error::CommandError;
-use settings::ControllerSettings;
+use settings::{ControllerSettings, Derived};
 use state::{ControllerState, Workspace};
 
 use crate::model::{Data, Model};
-use crate::platform::admittance::Admittance;
-use crate::platform::avoidance::PlatformAvoidance;
 use crate::tasks::cartesian_impedance::CartesianTarget;
 use crate::tasks::collision::{CollisionData, CollisionModel};
 
@@ -299,14 +296,18 @@ impl<
     ) -> Result<Self, ConfigError> {
         const { assert!(N == U + PLATFORM_DOF, "N must be the platform's 3 coordinates plus U joints") };
         const { assert!(N <= MAX_TASK_ROWS, "a joint-space task emits up to N rows") };
-        let settings = ControllerSettings::try_new(model, collision_model, config)?;
-        let config = &settings.config;
-        let admittance = Admittance::try_new(config.platform.admittance).map_err(ConfigError::Platform)?;
-        let avoidance = PlatformAvoidance::try_new(config.platform.avoidance).map_err(ConfigError::Platform)?;
-        let active = ActiveHierarchy::initial(hierarchy).map_err(ConfigError::Hierarchy)?;
-        let state = ControllerState::new(config, active, admittance, avoidance);
-        let work = Workspace::new(&settings.model, &settings.collision_model, settings.tasks.broad_phase_distance());
-        Ok(Self { settings, state, work })
+        // Everything fallible first, out of line, with a small result ([`Derived::try_new`]);
+        // then the controller in one infallible expression of its final fields: no by-value
+        // part of it is built before a branch that may return an error, so the caller's frame
+        // (the firmware's `init`) holds the models, the configuration and at most one
+        // controller, not copies of it beside the validation's temporaries.
+        let Derived { tasks, tree, admittance, avoidance, hierarchy: active } =
+            Derived::try_new(&model, &config, hierarchy)?;
+        Ok(Self {
+            work: Workspace::new(&model, &collision_model, tasks.broad_phase_distance()),
+            state: ControllerState::new(&config, active, admittance, avoidance),
+            settings: ControllerSettings { model, collision_model, config, tasks, tree },
+        })
     }
 
     /// The model.

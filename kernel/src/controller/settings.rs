@@ -4,11 +4,14 @@
 
 use nalgebra::RealField;
 
-use super::config::ControllerConfig;
+use super::active_hierarchy::ActiveHierarchy;
+use super::config::{ControllerConfig, TaskSpec};
 use super::error::ConfigError;
 use super::task_set::TaskSet;
 use crate::dynamics::TreeStructure;
 use crate::model::Model;
+use crate::platform::admittance::Admittance;
+use crate::platform::avoidance::PlatformAvoidance;
 use crate::tasks::collision::CollisionModel;
 
 /// The controller's configuration part (see the module docs).
@@ -30,19 +33,39 @@ pub(super) struct ControllerSettings<
     pub(super) tree: TreeStructure<N>,
 }
 
-impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const V: usize, const P: usize>
-    ControllerSettings<T, N, B, F, V, P>
-{
-    /// Validates `config` and builds the task objects and the elimination tree.
-    #[inline(always)]
-    pub(super) fn try_new(
-        model: Model<T, N, B, F>,
-        collision_model: CollisionModel<T, V, P>,
-        config: ControllerConfig<T, N>,
+/// What the constructor validates and derives from the models and the configuration before it
+/// builds the controller: the task objects, the elimination tree and the initial platform loop
+/// and hierarchy (a few KB; see [`Derived::try_new`]).
+pub(super) struct Derived<T: RealField, const N: usize> {
+    pub(super) tasks: TaskSet<T, N>,
+    pub(super) tree: TreeStructure<N>,
+    pub(super) admittance: Admittance<T>,
+    pub(super) avoidance: PlatformAvoidance<T>,
+    pub(super) hierarchy: ActiveHierarchy<T>,
+}
+
+impl<T: RealField + Copy, const N: usize> Derived<T, N> {
+    /// Validates `config` and the initial `hierarchy` on `model` and builds the task objects,
+    /// the elimination tree, the admittance and the ICR avoidance.
+    ///
+    /// Never inlined: every fallible step of [`super::Controller::try_new`] runs here, in a
+    /// frame of its own that is released before the controller (68 KB in f32, 136 KB in f64)
+    /// is assembled, and only this small result crosses into the caller. Inlined, its
+    /// temporaries and branches joined the caller's frame and LLVM kept by-value copies of the
+    /// whole controller next to them (round 5: a smaller `RobotLayout::coordinates` was inlined
+    /// into `TaskSet::try_new`, which LLVM then inlined into the firmware's `init`, whose frame
+    /// grew from 116 KB to 233 KB in f32; out of line, `init` takes 87 KB and this 17 KB).
+    #[inline(never)]
+    pub(super) fn try_new<const B: usize, const F: usize>(
+        model: &Model<T, N, B, F>,
+        config: &ControllerConfig<T, N>,
+        hierarchy: &[TaskSpec],
     ) -> Result<Self, ConfigError> {
         config.validate()?;
-        let tasks = TaskSet::try_new(&model, &config)?;
-        let tree = TreeStructure::new(&model);
-        Ok(Self { model, collision_model, config, tasks, tree })
+        let tasks = TaskSet::try_new(model, config)?;
+        let admittance = Admittance::try_new(config.platform.admittance).map_err(ConfigError::Platform)?;
+        let avoidance = PlatformAvoidance::try_new(config.platform.avoidance).map_err(ConfigError::Platform)?;
+        let hierarchy = ActiveHierarchy::initial(hierarchy).map_err(ConfigError::Hierarchy)?;
+        Ok(Self { tasks, tree: TreeStructure::new(model), admittance, avoidance, hierarchy })
     }
 }
