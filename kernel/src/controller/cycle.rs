@@ -333,9 +333,20 @@ impl<
         let drive = |damping: &SVector<T, N>| {
             let count = self.work.projection.level_count.min(MAX_LEVELS);
             let levels = self.work.projection.level_torques.get(..count).unwrap_or(&[]);
-            let mut acceleration = levels.iter().fold(self.state.observer.residual() + damping, |t, l| t + l);
-            acceleration.gemv(-T::one(), &self.work.data.coriolis, v, T::one());
-            for (a, upper) in acceleration.iter_mut().zip(active.iter()) {
+            let mut acceleration = self.state.observer.residual() + damping;
+            let sum = &mut acceleration.data.0[0];
+            for level in levels {
+                for (s, l) in sum.iter_mut().zip(&level.data.0[0]) {
+                    *s += *l;
+                }
+            }
+            // `− C q̇` by columns of `C`.
+            for (column, v) in self.work.data.coriolis.data.0.iter().zip(&v.data.0[0]) {
+                for (s, c) in sum.iter_mut().zip(column) {
+                    *s -= *c * *v;
+                }
+            }
+            for (a, upper) in sum.iter_mut().zip(active.iter()) {
                 if !upper {
                     *a = T::zero();
                 }

@@ -74,6 +74,8 @@
 //!   torques of coupled joints still act on each other (the exact answer, the inertia of the
 //!   joints in the barrier with the others free, `((M̃⁻¹)_AA)⁻¹`, would cost a k × k solve).
 
+use core::cmp::Ordering;
+
 use nalgebra::{RealField, SVector};
 
 use crate::dynamics::TreeFactorization;
@@ -115,14 +117,14 @@ pub struct JointLimits<'a, T, const N: usize> {
 }
 
 /// `(M⁻¹)_ii` of the factored `M = Lᵀ L`: the squared norm of `e_iᵀ L⁻¹`, solved along the
-/// ancestor chain of coordinate `i` (cost: its depth).
+/// ancestor chain of coordinate `i` only ([`TreeFactorization::inverse_reflected_mass`] of the
+/// unit row; cost: its depth²/2).
 pub fn joint_mobility<T: RealField + Copy, const N: usize>(factor: &TreeFactorization<T, N>, i: usize) -> T {
     let mut unit = [T::zero(); N];
     if let Some(u) = unit.get_mut(i) {
         *u = T::one();
     }
-    let [mobility] = factor.inverse_reflected_masses([&unit]);
-    mobility
+    factor.inverse_reflected_mass(&unit)
 }
 
 /// The barrier torque `τ_b` of every coordinate marked `active` from the measured velocities
@@ -141,24 +143,26 @@ pub fn speed_barrier<T: RealField + Copy, const N: usize>(
     drive: impl FnOnce(&SVector<T, N>) -> SVector<T, N>,
     active: &[bool; N],
 ) -> SVector<T, N> {
-    let mut activation = SVector::<T, N>::zeros();
-    let mut ratio = SVector::<T, N>::zeros();
-    let joints = activation.iter_mut().zip(ratio.iter_mut()).zip(v.iter()).zip(limits.speed.iter());
-    for ((((a, rho), v), speed), active) in joints.zip(active.iter()) {
+    let (v, speed, effort) = (&v.data.0[0], &limits.speed.data.0[0], &limits.effort.data.0[0]);
+    let mut activation = [T::zero(); N];
+    let mut ratio = [T::zero(); N];
+    let mut any = false;
+    for ((((a, rho), v), speed), active) in activation.iter_mut().zip(&mut ratio).zip(v).zip(speed).zip(active) {
         if *active && *speed > T::zero() && speed.is_finite() {
             *rho = v.abs() / *speed;
             *a = T::one() - transition_activation(*rho, parameters.onset, parameters.full);
+            any |= !matches!((*a).partial_cmp(&T::zero()), Some(Ordering::Less | Ordering::Equal));
         }
     }
     let mut torque = SVector::<T, N>::zeros();
-    if activation.iter().all(|a| *a <= T::zero()) {
+    if !any {
         return torque;
     }
-    let share = activation.sum().max(T::one());
+    let share = activation.iter().fold(T::zero(), |s, a| s + *a).max(T::one());
     // The damping of every joint in the barrier, with its mobility and its budget.
-    let (mut inverse_inertia, mut cap) = (SVector::<T, N>::zeros(), SVector::<T, N>::zeros());
-    let joints = activation.iter().zip(ratio.iter()).zip(v.iter()).zip(limits.speed.iter()).zip(limits.effort.iter());
-    let own = inverse_inertia.iter_mut().zip(cap.iter_mut()).zip(torque.iter_mut());
+    let (mut inverse_inertia, mut cap) = ([T::zero(); N], [T::zero(); N]);
+    let own = inverse_inertia.iter_mut().zip(&mut cap).zip(&mut torque.data.0[0]);
+    let joints = activation.iter().zip(&ratio).zip(v).zip(speed).zip(effort);
     for (i, (((inverse, c), tau), ((((a, rho), v), speed), effort))) in own.zip(joints).enumerate() {
         if *a <= T::zero() {
             continue;
@@ -178,8 +182,8 @@ pub fn speed_barrier<T: RealField + Copy, const N: usize>(
     // The outward part of the acceleration the other torques and the other joints' damping
     // drive, cancelled by the joint's own torque within its budget.
     let driven = drive(&torque);
-    let joints = activation.iter().zip(v.iter()).zip(inverse_inertia.iter()).zip(cap.iter()).zip(driven.iter());
-    for (tau, ((((a, v), inverse), c), driven)) in torque.iter_mut().zip(joints) {
+    let joints = activation.iter().zip(v).zip(&inverse_inertia).zip(&cap).zip(&driven.data.0[0]);
+    for (tau, ((((a, v), inverse), c), driven)) in torque.data.0[0].iter_mut().zip(joints) {
         if *inverse <= T::zero() {
             continue;
         }
