@@ -76,7 +76,7 @@
 
 use core::cmp::Ordering;
 
-use nalgebra::{RealField, SVector};
+use nalgebra::{RealField, SMatrix, SVector};
 
 use crate::dynamics::TreeFactorization;
 use crate::math::switching::transition_activation;
@@ -125,6 +125,53 @@ pub fn joint_mobility<T: RealField + Copy, const N: usize>(factor: &TreeFactoriz
         *u = T::one();
     }
     factor.inverse_reflected_mass(&unit)
+}
+
+/// Where the barrier reads the inverse closed-loop inertia `M̃⁻¹` from: its diagonal, the
+/// mobilities `(M̃⁻¹)_ii`, and its product with a torque, the accelerations `M̃⁻¹ τ`.
+#[derive(Clone, Copy, Debug)]
+pub enum InverseInertia<'a, T: RealField, const N: usize> {
+    /// The dense `M̃⁻¹` (e.g. [`TreeFactorization::inverse`], which the step forms for the
+    /// dynamically consistent projection): the diagonal is read, the product is one mat-vec
+    /// over the nonzero entries of the torque.
+    Dense(&'a SMatrix<T, N, N>),
+    /// The factor `M̃ = Lᵀ L`: each mobility along the joint's ancestor chain
+    /// ([`joint_mobility`]), the product by a solve ([`TreeFactorization::solve_mut`]).
+    Factor(&'a TreeFactorization<T, N>),
+}
+
+impl<T: RealField + Copy, const N: usize> InverseInertia<'_, T, N> {
+    /// `(M̃⁻¹)_ii` (zero for `i ≥ N`).
+    pub fn mobility(&self, i: usize) -> T {
+        match self {
+            Self::Dense(inverse) => inverse.data.0.get(i).and_then(|c| c.get(i)).copied().unwrap_or_else(T::zero),
+            Self::Factor(factor) => joint_mobility(factor, i),
+        }
+    }
+
+    /// `M̃⁻¹ τ`.
+    pub fn apply(&self, torque: &SVector<T, N>) -> SVector<T, N> {
+        match self {
+            Self::Dense(inverse) => {
+                let mut acceleration = SVector::<T, N>::zeros();
+                let sum = &mut acceleration.data.0[0];
+                for (column, tau) in inverse.data.0.iter().zip(&torque.data.0[0]) {
+                    if *tau == T::zero() {
+                        continue;
+                    }
+                    for (a, w) in sum.iter_mut().zip(column) {
+                        *a += *w * *tau;
+                    }
+                }
+                acceleration
+            }
+            Self::Factor(factor) => {
+                let mut acceleration = *torque;
+                factor.solve_mut(&mut acceleration);
+                acceleration
+            }
+        }
+    }
 }
 
 /// The barrier torque `τ_b` of every coordinate marked `active` from the measured velocities
