@@ -391,6 +391,69 @@ mod tests {
         assert!(cancelled > 1.0 && cancelled < 1.8, "with the driven acceleration cancelled: {cancelled}");
     }
 
+    /// The dense `M⁻¹` and the tree factor as the barrier's source of `M⁻¹` on the branched test
+    /// model at a random state: the mobilities `(M⁻¹)_ii`, `M⁻¹ τ` for a torque with zero
+    /// entries, and the barrier torques of random velocities around the limits (every joint
+    /// in the barrier, the driven accelerations from the source), all within `tolerance` times
+    /// their scale; the factor's mobilities also against the plain inverse of `M`.
+    fn dense_and_factored_inverse_agree<T: RealField + Copy>(seed: u64, tolerance: f64) {
+        use crate::dynamics::{crba, forward_kinematics};
+        use crate::model::Data;
+        use crate::test_models::{branched, state, N};
+        let f64_of = |x: T| nalgebra::try_convert::<T, f64>(x).unwrap();
+        let cast = |x: SVector<f64, N>| x.map(nalgebra::convert::<f64, T>);
+        let model = branched::<T>();
+        let mut data = Data::new(&model);
+        forward_kinematics(&model, &mut data, &cast(state(seed, 2.0)), &SVector::zeros()).unwrap();
+        let m = *crba(&model, &mut data);
+        let mut factor = TreeFactorization::new(&model);
+        factor.factorize(&m).unwrap();
+        let inverse = factor.inverse();
+        let (dense, tree) = (InverseInertia::Dense(&inverse), InverseInertia::Factor(&factor));
+        let plain = m.map(f64_of).try_inverse().unwrap();
+        let scale = plain.amax();
+        for i in 0..N {
+            let (fast, reference) = (f64_of(dense.mobility(i)), f64_of(tree.mobility(i)));
+            assert!((fast - reference).abs() <= tolerance * scale, "seed {seed}, joint {i}: {fast} vs {reference}");
+            assert!((reference - plain[(i, i)]).abs() <= tolerance * scale, "seed {seed}, joint {i}");
+        }
+        assert_eq!(dense.mobility(N), T::zero());
+        let mut torque = state(seed ^ 5, 10.0);
+        torque[1] = 0.0;
+        let (fast, reference) = (dense.apply(&cast(torque)).map(f64_of), tree.apply(&cast(torque)).map(f64_of));
+        let bound = tolerance * scale * torque.amax() * N as f64;
+        assert!((fast - reference).amax() <= bound, "seed {seed}: {fast} vs {reference}");
+        assert!((reference - plain * torque).amax() <= bound, "seed {seed}: {reference}");
+        // The barrier itself, every joint between the onset and past the limit.
+        let (limit, effort) = (cast(SVector::repeat(1.0)), cast(SVector::repeat(50.0)));
+        let v = cast(state(seed ^ 9, 1.0).map(|x| x.signum() * (0.6 + 0.6 * x.abs())));
+        let task = cast(state(seed ^ 13, 20.0));
+        let parameters = SpeedBarrierParameters {
+            onset: nalgebra::convert(0.5),
+            full: nalgebra::convert(0.9),
+            braking_time_s: nalgebra::convert(0.002),
+            max_torque_fraction: nalgebra::convert(0.25),
+        };
+        let barrier = |source: InverseInertia<'_, T, N>| {
+            let limits = JointLimits { speed: &limit, effort: &effort };
+            let drive = |t: &SVector<T, N>| source.apply(&(task + t));
+            speed_barrier(&parameters, &v, limits, |i| source.mobility(i), drive, &[true; N]).map(f64_of)
+        };
+        let (fast, reference) = (barrier(dense), barrier(tree));
+        assert!(reference.amax() > 0.0, "seed {seed}: the barrier acts");
+        assert!((fast - reference).amax() <= 2.0 * tolerance * 50.0, "seed {seed}: {fast} vs {reference}");
+    }
+
+    /// f64 tight, f32 to its rounding: the dense `M⁻¹` gives the factor's mobilities, products and
+    /// barrier torques.
+    #[test]
+    fn dense_inverse_matches_the_factor() {
+        for seed in 0..40 {
+            dense_and_factored_inverse_agree::<f64>(seed, 1e-12);
+            dense_and_factored_inverse_agree::<f32>(seed, 1e-4);
+        }
+    }
+
     #[test]
     fn validity() {
         assert!(parameters().is_valid());
