@@ -16,8 +16,9 @@
 //! with the activation `a_i = 1 − a_s(ρ_i)` of the smooth transition (4.68) between `onset` (no
 //! barrier below) and `full` (full barrier above) and `m_i` the inertia joint `i` feels when
 //! every other coordinate is free to move (the inverse of the diagonal entry of the inverse
-//! closed-loop inertia, computed along the joint's ancestor chain of the tree factor only for
-//! the joints above the onset). The damping `d_i` is the smaller of two bounds: the sampling
+//! closed-loop inertia, read from the dense `M̃⁻¹` when the step formed it for the dynamically
+//! consistent projection, else computed along the joint's ancestor chain of the tree factor,
+//! only for the joints above the onset: [`InverseInertia`]). The damping `d_i` is the smaller of two bounds: the sampling
 //! bound (below) and the torque budget `b_i`: the fraction `c` of the joint's peak torque up to
 //! `full`, rising along (4.68) to the whole peak torque at the speed limit itself. The magnitude
 //! is saturated at `b_i τ_max,i`. In the band where the barrier first acts the tasks keep at
@@ -68,8 +69,9 @@
 //!   `(M̃⁻¹)_ii τ = τ / m_i`, which is what `m_i` means. The term acts only against the motion,
 //!   so passivity holds; it is a feedforward of torques computed before it (the levels, the
 //!   previous cycle's observer estimate, the damping), so it cannot feed back on itself within
-//!   a cycle. It costs `C q̇` and one solve with the factor of `M̃` (O(N²)), only in the cycles
-//!   where some joint is above the onset. It lowers that event to 1.05 × the limit, not below:
+//!   a cycle. It costs `C q̇` and one product with `M̃⁻¹` (a dense mat-vec or a solve with the
+//!   factor of `M̃`; O(N²)), only in the cycles where some joint is above the onset. It lowers
+//!   that event to 1.05 × the limit, not below:
 //!   each joint cancels only what the others drive without its own term, so the cancelling
 //!   torques of coupled joints still act on each other (the exact answer, the inertia of the
 //!   joints in the barrier with the others free, `((M̃⁻¹)_AA)⁻¹`, would cost a k × k solve).
