@@ -197,3 +197,77 @@ fn justin_consumers_on_the_tree_factor_match_the_dense_reference_f64() {
 fn justin_consumers_on_the_tree_factor_match_the_dense_reference_f32() {
     justin_consumers_match::<f32>(2e-3);
 }
+
+/// Justin, the speed barrier's two sources of the closed-loop `M̃⁻¹`
+/// (`kernel::controller::speed_barrier::InverseInertia`): the dense inverse of the decoupled
+/// tree factor (what the step forms for the projection) against the factor itself (chain
+/// mobilities and solves), at random states: the mobilities `(M̃⁻¹)_ii` (also against the plain
+/// dense inverse), `M̃⁻¹ τ` of an upper-body torque, and the barrier torques of every upper-body
+/// joint between its onset and past its speed limit.
+fn justin_barrier_inverse_matches<T: RealField + Copy>(tolerance: f64) {
+    use kernel::controller::speed_barrier::{speed_barrier, InverseInertia, JointLimits, SpeedBarrierParameters};
+    const N: usize = justin::N;
+    let model = justin::model::<T>().unwrap();
+    let layout =
+        PlatformLayout::try_new::<N>([PlatformAxis::Admitted(0), PlatformAxis::Admitted(1), PlatformAxis::Locked(2)])
+            .unwrap();
+    let mut decoupled = [false; N];
+    for c in layout.axes().iter().filter_map(|a| a.coordinate()) {
+        decoupled[c] = true;
+    }
+    let upper = decoupled.map(|d| !d);
+    let parameters = SpeedBarrierParameters {
+        onset: convert(0.5),
+        full: convert(0.9),
+        braking_time_s: convert(0.002),
+        max_torque_fraction: convert(0.25),
+    };
+    let mut data = Data::new(&model);
+    let mut tree = TreeFactorization::new(&model);
+    let mut rng = Rng(0xBA44_1E57);
+    for case in 0..30 {
+        let q = sample(&model, &mut rng);
+        forward_kinematics(&model, &mut data, &q, &SVector::zeros()).unwrap();
+        let m = *crba(&model, &mut data);
+        tree.factorize(&m).unwrap();
+        let closed = closed_loop_inertia(&m, &layout, &Vector3::new(convert(0.8), convert(1.5), convert(0.3)));
+        tree.decouple(&decoupled, &closed).unwrap();
+        let inverse = tree.inverse();
+        let (dense, factor) = (InverseInertia::Dense(&inverse), InverseInertia::Factor(&tree));
+        let plain = closed.map(f64_of).try_inverse().unwrap();
+        let scale = plain.amax();
+        for i in 0..N {
+            let (fast, reference) = (f64_of(dense.mobility(i)), f64_of(factor.mobility(i)));
+            assert!((fast - reference).abs() <= tolerance * scale, "case {case}, joint {i}: {fast} vs {reference}");
+            assert!((reference - plain[(i, i)]).abs() <= tolerance * scale, "case {case}, joint {i}");
+        }
+        let torque = SVector::<f64, N>::from_fn(|i, _| if upper[i] { rng.uniform(-50.0, 50.0) } else { 0.0 });
+        let (fast, reference) = (dense.apply(&torque.map(convert)), factor.apply(&torque.map(convert)));
+        let (fast, reference) = (fast.map(f64_of), reference.map(f64_of));
+        let bound = tolerance * scale * 50.0 * N as f64;
+        assert!((fast - reference).amax() <= bound, "case {case}: M̃⁻¹ τ");
+        assert!((reference - plain * torque).amax() <= bound, "case {case}: M̃⁻¹ τ against the plain inverse");
+        // Every upper-body joint at 0.6 to 1.2 times its speed limit.
+        let v = SVector::<T, N>::from_fn(|i, _| {
+            let sign = if rng.uniform(-1.0, 1.0) < 0.0 { -1.0 } else { 1.0 };
+            convert(sign * rng.uniform(0.6, 1.2) * f64_of(model.limits.velocity[i]))
+        });
+        let limits = JointLimits { speed: &model.limits.velocity, effort: &model.limits.effort };
+        let task = torque.map(convert::<f64, T>);
+        let barrier = |source: InverseInertia<'_, T, N>| {
+            let drive = |t: &SVector<T, N>| source.apply(&(task + t));
+            speed_barrier(&parameters, &v, limits, |i| source.mobility(i), drive, &upper).map(f64_of)
+        };
+        let (fast, reference) = (barrier(dense), barrier(factor));
+        let effort = model.limits.effort.map(f64_of).amax();
+        assert!(reference.amax() > 0.0, "case {case}: the barrier acts");
+        let error = (fast - reference).amax();
+        assert!(error <= 10.0 * tolerance * effort, "case {case}: barrier torques differ by {error:e}");
+    }
+}
+
+#[test]
+fn justin_speed_barrier_dense_inverse_matches_the_factor() {
+    justin_barrier_inverse_matches::<f64>(1e-12);
+    justin_barrier_inverse_matches::<f32>(1e-5);
+}

@@ -16,7 +16,7 @@ use super::guard::{
 };
 use super::layout::{Hand, JointGroup};
 use super::settings::ControllerSettings;
-use super::speed_barrier::{joint_mobility, speed_barrier, JointLimits};
+use super::speed_barrier::{speed_barrier, InverseInertia, JointLimits};
 use super::state::{ControllerState, Workspace};
 use super::task_set::{evaluate, EvaluationContext, Scratch};
 use super::trajectory::{JointTrajectory, PoseTrajectory};
@@ -127,10 +127,12 @@ impl<
         self.build_stack(mass, &inertia)?;
 
         let inverse;
+        let mut dense_inverse = None;
         let weighting = match self.settings.config.consistency {
             Consistency::Static => Weighting::Identity,
             Consistency::Dynamic => {
                 inverse = inertia.inverse();
+                dense_inverse = Some(InverseInertia::Dense(&inverse));
                 Weighting::InverseInertia(&inverse)
             }
         };
@@ -146,7 +148,8 @@ impl<
         let terms =
             coupling_compensation_recursive(&self.settings.model, &self.work.data, &layout, &platform.acceleration)
                 .map_err(Fault::Platform)?;
-        let compensation = terms.torque(self.settings.config.platform.compensation) + self.speed_barrier(&v, &inertia);
+        let compensation = terms.torque(self.settings.config.platform.compensation)
+            + self.speed_barrier(&v, dense_inverse.unwrap_or(InverseInertia::Factor(&inertia)));
         let compensation = self.blend_from_hold(&compensation, &v);
         let torque = self.guard_torque(&compensation, &inertia, dt);
         self.commit(frame, &torque, &platform, &closed_loop, dt)
@@ -324,26 +327,37 @@ impl<
     }
 
     /// The joint speed barrier ([`mod@super::speed_barrier`]) on the upper body, from the measured `v`
-    /// and the factor of the closed-loop inertia `M̃`. The driving torque is the levels' sum plus
-    /// the observer's external-torque estimate minus the velocity terms `C q̇`.
-    fn speed_barrier(&self, v: &SVector<T, N>, inertia: &TreeFactorization<T, N>) -> SVector<T, N> {
+    /// and the inverse closed-loop inertia `M̃⁻¹` (dense when the step formed it, else the
+    /// factor). The driving torque is the levels' sum plus the observer's external-torque
+    /// estimate minus the velocity terms `C q̇`.
+    fn speed_barrier(&self, v: &SVector<T, N>, inverse: InverseInertia<'_, T, N>) -> SVector<T, N> {
         let active = self.settings.config.layout.coordinates(JointGroup::UpperBody);
         let limits =
             JointLimits { speed: &self.settings.model.limits.velocity, effort: &self.settings.model.limits.effort };
         let drive = |damping: &SVector<T, N>| {
             let count = self.work.projection.level_count.min(MAX_LEVELS);
             let levels = self.work.projection.level_torques.get(..count).unwrap_or(&[]);
-            let mut acceleration = levels.iter().fold(self.state.observer.residual() + damping, |t, l| t + l);
-            acceleration.gemv(-T::one(), &self.work.data.coriolis, v, T::one());
-            for (a, upper) in acceleration.iter_mut().zip(active.iter()) {
+            let mut torque = self.state.observer.residual() + damping;
+            let sum = &mut torque.data.0[0];
+            for level in levels {
+                for (s, l) in sum.iter_mut().zip(&level.data.0[0]) {
+                    *s += *l;
+                }
+            }
+            // `− C q̇` by columns of `C`.
+            for (column, v) in self.work.data.coriolis.data.0.iter().zip(&v.data.0[0]) {
+                for (s, c) in sum.iter_mut().zip(column) {
+                    *s -= *c * *v;
+                }
+            }
+            for (a, upper) in sum.iter_mut().zip(active.iter()) {
                 if !upper {
                     *a = T::zero();
                 }
             }
-            inertia.solve_mut(&mut acceleration);
-            acceleration
+            inverse.apply(&torque)
         };
-        speed_barrier(&self.settings.config.speed_barrier, v, limits, |i| joint_mobility(inertia, i), drive, &active)
+        speed_barrier(&self.settings.config.speed_barrier, v, limits, |i| inverse.mobility(i), drive, &active)
     }
 
     /// While returning from the safe output ([`super::recovery`]): the levels' torques scaled by the

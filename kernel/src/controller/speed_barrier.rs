@@ -16,8 +16,9 @@
 //! with the activation `a_i = 1 − a_s(ρ_i)` of the smooth transition (4.68) between `onset` (no
 //! barrier below) and `full` (full barrier above) and `m_i` the inertia joint `i` feels when
 //! every other coordinate is free to move (the inverse of the diagonal entry of the inverse
-//! closed-loop inertia, computed along the joint's ancestor chain of the tree factor only for
-//! the joints above the onset). The damping `d_i` is the smaller of two bounds: the sampling
+//! closed-loop inertia, read from the dense `M̃⁻¹` when the step formed it for the dynamically
+//! consistent projection, else computed along the joint's ancestor chain of the tree factor,
+//! only for the joints above the onset: [`InverseInertia`]). The damping `d_i` is the smaller of two bounds: the sampling
 //! bound (below) and the torque budget `b_i`: the fraction `c` of the joint's peak torque up to
 //! `full`, rising along (4.68) to the whole peak torque at the speed limit itself. The magnitude
 //! is saturated at `b_i τ_max,i`. In the band where the barrier first acts the tasks keep at
@@ -68,13 +69,16 @@
 //!   `(M̃⁻¹)_ii τ = τ / m_i`, which is what `m_i` means. The term acts only against the motion,
 //!   so passivity holds; it is a feedforward of torques computed before it (the levels, the
 //!   previous cycle's observer estimate, the damping), so it cannot feed back on itself within
-//!   a cycle. It costs `C q̇` and one solve with the factor of `M̃` (O(N²)), only in the cycles
-//!   where some joint is above the onset. It lowers that event to 1.05 × the limit, not below:
+//!   a cycle. It costs `C q̇` and one product with `M̃⁻¹` (a dense mat-vec or a solve with the
+//!   factor of `M̃`; O(N²)), only in the cycles where some joint is above the onset. It lowers
+//!   that event to 1.05 × the limit, not below:
 //!   each joint cancels only what the others drive without its own term, so the cancelling
 //!   torques of coupled joints still act on each other (the exact answer, the inertia of the
 //!   joints in the barrier with the others free, `((M̃⁻¹)_AA)⁻¹`, would cost a k × k solve).
 
-use nalgebra::{RealField, SVector};
+use core::cmp::Ordering;
+
+use nalgebra::{RealField, SMatrix, SVector};
 
 use crate::dynamics::TreeFactorization;
 use crate::math::switching::transition_activation;
@@ -115,14 +119,61 @@ pub struct JointLimits<'a, T, const N: usize> {
 }
 
 /// `(M⁻¹)_ii` of the factored `M = Lᵀ L`: the squared norm of `e_iᵀ L⁻¹`, solved along the
-/// ancestor chain of coordinate `i` (cost: its depth).
+/// ancestor chain of coordinate `i` only ([`TreeFactorization::inverse_reflected_mass`] of the
+/// unit row; cost: its depth²/2).
 pub fn joint_mobility<T: RealField + Copy, const N: usize>(factor: &TreeFactorization<T, N>, i: usize) -> T {
     let mut unit = [T::zero(); N];
     if let Some(u) = unit.get_mut(i) {
         *u = T::one();
     }
-    let [mobility] = factor.inverse_reflected_masses([&unit]);
-    mobility
+    factor.inverse_reflected_mass(&unit)
+}
+
+/// Where the barrier reads the inverse closed-loop inertia `M̃⁻¹` from: its diagonal, the
+/// mobilities `(M̃⁻¹)_ii`, and its product with a torque, the accelerations `M̃⁻¹ τ`.
+#[derive(Clone, Copy, Debug)]
+pub enum InverseInertia<'a, T: RealField, const N: usize> {
+    /// The dense `M̃⁻¹` (e.g. [`TreeFactorization::inverse`], which the step forms for the
+    /// dynamically consistent projection): the diagonal is read, the product is one mat-vec
+    /// over the nonzero entries of the torque.
+    Dense(&'a SMatrix<T, N, N>),
+    /// The factor `M̃ = Lᵀ L`: each mobility along the joint's ancestor chain
+    /// ([`joint_mobility`]), the product by a solve ([`TreeFactorization::solve_mut`]).
+    Factor(&'a TreeFactorization<T, N>),
+}
+
+impl<T: RealField + Copy, const N: usize> InverseInertia<'_, T, N> {
+    /// `(M̃⁻¹)_ii` (zero for `i ≥ N`).
+    pub fn mobility(&self, i: usize) -> T {
+        match self {
+            Self::Dense(inverse) => inverse.data.0.get(i).and_then(|c| c.get(i)).copied().unwrap_or_else(T::zero),
+            Self::Factor(factor) => joint_mobility(factor, i),
+        }
+    }
+
+    /// `M̃⁻¹ τ`.
+    pub fn apply(&self, torque: &SVector<T, N>) -> SVector<T, N> {
+        match self {
+            Self::Dense(inverse) => {
+                let mut acceleration = SVector::<T, N>::zeros();
+                let sum = &mut acceleration.data.0[0];
+                for (column, tau) in inverse.data.0.iter().zip(&torque.data.0[0]) {
+                    if *tau == T::zero() {
+                        continue;
+                    }
+                    for (a, w) in sum.iter_mut().zip(column) {
+                        *a += *w * *tau;
+                    }
+                }
+                acceleration
+            }
+            Self::Factor(factor) => {
+                let mut acceleration = *torque;
+                factor.solve_mut(&mut acceleration);
+                acceleration
+            }
+        }
+    }
 }
 
 /// The barrier torque `τ_b` of every coordinate marked `active` from the measured velocities
@@ -141,24 +192,26 @@ pub fn speed_barrier<T: RealField + Copy, const N: usize>(
     drive: impl FnOnce(&SVector<T, N>) -> SVector<T, N>,
     active: &[bool; N],
 ) -> SVector<T, N> {
-    let mut activation = SVector::<T, N>::zeros();
-    let mut ratio = SVector::<T, N>::zeros();
-    let joints = activation.iter_mut().zip(ratio.iter_mut()).zip(v.iter()).zip(limits.speed.iter());
-    for ((((a, rho), v), speed), active) in joints.zip(active.iter()) {
+    let (v, speed, effort) = (&v.data.0[0], &limits.speed.data.0[0], &limits.effort.data.0[0]);
+    let mut activation = [T::zero(); N];
+    let mut ratio = [T::zero(); N];
+    let mut any = false;
+    for ((((a, rho), v), speed), active) in activation.iter_mut().zip(&mut ratio).zip(v).zip(speed).zip(active) {
         if *active && *speed > T::zero() && speed.is_finite() {
             *rho = v.abs() / *speed;
             *a = T::one() - transition_activation(*rho, parameters.onset, parameters.full);
+            any |= !matches!((*a).partial_cmp(&T::zero()), Some(Ordering::Less | Ordering::Equal));
         }
     }
     let mut torque = SVector::<T, N>::zeros();
-    if activation.iter().all(|a| *a <= T::zero()) {
+    if !any {
         return torque;
     }
-    let share = activation.sum().max(T::one());
+    let share = activation.iter().fold(T::zero(), |s, a| s + *a).max(T::one());
     // The damping of every joint in the barrier, with its mobility and its budget.
-    let (mut inverse_inertia, mut cap) = (SVector::<T, N>::zeros(), SVector::<T, N>::zeros());
-    let joints = activation.iter().zip(ratio.iter()).zip(v.iter()).zip(limits.speed.iter()).zip(limits.effort.iter());
-    let own = inverse_inertia.iter_mut().zip(cap.iter_mut()).zip(torque.iter_mut());
+    let (mut inverse_inertia, mut cap) = ([T::zero(); N], [T::zero(); N]);
+    let own = inverse_inertia.iter_mut().zip(&mut cap).zip(&mut torque.data.0[0]);
+    let joints = activation.iter().zip(&ratio).zip(v).zip(speed).zip(effort);
     for (i, (((inverse, c), tau), ((((a, rho), v), speed), effort))) in own.zip(joints).enumerate() {
         if *a <= T::zero() {
             continue;
@@ -178,8 +231,8 @@ pub fn speed_barrier<T: RealField + Copy, const N: usize>(
     // The outward part of the acceleration the other torques and the other joints' damping
     // drive, cancelled by the joint's own torque within its budget.
     let driven = drive(&torque);
-    let joints = activation.iter().zip(v.iter()).zip(inverse_inertia.iter()).zip(cap.iter()).zip(driven.iter());
-    for (tau, ((((a, v), inverse), c), driven)) in torque.iter_mut().zip(joints) {
+    let joints = activation.iter().zip(v).zip(&inverse_inertia).zip(&cap).zip(&driven.data.0[0]);
+    for (tau, ((((a, v), inverse), c), driven)) in torque.data.0[0].iter_mut().zip(joints) {
         if *inverse <= T::zero() {
             continue;
         }
@@ -338,6 +391,69 @@ mod tests {
         let (damped, cancelled) = (fastest(false), fastest(true));
         assert!((damped - 2.4).abs() < 0.05, "damping alone: {damped}");
         assert!(cancelled > 1.0 && cancelled < 1.8, "with the driven acceleration cancelled: {cancelled}");
+    }
+
+    /// The dense `M⁻¹` and the tree factor as the barrier's source of `M⁻¹` on the branched test
+    /// model at a random state: the mobilities `(M⁻¹)_ii`, `M⁻¹ τ` for a torque with zero
+    /// entries, and the barrier torques of random velocities around the limits (every joint
+    /// in the barrier, the driven accelerations from the source), all within `tolerance` times
+    /// their scale; the factor's mobilities also against the plain inverse of `M`.
+    fn dense_and_factored_inverse_agree<T: RealField + Copy>(seed: u64, tolerance: f64) {
+        use crate::dynamics::{crba, forward_kinematics};
+        use crate::model::Data;
+        use crate::test_models::{branched, state, N};
+        let f64_of = |x: T| nalgebra::try_convert::<T, f64>(x).unwrap();
+        let cast = |x: SVector<f64, N>| x.map(nalgebra::convert::<f64, T>);
+        let model = branched::<T>();
+        let mut data = Data::new(&model);
+        forward_kinematics(&model, &mut data, &cast(state(seed, 2.0)), &SVector::zeros()).unwrap();
+        let m = *crba(&model, &mut data);
+        let mut factor = TreeFactorization::new(&model);
+        factor.factorize(&m).unwrap();
+        let inverse = factor.inverse();
+        let (dense, tree) = (InverseInertia::Dense(&inverse), InverseInertia::Factor(&factor));
+        let plain = m.map(f64_of).try_inverse().unwrap();
+        let scale = plain.amax();
+        for i in 0..N {
+            let (fast, reference) = (f64_of(dense.mobility(i)), f64_of(tree.mobility(i)));
+            assert!((fast - reference).abs() <= tolerance * scale, "seed {seed}, joint {i}: {fast} vs {reference}");
+            assert!((reference - plain[(i, i)]).abs() <= tolerance * scale, "seed {seed}, joint {i}");
+        }
+        assert_eq!(dense.mobility(N), T::zero());
+        let mut torque = state(seed ^ 5, 10.0);
+        torque[1] = 0.0;
+        let (fast, reference) = (dense.apply(&cast(torque)).map(f64_of), tree.apply(&cast(torque)).map(f64_of));
+        let bound = tolerance * scale * torque.amax() * N as f64;
+        assert!((fast - reference).amax() <= bound, "seed {seed}: {fast} vs {reference}");
+        assert!((reference - plain * torque).amax() <= bound, "seed {seed}: {reference}");
+        // The barrier itself, every joint between the onset and past the limit.
+        let (limit, effort) = (cast(SVector::repeat(1.0)), cast(SVector::repeat(50.0)));
+        let v = cast(state(seed ^ 9, 1.0).map(|x| x.signum() * (0.6 + 0.6 * x.abs())));
+        let task = cast(state(seed ^ 13, 20.0));
+        let parameters = SpeedBarrierParameters {
+            onset: nalgebra::convert(0.5),
+            full: nalgebra::convert(0.9),
+            braking_time_s: nalgebra::convert(0.002),
+            max_torque_fraction: nalgebra::convert(0.25),
+        };
+        let barrier = |source: InverseInertia<'_, T, N>| {
+            let limits = JointLimits { speed: &limit, effort: &effort };
+            let drive = |t: &SVector<T, N>| source.apply(&(task + t));
+            speed_barrier(&parameters, &v, limits, |i| source.mobility(i), drive, &[true; N]).map(f64_of)
+        };
+        let (fast, reference) = (barrier(dense), barrier(tree));
+        assert!(reference.amax() > 0.0, "seed {seed}: the barrier acts");
+        assert!((fast - reference).amax() <= 2.0 * tolerance * 50.0, "seed {seed}: {fast} vs {reference}");
+    }
+
+    /// f64 tight, f32 to its rounding: the dense `M⁻¹` gives the factor's mobilities, products and
+    /// barrier torques.
+    #[test]
+    fn dense_inverse_matches_the_factor() {
+        for seed in 0..40 {
+            dense_and_factored_inverse_agree::<f64>(seed, 1e-12);
+            dense_and_factored_inverse_agree::<f32>(seed, 1e-4);
+        }
     }
 
     #[test]
