@@ -21,7 +21,7 @@ use super::state::{ControllerState, Workspace};
 use super::task_set::{evaluate, EvaluationContext, Scratch};
 use super::trajectory::{JointTrajectory, PoseTrajectory};
 use crate::dynamics::{
-    coriolis_transpose_velocity, crba, forward_kinematics, gravity, DynamicsError, TreeFactorization,
+    coriolis_product, coriolis_transpose_velocity, crba, forward_kinematics, gravity, DynamicsError, TreeFactorization,
 };
 use crate::hierarchy::{project, HierarchyConfig, Weighting};
 use crate::math::sqrt;
@@ -344,11 +344,10 @@ impl<
                     *s += *l;
                 }
             }
-            // `− C q̇` by columns of `C`.
-            for (column, v) in self.work.data.coriolis.data.0.iter().zip(&v.data.0[0]) {
-                for (s, c) in sum.iter_mut().zip(column) {
-                    *s -= *c * *v;
-                }
+            // `− C q̇` by one O(B) tree pass: the step does not form `C` (`data.coriolis` is stale).
+            let velocity_terms = coriolis_product(&self.settings.model, &self.work.data, v);
+            for (s, c) in sum.iter_mut().zip(&velocity_terms.data.0[0]) {
+                *s -= *c;
             }
             for (a, upper) in sum.iter_mut().zip(active.iter()) {
                 if !upper {
