@@ -18,7 +18,7 @@ use kernel::dynamics::{crba, forward_kinematics, mass_matrix_cholesky, TreeFacto
 use kernel::model::BodyId;
 use kernel::tasks::collision::{
     evaluate_pair, exclusion_rule, factor_rows, inverse_reflected_mass, inverse_reflected_masses, proximity,
-    self_collision_rows, CollisionData, CollisionParameters, Volume, VolumeId,
+    self_collision_rows, CollisionData, CollisionModel, CollisionParameters, Volume, VolumeId,
 };
 use kernel::tasks::TaskRows;
 use kernel::{Data, Model};
@@ -566,6 +566,36 @@ fn justin_rows_in_f32_agree_with_f64() {
     }
 }
 
+/// The pairs whose rows the collision task emits, in pair order: closer than the emit distance
+/// and with a defined direction.
+fn emitting_pairs<T: nalgebra::RealField + Copy, const V: usize, const P: usize>(
+    collision: &CollisionModel<T, V, P>,
+    cd: &CollisionData<T, V, P>,
+    parameters: &CollisionParameters<T>,
+) -> Vec<usize> {
+    cd.proximities
+        .iter()
+        .take(collision.pairs().len())
+        .enumerate()
+        .filter(|(_, p)| p.distance < parameters.emit_distance() && p.direction.is_some())
+        .map(|(k, _)| k)
+        .collect()
+}
+
+/// Row Jacobians agree entrywise within `tolerance` relative to the reference's largest entry.
+fn assert_jacobians_agree<T: nalgebra::RealField + Copy>(
+    row: &nalgebra::RowSVector<T, N>,
+    reference: &nalgebra::RowSVector<T, N>,
+    tolerance: f64,
+    pair: usize,
+) {
+    let f = |x: T| nalgebra::try_convert::<T, f64>(x).unwrap();
+    let scale = 1.0 + f(reference.amax());
+    for (a, b) in row.iter().zip(reference.iter()) {
+        assert!(f((*a - *b).abs()) <= tolerance * scale, "pair {pair}: {row} vs {reference}");
+    }
+}
+
 /// The fast rows of `self_collision_rows` (support-path Jacobians, one forward substitution
 /// for both reflected masses, closed-form damping) against the reference `evaluate_pair` on
 /// random Justin states with random velocities: Jacobian, force, potential and activation of
@@ -591,18 +621,11 @@ fn justin_fast_rows_match_reference<T: nalgebra::RealField + Copy>(tolerance: f6
         let report = self_collision_rows(&collision, &mut cd, &model, &data, &factor, &parameters, &mut rows).unwrap();
         assert_eq!(report.dropped, 0);
         let rows_of_l = factor_rows(&factor);
-        let emitted: Vec<usize> = (0..collision.pairs().len())
-            .filter(|&k| {
-                cd.proximities[k].distance < parameters.emit_distance() && cd.proximities[k].direction.is_some()
-            })
-            .collect();
+        let emitted = emitting_pairs(&collision, &cd, &parameters);
         assert_eq!(rows.len(), emitted.len());
         for (row, &pair) in rows.rows().iter().zip(&emitted) {
             let e = evaluate_pair(&collision, &cd, &model, &data, &factor, &parameters, pair).unwrap();
-            let scale = 1.0 + f(e.row.jacobian.amax());
-            for (a, b) in row.jacobian.iter().zip(e.row.jacobian.iter()) {
-                assert!(f((*a - *b).abs()) <= tolerance * scale, "pair {pair}: {} vs {}", row.jacobian, e.row.jacobian);
-            }
+            assert_jacobians_agree(&row.jacobian, &e.row.jacobian, tolerance, pair);
             for (name, a, b) in [
                 ("force", row.force, e.row.force),
                 ("potential", row.potential, e.row.potential),
@@ -688,18 +711,11 @@ fn justin_tree_rows_match_reference<T: nalgebra::RealField + Copy>(tolerance: f6
         if report.dropped > 0 {
             continue; // more candidates than rows: the selection is tested elsewhere
         }
-        let emitted: Vec<usize> = (0..collision.pairs().len())
-            .filter(|&k| {
-                cd.proximities[k].distance < parameters.emit_distance() && cd.proximities[k].direction.is_some()
-            })
-            .collect();
+        let emitted = emitting_pairs(&collision, &cd, &parameters);
         assert_eq!(rows.len(), emitted.len());
         for (row, &pair) in rows.rows().iter().zip(&emitted) {
             let e = evaluate_pair(&collision, &cd, &model, &data, &dense, &parameters, pair).unwrap();
-            let scale = 1.0 + f(e.row.jacobian.amax());
-            for (a, b) in row.jacobian.iter().zip(e.row.jacobian.iter()) {
-                assert!(f((*a - *b).abs()) <= tolerance * scale, "pair {pair}: {} vs {}", row.jacobian, e.row.jacobian);
-            }
+            assert_jacobians_agree(&row.jacobian, &e.row.jacobian, tolerance, pair);
             assert!(
                 f((row.force - e.row.force).abs()) <= tolerance * (1.0 + f(e.row.force.abs())),
                 "pair {pair} decoupled {decoupled}: force {} vs {}",
@@ -891,12 +907,8 @@ fn justin_selection_keeps_the_closest<T: nalgebra::RealField + Copy>(seed: u64) 
         let factor = mass_matrix_cholesky(&data).unwrap();
         let mut all = Box::new(TaskRows::<T, N, ALL>::new());
         self_collision_rows(&collision, &mut cd, &model, &data, &factor, &parameters, &mut all).unwrap();
-        let mut candidates: Vec<(T, usize)> = (0..collision.pairs().len())
-            .filter(|&k| {
-                cd.proximities[k].distance < parameters.emit_distance() && cd.proximities[k].direction.is_some()
-            })
-            .map(|k| (cd.proximities[k].distance, k))
-            .collect();
+        let mut candidates: Vec<(T, usize)> =
+            emitting_pairs(&collision, &cd, &parameters).into_iter().map(|k| (cd.proximities[k].distance, k)).collect();
         let order: Vec<usize> = candidates.iter().map(|x| x.1).collect();
         candidates.sort_by(|a, b| a.0.partial_cmp(&b.0).unwrap().then(a.1.cmp(&b.1)));
         let mut few = TaskRows::<T, N, 8>::new();
