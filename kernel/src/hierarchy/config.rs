@@ -91,6 +91,6 @@ pub struct HierarchyConfig<'a, T: nalgebra::RealField, const N: usize> {
     /// ([`HierarchyData::projector`](super::HierarchyData::projector) then covers every row). `false`: they are skipped — nothing
     /// lies below them, so the torque is identical — which saves about `6 N²` operations per
     /// last-level row (the controller's choice; its low-priority level holds most rows).
-    /// Skipped rows report their task activation, `ρ = 0` and their transmission.
+    /// Skipped rows report their task activation, `ρ = 0` and no transmission (`None`).
     pub diagnose_last_level: bool,
 }

@@ -39,12 +39,8 @@ pub fn project_reference<T: RealField + Copy, const N: usize, const R: usize, co
     let mut data = ReferenceOutput {
         projector: SMatrix::identity(),
         torque: SVector::zeros(),
-        rows: [RowDiagnostics {
-            level: 0,
-            activation: T::zero(),
-            projected_norm_ratio: T::zero(),
-            transmission: T::zero(),
-        }; R],
+        rows: [RowDiagnostics { level: 0, activation: T::zero(), projected_norm_ratio: T::zero(), transmission: None };
+            R],
         levels: [LevelDiagnostics { torque_norm: T::zero(), projected_torque_norm: T::zero(), conflict: T::zero() }; L],
         level_torques: [SVector::zeros(); L],
         level_count: stack.level_count(),
@@ -75,7 +71,7 @@ pub fn project_reference<T: RealField + Copy, const N: usize, const R: usize, co
                         level,
                         activation: stack_row.row.activation,
                         projected_norm_ratio: T::zero(),
-                        transmission: transmission(&config.weighting, &input, &stack_row.row.jacobian.transpose()),
+                        transmission: None,
                     };
                 }
                 continue;
@@ -111,7 +107,12 @@ fn update_row<T: RealField + Copy, const N: usize>(
     let w = metric_solve(&config.weighting, &projected);
     let s = projected.dot(&w);
     if !reference.is_finite() || reference <= T::zero() {
-        return RowDiagnostics { level: 0, activation: T::zero(), projected_norm_ratio: T::zero(), transmission };
+        return RowDiagnostics {
+            level: 0,
+            activation: T::zero(),
+            projected_norm_ratio: T::zero(),
+            transmission: Some(transmission),
+        };
     }
     let ratio = (s.max(T::zero()) / reference).sqrt();
     let activation = config.shaping.row_activation(task_activation, ratio);
@@ -119,7 +120,7 @@ fn update_row<T: RealField + Copy, const N: usize>(
         let u = *working * projected;
         *working -= u * (w.transpose() * (activation / s));
     }
-    RowDiagnostics { level: 0, activation, projected_norm_ratio: ratio, transmission }
+    RowDiagnostics { level: 0, activation, projected_norm_ratio: ratio, transmission: Some(transmission) }
 }
 
 fn transmission<T: RealField + Copy, const N: usize>(
@@ -347,7 +348,8 @@ pub fn outputs<T: RealField + Copy, const N: usize, const RS: usize, const R: us
             ("level conflicts", f64s(&conflicts)),
             ("row activations", row(|r| r.activation)),
             ("row norm ratios", row(|r| r.projected_norm_ratio)),
-            ("row transmissions", row(|r| r.transmission)),
+            // −1 (no ratio of norms is negative): a row that forms none.
+            ("row transmissions", row(|r| r.transmission.unwrap_or(-T::one()))),
         ]
     };
     let fast_outputs = flatten(&fast.torque, &fast.projector, &fast.level_torques, &fast.levels, &fast.rows);

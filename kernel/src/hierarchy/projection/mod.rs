@@ -30,8 +30,9 @@ pub struct RowDiagnostics<T> {
     /// 0 = fully dependent (algorithmic singularity). 0 for a zero row.
     pub projected_norm_ratio: T,
     /// `‖N_in jᵀ‖ / ‖jᵀ‖`: the share of the row's torque direction its level's input projector
-    /// passes (as `r₂` in Fig. 4.17). 1 on the first level.
-    pub transmission: T,
+    /// passes (as `r₂` in Fig. 4.17). 1 on the first level. `None` for the rows of the last
+    /// level without diagnostics ([`HierarchyConfig::diagnose_last_level`]), which do not form it.
+    pub transmission: Option<T>,
 }
 
 /// Per-level result of the projection.
@@ -76,7 +77,7 @@ impl<T: RealField + Copy, const N: usize, const R: usize, const L: usize> Defaul
                 level: 0,
                 activation: T::zero(),
                 projected_norm_ratio: T::zero(),
-                transmission: T::zero(),
+                transmission: None,
             }; R],
             levels: [LevelDiagnostics { torque_norm: T::zero(), projected_torque_norm: T::zero(), conflict: T::zero() };
                 L],
@@ -108,7 +109,8 @@ impl<T: RealField + Copy, const N: usize, const R: usize, const L: usize> Defaul
 /// the input projector is still exactly `I` (the first level) the level torque and the
 /// transmissions need no mat-vec at all. Below it, a row with a single nonzero entry `b` (a
 /// joint row) adds its one product to the task torque and transmits the column norm
-/// `‖N_in e_b‖`; the `N` column norms are formed once per level. A given `W⁻¹`
+/// `‖N_in e_b‖`; the `N` column norms are formed once per level. The rows of the last level
+/// without diagnostics only add their torque (no transmission). A given `W⁻¹`
 /// ([`Weighting::InverseInertia`]) is used in place.
 ///
 /// A row's activation `a` is its task activation times the shaping of its norm ratio `ρ`
@@ -118,9 +120,8 @@ impl<T: RealField + Copy, const N: usize, const R: usize, const L: usize> Defaul
 /// own force with their potential.
 ///
 /// Writes `data` and returns the torque. Cost: at most `5 N²` multiply-adds per row that updates
-/// the projector (`4 N²` for one that does not lock), `N²` (less for sparse rows, none on the
-/// first level, a lookup for a joint row after `N²` once per level) per row of the last level
-/// without diagnostics.
+/// the projector (`4 N²` for one that does not lock), the row's nonzero entries per row of the
+/// last level without diagnostics, and `N²` once per level for the level torque.
 /// Errors (nothing written): a level `≥ L`, more rows than `R`, an invalid shaping band (a
 /// non-finite row cannot be on the stack: [`Stack::push`] refuses it).
 pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS: usize, const L: usize>(
@@ -167,24 +168,30 @@ pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS
         let mut task_torque = SVector::<T, N>::zeros();
         let mut level_rows = 0;
         let mut column_norms: Option<[T; N]> = None;
+        // Nothing lies below the last level: without diagnostics its rows lock nothing and
+        // form no transmission (they keep their task activation, ρ = 0).
+        let last = level + 1 == level_count;
+        let diagnosed = !last || config.diagnose_last_level;
         for (slot, r) in rows.iter_mut().skip(first_slot).zip(on_level()) {
             let row = r.row.jacobian.as_slice();
             let force = r.row.force;
-            let single = if identity_input || accelerated { None } else { single_entry(row) };
+            let single = if identity_input || accelerated || !diagnosed { None } else { single_entry(row) };
             let transmission = match single.and_then(|b| task_torque.get_mut(b).zip(row.get(b)).map(|tj| (b, tj))) {
                 Some((b, (t, &j))) => {
                     *t += j * force;
-                    column_norms
-                        .get_or_insert_with(|| column_norms_of::<T, N>(projector.as_slice()))
-                        .get(b)
-                        .copied()
-                        .unwrap_or_else(T::one)
+                    Some(
+                        column_norms
+                            .get_or_insert_with(|| column_norms_of::<T, N>(projector.as_slice()))
+                            .get(b)
+                            .copied()
+                            .unwrap_or_else(T::one),
+                    )
                 }
-                None if identity_input => {
+                None if identity_input || !diagnosed => {
                     add_scaled(task_torque.as_mut_slice(), row, force);
-                    T::one()
+                    diagnosed.then_some(T::one())
                 }
-                None => transmission(&config.weighting, projector, row, force, &mut task_torque, &mut scratch.u),
+                None => Some(transmission(&config.weighting, projector, row, force, &mut task_torque, &mut scratch.u)),
             };
             *slot =
                 RowDiagnostics { level, activation: r.row.activation, projected_norm_ratio: T::zero(), transmission };
@@ -200,10 +207,7 @@ pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS
         }
         *level_diagnostics = level_result(&task_torque, level_torque);
 
-        // Nothing lies below the last level: without diagnostics its rows lock nothing (the
-        // skipped rows keep their task activation, ρ = 0 and their transmission).
-        let last = level + 1 == level_count;
-        if !last || config.diagnose_last_level {
+        if diagnosed {
             if config.recursion == Recursion::Successive {
                 *level_projector = SMatrix::identity();
                 working_identity = true;
