@@ -185,7 +185,8 @@ fn planar_pose(links: usize, value: &dyn Fn(&str) -> Option<f64>) -> Pose {
 }
 
 /// What a scenario tells about its run besides the time series: its one-line description, its
-/// phases `(start time, caption)` and the world-fixed environment volumes.
+/// phases `(start time, caption)`, the world-fixed environment volumes and, if it chooses, the
+/// direction the camera looks from.
 #[derive(Clone, Debug, Default)]
 pub struct Story<'a> {
     /// One line: what the scenario does.
@@ -194,6 +195,13 @@ pub struct Story<'a> {
     pub phases: Vec<(f64, String)>,
     /// World-fixed volumes (tables, walls).
     pub environment: Vec<SweptSphere<f64>>,
+    /// World-fixed objects the hands work on that the simulator models by their contact surfaces
+    /// only (the mug), drawn opaque.
+    pub objects: Vec<SweptSphere<f64>>,
+    /// Where the camera stands: the world vector from the centre of the scene's work to the
+    /// camera, m (`None`: far enough to see everything, from the front, on the side of the hand
+    /// that travels further).
+    pub view: Option<[f64; 3]>,
 }
 
 /// Writes `replay.html` of `series` (a run of `robot`) into `dir` with the `story` and the
@@ -223,7 +231,7 @@ pub fn replay_data(robot: Robot, series: &TimeSeries, summary: &Summary, story: 
         "description": story.description,
         "passed_claims": summary.passed_claims(),
         "failed_claims": summary.failed_claims(),
-        "volumes": volumes(robot, &story.environment)?,
+        "volumes": volumes(robot, story)?,
         "parents": parents(robot)?,
         "t": times.iter().map(|&t| rounded(t)).collect::<Vec<_>>(),
         "bodies": poses.iter().map(|p| p.bodies.iter().flat_map(placement_values).collect()).collect::<Vec<Vec<Value>>>(),
@@ -234,6 +242,7 @@ pub fn replay_data(robot: Robot, series: &TimeSeries, summary: &Summary, story: 
             .map(|(name, values)| (name.clone(), values.iter().map(|&x| rounded(x)).collect()))
             .collect::<serde_json::Map<String, Value>>(),
         "events": story_events(&story.phases, events(&times, &signals, &hands, &platform)),
+        "view": story.view,
     }))
 }
 
@@ -296,13 +305,22 @@ fn parents(robot: Robot) -> Result<Vec<i64>, String> {
     })
 }
 
-/// The robot's volumes in their body frames and the environment's in the world frame:
-/// `{ body (−1: world), part, radius, points }`.
-fn volumes(robot: Robot, environment: &[SweptSphere<f64>]) -> Result<Vec<Value>, String> {
-    let volume = |body: i64, part: &str, radius: f64, points: &[Vector3<f64>]| {
-        let points: Vec<Vec<Value>> = points.iter().map(|p| p.iter().map(|x| rounded(*x)).collect()).collect();
-        json!({ "body": body, "part": part, "radius": rounded(radius), "points": points })
-    };
+/// The robot's volumes in their body frames, the environment's and the story's objects in the
+/// world frame: `{ body (−1: world), part, radius, points }`.
+fn volumes(robot: Robot, story: &Story) -> Result<Vec<Value>, String> {
+    let mut volumes = robot_volumes(robot, &story.environment)?;
+    volumes.extend(story.objects.iter().map(|o| volume(-1, "object", o.radius, o.core.points())));
+    Ok(volumes)
+}
+
+/// One volume of [`volumes`].
+fn volume(body: i64, part: &str, radius: f64, points: &[Vector3<f64>]) -> Value {
+    let points: Vec<Vec<Value>> = points.iter().map(|p| p.iter().map(|x| rounded(*x)).collect()).collect();
+    json!({ "body": body, "part": part, "radius": rounded(radius), "points": points })
+}
+
+/// The robot's volumes and the world-fixed `environment` (see [`volumes`]).
+fn robot_volumes(robot: Robot, environment: &[SweptSphere<f64>]) -> Result<Vec<Value>, String> {
     match robot {
         Robot::Justin { .. } => {
             let model = justin::model::<f64>().map_err(|e| format!("model: {e}"))?;

@@ -10,12 +10,12 @@ const signal = (name) => data.signals[name];
 
 const PART_COLOURS = {
   base: 0x4a5568, wheel: 0x1f2933, torso: 0xc9ced6, head: 0xe2e6ea, right_arm: 0xe07b39, left_arm: 0x3b82c4,
-  link: 0xe07b39, pedestal: 0x4a5568, environment: 0xb08b5a,
+  link: 0xe07b39, pedestal: 0x4a5568, environment: 0xb08b5a, object: 0xf5f0e1,
 };
 const PART_NAMES = {
   base: 'mobile platform', wheel: 'wheels (leg lines to the platform)', torso: 'torso', head: 'head',
   right_arm: 'right arm', left_arm: 'left arm', link: 'arm links', pedestal: 'fixed base of the arm',
-  environment: 'environment (table, wall, …)',
+  environment: 'environment (table, wall, …)', object: 'object the hands work on',
 };
 
 // ---- renderer, camera, lights, floor ----
@@ -124,7 +124,7 @@ scene.add(grid);
 // ---- paths, goals, forces ----
 // A path through the points given as coordinate arrays (null: undefined, skipped): a tube of
 // 6 mm radius, or a thin dashed line.
-function pathLine(xs, ys, zs, colour, dashed) {
+function pathLine(xs, ys, zs, colour, dashed, radius = 0.006) {
   const points = [];
   xs.forEach((x, i) => { if (x !== null && ys[i] !== null && zs[i] !== null) points.push(new THREE.Vector3(x, ys[i], zs[i])); });
   if (points.length < 2) return;
@@ -136,7 +136,7 @@ function pathLine(xs, ys, zs, colour, dashed) {
     return;
   }
   const curve = new THREE.CatmullRomCurve3(points);
-  scene.add(new THREE.Mesh(new THREE.TubeGeometry(curve, Math.min(2000, 4 * points.length), 0.006, 8),
+  scene.add(new THREE.Mesh(new THREE.TubeGeometry(curve, Math.min(2000, 4 * points.length), radius, 8),
     new THREE.MeshStandardMaterial({ color: colour, roughness: 0.5 })));
 }
 
@@ -193,7 +193,8 @@ const hands = data.hands.map((hand, k) => {
 if (hands.some((h) => h.force)) legend.push([0xd61f69, 'force on a hand (push or contact), 1 cm per N']);
 if (hasSurfaces) legend.push([PART_COLOURS.environment, 'contact surface, drawn where a hand presses on it']);
 if (data.platform) {
-  pathLine(data.platform[0], data.platform[1], data.platform[0].map(() => 0.01), 0x2f855a, false);
+  // Thicker than the hands' paths: seen from afar, on the floor.
+  pathLine(data.platform[0], data.platform[1], data.platform[0].map(() => 0.02), 0x2f855a, false, 0.02);
   legend.push([0x2f855a, 'platform centre path']);
 }
 const parts = new Set(data.volumes.map((v) => v.part));
@@ -217,7 +218,8 @@ hands.forEach((h) => h.path[0].forEach((_, i) => { const p = pathPoint(h.path, i
 if (!handBox.isEmpty()) centre.lerp(handBox.getCenter(new THREE.Vector3()), 0.5);
 controls.target.copy(centre);
 // A robot moving in the x–z plane (the planar arms) is seen from the side; any other from the
-// side of the hand that travels further, slightly from the front and above.
+// side of the hand that travels further, slightly from the front and above, unless the scenario
+// places the camera itself (`view`: from the centre to the camera, m).
 const planar = box.max.y - box.min.y < 0.2;
 const travel = (h) => h.path[0].reduce((sum, _, i) => {
   const [a, b] = [pathPoint(h.path, i - 1), pathPoint(h.path, i)];
@@ -225,8 +227,10 @@ const travel = (h) => h.path[0].reduce((sum, _, i) => {
 }, 0);
 const leftMovesMore = hands.length === 2 && travel(hands[1]) > travel(hands[0]);
 const side = leftMovesMore ? 1 : -1;
-const direction = planar ? new THREE.Vector3(0.25, -1, 0.2) : new THREE.Vector3(0.6, side, 0.45);
-camera.position.copy(centre).add(direction.normalize().multiplyScalar(size * (planar ? 1.5 : 1.3) + 2.2));
+const direction = data.view ? new THREE.Vector3(...data.view)
+  : planar ? new THREE.Vector3(0.25, -1, 0.2) : new THREE.Vector3(0.6, side, 0.45);
+if (data.view) camera.position.copy(centre).add(direction);
+else camera.position.copy(centre).add(direction.normalize().multiplyScalar(size * (planar ? 1.5 : 1.3) + 2.2));
 
 // ---- side panel ----
 document.title = `${data.scenario} replay`;

@@ -32,8 +32,10 @@
 use fixtures::justin;
 use fixtures::justin::whole_body::CLEAN_MUG;
 use kernel::controller::config::Hand;
-use kernel::model::Placement;
-use nalgebra::{Unit, Vector3};
+use kernel::dynamics::forward_kinematics;
+use kernel::model::{Data, FrameId, Placement};
+use kernel::tasks::collision::SweptSphere;
+use nalgebra::{SVector, Unit, Vector3};
 
 use super::wipe_window::{
     base_travel, force_claims, labelled_contact_metrics, measured_range, press_path, run_tool, tool_figures,
@@ -118,6 +120,32 @@ fn plan(start: [Placement<f64>; 2]) -> ToolPlan {
         });
     }
     ToolPlan { references, contacts, cartesian: None }
+}
+
+/// Where the replay's camera stands, from the scene's centre (m): 2.5 m in front of the robot, a
+/// little to its right and above, looking at the mug between the hands.
+pub const VIEW: [f64; 3] = [2.1, -0.9, 1.1];
+
+/// Half the height of the mug's core segment as the replay draws it (m); chosen.
+const MUG_HALF_CORE_M: f64 = 0.035;
+
+/// The mug as the replay draws it (the simulator only has its two faces): a vertical capsule
+/// [`MUG_WIDTH_M`] wide, centred between the hands' start positions at the home configuration,
+/// so that its sides are the faces the hands press on ([`plan`]). Empty if the model fails.
+pub fn mug() -> Vec<SweptSphere<f64>> {
+    let Ok(model) = justin::model::<f64>() else { return Vec::new() };
+    let mut data = Data::new(&model);
+    let home = justin::home_configuration::<f64>();
+    if forward_kinematics(&model, &mut data, &home, &SVector::zeros()).is_err() {
+        return Vec::new();
+    }
+    let position = |frame: FrameId| data.frame_placements.get(frame.0).map(|p| p.translation.vector);
+    let (Some(right), Some(left)) = (position(justin::RIGHT_TCP), position(justin::LEFT_TCP)) else {
+        return Vec::new();
+    };
+    let centre = 0.5 * (right + left);
+    let half = Vector3::new(0.0, 0.0, MUG_HALF_CORE_M);
+    vec![SweptSphere::capsule(centre - half, centre + half, 0.5 * MUG_WIDTH_M)]
 }
 
 /// The phases the replay names: approach, touch, scrub, release.

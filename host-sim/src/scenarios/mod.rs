@@ -104,8 +104,14 @@ struct Entry {
     replay: Option<Robot>,
     /// The world-fixed collision volumes the replay draws (table, wall), if any.
     environment: Option<fn() -> Vec<SweptSphere<f64>>>,
+    /// The objects the replay draws that the simulator models by their contact surfaces only
+    /// (the mug), if any.
+    objects: Option<fn() -> Vec<SweptSphere<f64>>>,
     /// The phases of the run the replay names (start time, caption), if the scenario gives them.
     phases: Option<fn() -> Vec<Phase>>,
+    /// Where the replay's camera stands (the vector from the scene's centre, m), if the scenario
+    /// chooses it.
+    view: Option<[f64; 3]>,
     /// What the outcome's table holds.
     table: Table,
     /// Whether the scenario runs the whole-body rig ([`crate::wbc::rig`]), whose controller
@@ -136,7 +142,9 @@ impl Entry {
             extra_files: None,
             replay: None,
             environment: None,
+            objects: None,
             phases: None,
+            view: None,
             table: Table::TimeSeries,
             whole_body_rig: false,
         }
@@ -191,17 +199,22 @@ const SCENARIOS: &[Entry] = &[
         ..entry!(stability_map)
     },
     Entry { extra_files: Some(icr_avoidance::write_files), ..entry!(icr_avoidance, icr_avoidance::REPLAY) },
-    rig_entry!(wbc_step),
-    rig_entry!(wbc_trajectory),
+    Entry { phases: Some(wbc_step::phases), ..rig_entry!(wbc_step) },
+    Entry { phases: Some(wbc_trajectory::phases), ..rig_entry!(wbc_trajectory) },
     Entry { phases: Some(wbc_phri::phases), ..rig_entry!(wbc_phri) },
     Entry {
         environment: Some(|| wbc_grasp::table().to_vec()),
         phases: Some(wbc_grasp::phases),
         ..rig_entry!(wbc_grasp)
     },
-    rig_entry!(wipe_window),
-    rig_entry!(sweep_floor),
-    Entry { phases: Some(clean_mug::phases), ..rig_entry!(clean_mug) },
+    Entry { phases: Some(wipe_window::phases), ..rig_entry!(wipe_window) },
+    Entry { phases: Some(sweep_floor::phases), ..rig_entry!(sweep_floor) },
+    Entry {
+        objects: Some(clean_mug::mug),
+        phases: Some(clean_mug::phases),
+        view: Some(clean_mug::VIEW),
+        ..rig_entry!(clean_mug)
+    },
     rig_entry!(soak),
 ];
 
@@ -319,6 +332,8 @@ pub fn run(name: &str, options: &RunOptions) -> Result<(), String> {
             description: entry.description,
             phases: entry.phases.map(|phases| phases()).unwrap_or_default(),
             environment: entry.environment.map(|volumes| volumes()).unwrap_or_default(),
+            objects: entry.objects.map(|volumes| volumes()).unwrap_or_default(),
+            view: entry.view,
         };
         replay::write(&out, robot, &outcome.series, &outcome.summary, &story)?;
         files.push("replay.html");

@@ -128,6 +128,24 @@ fn plan(start: [Placement<f64>; 2]) -> ToolPlan {
     ToolPlan { references, contacts, cartesian: Some(cartesian) }
 }
 
+/// The phases the replay names: tool switch, lowering, pressing, sweeping, lifting.
+pub fn phases() -> Vec<(f64, String)> {
+    vec![
+        (0.0, "the planner switches both hands to the broom: Table 7.1 stiffness, −10 N limit".into()),
+        (1.5, "both hands lower the broom onto the surface, the last centimetres slowly".into()),
+        (TOUCH_S, format!("the broom touches; the references move {:.0} cm below the surface", BELOW_M * 100.0)),
+        (
+            SWEEP_S.0,
+            format!(
+                "{STROKES} strokes of {:.0} cm drifting {:.0} cm forward: the base follows",
+                STROKE_M * 100.0,
+                ADVANCE_M * 100.0
+            ),
+        ),
+        (SWEEP_S.1, "sweeping ends; the hands lift the broom".into()),
+    ]
+}
+
 /// Simulates and checks the claims (module docs).
 pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let changes = ConfigChanges::NONE;

@@ -136,6 +136,20 @@ pub fn common_claims(summary: &mut Summary, rig: &Rig, series: &TimeSeries) -> R
     Ok(())
 }
 
+/// The phases the replay names: the goal step and the thesis' settling time.
+pub fn phases() -> Vec<(f64, String)> {
+    vec![
+        (STEP_AT_S, format!("the right hand's goal jumps {:.0} cm forward", STEP_M * 100.0)),
+        (
+            STEP_AT_S + THESIS_SETTLING_S,
+            format!(
+                "the thesis' settling time after the step: the hand stays within {:.0} cm of its goal from here",
+                SETTLING_BAND_M * 100.0
+            ),
+        ),
+    ]
+}
+
 /// Runs the scenario.
 pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let mut rig = wbc::chapter_6_rig(Hand::Right, &[], options)?;

@@ -43,6 +43,24 @@ pub const MAX_TRACKING_M: f64 = 0.2;
 /// Return tolerance (m).
 pub const RETURN_TOLERANCE_M: f64 = 0.01;
 
+/// The phases the replay names: forward, back, the end pose.
+pub fn phases() -> Vec<(f64, String)> {
+    vec![
+        (
+            FORWARD_AT_S,
+            format!(
+                "the right hand's goal moves {DISTANCE_M:.0} m forward in {SEGMENT_S:.0} s: beyond the arm's reach, the \
+                 platform follows"
+            ),
+        ),
+        (BACKWARD_AT_S, "the goal moves back to the start".into()),
+        (
+            BACKWARD_AT_S + SEGMENT_S,
+            "the hand is back; the joints are not (the null space is not restored, Fig. 6.6)".into(),
+        ),
+    ]
+}
+
 /// Runs the scenario: run, tracking error, claims, figures.
 pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let mut rig = wbc::chapter_6_rig(Hand::Right, &[], options)?;

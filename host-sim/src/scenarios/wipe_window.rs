@@ -702,6 +702,17 @@ fn plan(start: [Placement<f64>; 2]) -> ToolPlan {
     }
 }
 
+/// The phases the replay names: tool switch, approach, pressing, strokes, retreat.
+pub fn phases() -> Vec<(f64, String)> {
+    vec![
+        (0.0, "the planner switches to the tool: Table 7.1 stiffness, +10 N limit, its hierarchy".into()),
+        (1.5, format!("the right hand approaches the window, the last {:.0} cm slowly", CLEARANCE_M * 100.0)),
+        (TOUCH_S, format!("the hand touches; its reference moves {:.0} cm behind the window", BEHIND_M * 100.0)),
+        (STROKES_S.0, format!("{STROKES} horizontal strokes on the window, pressing at most 10 N")),
+        (STROKES_S.1, "the strokes end; the hand retracts".into()),
+    ]
+}
+
 /// Simulates and checks the claims (module docs).
 pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let run = run(options)?;
