@@ -11,6 +11,12 @@
 //! overshoot is reported; no self-collision (smallest pair distance > 0); the platform moves
 //! forward and stops; no fault.
 //!
+//! On the realistic plant ([`crate::plant`]) the joint friction holds the TCP off the goal: the
+//! impedance is a PD law without an integrator, and Sec. 6.2 states for Fig. 6.4 that "a
+//! steady-state error may remain". There the settling band is centred on the position the
+//! response comes to rest at (its final value, the usual definition of the settling time), and
+//! a second claim bounds that steady-state error by the same 5 % of the step.
+//!
 //! The module also holds the helpers the other `wbc_*` scenarios share (columns, poses, plots).
 
 use fixtures::justin::{self, RIGHT_TCP};
@@ -21,6 +27,7 @@ use nalgebra::{UnitQuaternion, Vector3};
 
 use super::{column_index, Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
+use crate::plant::PlantKind;
 use crate::wbc::{self, Rig};
 
 /// Registry name.
@@ -169,14 +176,21 @@ pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     })?;
     options.progress.finish();
     let goal = goal.ok_or("the step was never commanded")?;
-    evaluate(&rig, series, &goal)
+    evaluate(&rig, series, &goal, options.plant)
 }
 
-fn evaluate(rig: &Rig, series: TimeSeries, goal: &Vector3<f64>) -> Result<Outcome, String> {
+fn evaluate(rig: &Rig, series: TimeSeries, goal: &Vector3<f64>, plant: PlantKind) -> Result<Outcome, String> {
     let t = col(&series, "t")?;
     let tcp = tcp_columns(&series, Hand::Right)?;
     let error = distance_to(&tcp, goal);
-    let settling = settling_time(&t, &error, STEP_AT_S, SETTLING_BAND_M);
+    let final_tcp = Vector3::from_fn(|k, _| tcp.get(k).and_then(|c| c.last()).copied().unwrap_or(f64::NAN));
+    // The band's centre: the goal on the ideal plant, the final value where friction holds the
+    // TCP off the goal (module docs).
+    let (centre, band_text) = match plant {
+        PlantKind::Ideal => (*goal, ""),
+        PlantKind::Realistic => (final_tcp, " of its final value (friction, Sec. 6.2)"),
+    };
+    let settling = settling_time(&t, &distance_to(&tcp, &centre), STEP_AT_S, SETTLING_BAND_M);
     let overshoot = max_in(&t, &tcp[0], STEP_AT_S, f64::INFINITY) - goal.x;
     let start_y = tcp[1].first().copied().unwrap_or(f64::NAN);
     let lateral = t
@@ -215,11 +229,21 @@ fn evaluate(rig: &Rig, series: TimeSeries, goal: &Vector3<f64>) -> Result<Outcom
         .metric("max_base_yaw_rad", yaw);
     summary.claim(
         &format!(
-            "settling time (TCP within {:.0} mm = 5 % of the step and staying there) {settling:.3} s < {THESIS_SETTLING_S} s after the step (Sec. 6.2)",
+            "settling time (TCP within {:.0} mm = 5 % of the step{band_text} and staying there) {settling:.3} s < {THESIS_SETTLING_S} s after the step (Sec. 6.2)",
             SETTLING_BAND_M * 1e3
         ),
         settling < THESIS_SETTLING_S,
     );
+    if plant == PlantKind::Realistic {
+        summary.claim(
+            &format!(
+                "steady-state error of the PD impedance under friction (Sec. 6.2: \"a steady-state error may remain\") {:.1} mm < {:.0} mm = 5 % of the step",
+                final_error * 1e3,
+                SETTLING_BAND_M * 1e3
+            ),
+            final_error < SETTLING_BAND_M,
+        );
+    }
     summary.claim(
         &format!(
             "the platform moves forward ({:.3} m, peak command {peak_base_v:.2} m/s) and stops (final speed {:.1} mm/s < 5 mm/s)",
