@@ -1,5 +1,6 @@
 #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
-use super::rows::{pair_row, PairFactor};
+use super::kinematics::PairFactor;
+use super::rows::pair_row;
 use super::*;
 use crate::dynamics::{crba, forward_kinematics, mass_matrix_cholesky, TreeFactorization};
 use crate::tasks::collision::{CollisionModelBuilder, SweptSphere};
