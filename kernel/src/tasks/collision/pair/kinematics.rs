@@ -84,24 +84,50 @@ pub fn inverse_reflected_masses<T: RealField + Copy, const N: usize, const K: us
 
 /// The kinematic tree as the support-path walks of [`projected_jacobian_into`] read it: per
 /// body its parent (`usize::MAX`: the world) and its joint's drive term when it has exactly
-/// one (`coordinate = usize::MAX` otherwise: no term, or several, read from the model). Built
-/// once per [`collision_rows_shared`](super::collision_rows_shared) call that evaluates a pair (a row not in the cache), instead of reading the body
-/// descriptions in every walk.
+/// one (`coordinate = usize::MAX` otherwise: no term, or several, read from the model), and
+/// the length of the head of a point Jacobian on the body (one past the largest coordinate of
+/// any drive term on its support path: the entries a walk may write). Built once per
+/// [`collision_rows_shared`](super::collision_rows_shared) call that evaluates a pair (a row
+/// not in the cache), instead of reading the body descriptions in every walk.
 pub(super) struct SupportTable<T, const B: usize> {
     parent: [usize; B],
     coordinate: [usize; B],
     coefficient: [T; B],
+    head: [usize; B],
 }
 
 impl<T: RealField + Copy, const B: usize> SupportTable<T, B> {
     pub(super) fn new<const N: usize, const F: usize>(model: &Model<T, N, B, F>) -> Self {
-        let mut table = Self { parent: [usize::MAX; B], coordinate: [usize::MAX; B], coefficient: [T::zero(); B] };
+        let mut table =
+            Self { parent: [usize::MAX; B], coordinate: [usize::MAX; B], coefficient: [T::zero(); B], head: [0; B] };
+        let bodies = model.bodies();
         let slots = table.parent.iter_mut().zip(table.coordinate.iter_mut()).zip(table.coefficient.iter_mut());
-        for (body, ((parent, coordinate), coefficient)) in model.bodies().iter().zip(slots) {
+        for (body, ((parent, coordinate), coefficient)) in bodies.iter().zip(slots) {
             *parent = body.parent.map_or(usize::MAX, |p| p.0);
             if let [term] = body.drive.terms() {
                 *coordinate = term.coordinate;
                 *coefficient = term.coefficient;
+            }
+        }
+        // One pass when parents precede their children (a parent's head is final), a walk to
+        // the root otherwise.
+        for i in 0..B {
+            let (Some(body), Some(&parent)) = (bodies.get(i), table.parent.get(i)) else { break };
+            let own = body.drive.terms().iter().fold(0, |h, t| h.max(t.coordinate + 1));
+            let above = if parent < i {
+                table.head.get(parent).copied().unwrap_or(0)
+            } else {
+                let mut next = body.parent.map(|p| p.0);
+                let mut above = 0;
+                for _ in 0..B {
+                    let Some(ancestor) = next.and_then(|j| bodies.get(j)) else { break };
+                    above = ancestor.drive.terms().iter().fold(above, |h, t| h.max(t.coordinate + 1));
+                    next = ancestor.parent.map(|p| p.0);
+                }
+                above
+            };
+            if let Some(head) = table.head.get_mut(i) {
+                *head = own.max(above);
             }
         }
         table
@@ -155,7 +181,9 @@ fn projected_jacobian_into<T: RealField + Copy, const N: usize, const B: usize, 
 /// place ([`projected_jacobian_into`]), their difference written into `jacobian`, and the sum of
 /// both inverse reflected masses (3.20), returned: one forward substitution over the factor for
 /// both ([`inverse_reflected_masses`] on dense rows) or one substitution along each support
-/// path ([`TreeFactorization::inverse_reflected_mass`] on the tree factor); none for a world-fixed volume, whose mass is infinite. The proximity must have a direction.
+/// path ([`TreeFactorization::inverse_reflected_mass_of_head`] on the tree factor, the head's
+/// length from `table`); none for a world-fixed volume, whose mass is infinite. The proximity
+/// must have a direction.
 #[allow(clippy::too_many_arguments, reason = "the pair, the model with its table, the state and the factor")]
 pub(super) fn pair_kinematics<
     T: RealField + Copy,
@@ -188,6 +216,9 @@ pub(super) fn pair_kinematics<
     if let Some(body) = b.body {
         projected_jacobian_into(model, table, data, body, &proximity.core_second, &e, &mut jacobian_second)?;
     }
+    let end = |body: Option<BodyId>| body.and_then(|b| table.head.get(b.0)).copied().unwrap_or(N);
+    let head_first = jacobian_first.get(..end(a.body)).unwrap_or(&jacobian_first);
+    let head_second = jacobian_second.get(..end(b.body)).unwrap_or(&jacobian_second);
     let inverse_mass_sum = match (a.body.is_some(), b.body.is_some(), factor) {
         (true, true, PairFactor::Rows(rows)) => {
             let [wi, wj] = inverse_reflected_masses(rows, [&jacobian_first, &jacobian_second])?;
@@ -196,10 +227,10 @@ pub(super) fn pair_kinematics<
         (true, false, PairFactor::Rows(rows)) => inverse_reflected_masses(rows, [&jacobian_first])?[0],
         (false, true, PairFactor::Rows(rows)) => inverse_reflected_masses(rows, [&jacobian_second])?[0],
         (true, true, PairFactor::Tree(tree)) => {
-            tree.inverse_reflected_mass(&jacobian_first) + tree.inverse_reflected_mass(&jacobian_second)
+            tree.inverse_reflected_mass_of_head(head_first) + tree.inverse_reflected_mass_of_head(head_second)
         }
-        (true, false, PairFactor::Tree(tree)) => tree.inverse_reflected_mass(&jacobian_first),
-        (false, true, PairFactor::Tree(tree)) => tree.inverse_reflected_mass(&jacobian_second),
+        (true, false, PairFactor::Tree(tree)) => tree.inverse_reflected_mass_of_head(head_first),
+        (false, true, PairFactor::Tree(tree)) => tree.inverse_reflected_mass_of_head(head_second),
         (false, false, _) => T::zero(),
     };
     // The difference and its finiteness in one pass (no early exit: a branch-free flag).
