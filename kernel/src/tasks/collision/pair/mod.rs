@@ -257,4 +257,6 @@ pub fn evaluate_pair<
 #[cfg(test)]
 mod reflected_mass_tests;
 #[cfg(test)]
+mod selection_tests;
+#[cfg(test)]
 mod tests;

@@ -22,12 +22,31 @@ use crate::tasks::{TaskError, TaskRow, TaskRows};
 /// reflected masses `m_i⁻¹ + m_j⁻¹` (3.20). A pair whose row one field computed costs the next
 /// field only its force law. Valid for one geometry: [`Self::clear`] it when the kinematics or
 /// the inertia factor change (every cycle). Holds up to `C` pairs; a pair that does not fit is
-/// computed again, never dropped.
+/// computed again, never dropped. Also holds the selection of the first field that had to drop
+/// candidates ([`Selection`]), which decides every later field's selection with as many free
+/// rows without a heap.
 #[derive(Clone, Debug)]
 pub struct PairRowCache<T: RealField, const N: usize, const P: usize, const C: usize> {
     /// Entry of each pair in `entries` (`u16::MAX`: none).
     slot: [u16; P],
     entries: Vec<CachedPairRow<T, N>, C>,
+    pub(super) selection: Option<Selection<T>>,
+}
+
+/// A field's selection when it had more candidates than free rows: the `count` smallest
+/// `(distance, pair index)` of its candidates (the pairs closer than its emit distance `a`
+/// with a direction), the last of them `(distance, pair)`. Another field with the same
+/// geometry, `count` free rows and emit distance `b` selects the candidates up to that pair,
+/// `(d, k) ≤ (distance, pair)`: if `distance < b`, the selected pairs are candidates of that
+/// field too and every other candidate of it comes after the last one (its distance is at
+/// least `a`, or it was a candidate of the first field and not selected); otherwise each of
+/// its candidates (`d < b ≤ distance < a`) was selected, there are at most `count` of them
+/// and the field takes them all. In both cases that is the field's own selection.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Selection<T> {
+    distance: T,
+    pair: usize,
+    pub(super) count: usize,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -38,15 +57,16 @@ struct CachedPairRow<T: RealField, const N: usize> {
 
 impl<T: RealField + Copy, const N: usize, const P: usize, const C: usize> Default for PairRowCache<T, N, P, C> {
     fn default() -> Self {
-        Self { slot: [u16::MAX; P], entries: Vec::new() }
+        Self { slot: [u16::MAX; P], entries: Vec::new(), selection: None }
     }
 }
 
 impl<T: RealField + Copy, const N: usize, const P: usize, const C: usize> PairRowCache<T, N, P, C> {
-    /// Forgets every pair (a new geometry or inertia factor).
+    /// Forgets every pair and the selection (a new geometry or inertia factor).
     pub fn clear(&mut self) {
         self.slot = [u16::MAX; P];
         self.entries.clear();
+        self.selection = None;
     }
 
     fn get(&self, pair: usize) -> Option<&CachedPairRow<T, N>> {
@@ -295,63 +315,96 @@ pub fn collision_rows_shared<
     let free = R.saturating_sub(rows.len());
     let limit = parameters.emit_distance();
     let mut report = CollisionReport { candidates: 0, rows: 0, dropped: 0, undefined_direction: 0, min_distance: None };
-    // The `free` closest candidates `(distance, pair index)`: filled in pair order, then kept as
-    // a binary max-heap by distance whose root (the farthest) a closer candidate replaces,
-    // O(log R) per replacement.
-    let mut selected: Vec<(T, usize), R> = Vec::new();
-    let mut heap = false;
-    for (index, proximity) in collision.proximities.iter().take(collision_model.pairs().len()).enumerate() {
-        let d = proximity.distance;
-        if !d.is_finite() {
-            return Err(TaskError::NonFinite);
-        }
-        report.min_distance = Some(report.min_distance.map_or(d, |m: T| m.min(d)));
-        if d >= limit {
-            continue;
-        }
-        report.candidates += 1;
-        if proximity.direction.is_none() {
-            report.undefined_direction += 1;
-            continue;
-        }
-        if selected.len() < free {
-            let _ = selected.push((d, index));
-            continue;
-        }
-        report.dropped += 1;
-        if !heap {
-            heapify(&mut selected);
-            heap = true;
-        }
-        // A candidate at the root's distance stays out (the earlier pair is kept).
-        if selected.first().is_some_and(|root| d < root.0) {
-            sift(&mut selected, 0, (d, index));
-        }
-    }
     // Rows in pair order: a pass over a membership mask of the pairs instead of a sort, whose
     // ordering-violation panic path would survive in the image.
     let mut chosen = [false; P];
-    for &(_, index) in &selected {
-        if let Some(flag) = chosen.get_mut(index) {
-            *flag = true;
+    let mut count = 0;
+    // A field of this cycle that had to drop candidates selected the `free` smallest
+    // `(distance, pair index)`; this field's selection is then its candidates up to that
+    // field's last one (see `Selection`), without a heap.
+    if let Some(shared) = cache.selection.filter(|s| s.count == free) {
+        for (index, (proximity, flag)) in
+            collision.proximities.iter().take(collision_model.pairs().len()).zip(chosen.iter_mut()).enumerate()
+        {
+            let d = proximity.distance;
+            if !d.is_finite() {
+                return Err(TaskError::NonFinite);
+            }
+            report.min_distance = Some(report.min_distance.map_or(d, |m: T| m.min(d)));
+            if d >= limit {
+                continue;
+            }
+            report.candidates += 1;
+            if proximity.direction.is_none() {
+                report.undefined_direction += 1;
+                continue;
+            }
+            if d < shared.distance || (d == shared.distance && index <= shared.pair) {
+                *flag = true;
+                count += 1;
+            }
+        }
+        report.dropped = report.candidates - report.undefined_direction - count;
+    } else {
+        // The `free` closest candidates `(distance, pair index)`: filled in pair order, then
+        // kept as a binary max-heap by distance whose root (the farthest) a closer candidate
+        // replaces, O(log R) per replacement.
+        let mut selected: Vec<(T, usize), R> = Vec::new();
+        let mut heap = false;
+        for (index, proximity) in collision.proximities.iter().take(collision_model.pairs().len()).enumerate() {
+            let d = proximity.distance;
+            if !d.is_finite() {
+                return Err(TaskError::NonFinite);
+            }
+            report.min_distance = Some(report.min_distance.map_or(d, |m: T| m.min(d)));
+            if d >= limit {
+                continue;
+            }
+            report.candidates += 1;
+            if proximity.direction.is_none() {
+                report.undefined_direction += 1;
+                continue;
+            }
+            if selected.len() < free {
+                let _ = selected.push((d, index));
+                continue;
+            }
+            report.dropped += 1;
+            if !heap {
+                heapify(&mut selected);
+                heap = true;
+            }
+            // `(d, index)` comes after every selected pair in pair order: it enters when it is
+            // closer than the root.
+            if selected.first().is_some_and(|root| d < root.0) {
+                sift(&mut selected, 0, (d, index));
+            }
+        }
+        count = selected.len();
+        for &(_, index) in &selected {
+            if let Some(flag) = chosen.get_mut(index) {
+                *flag = true;
+            }
+        }
+        // The heap holds the `free` smallest `(distance, pair index)`, the last one at its root.
+        if let (true, Some(&(distance, pair))) = (heap, selected.first()) {
+            cache.selection = Some(Selection { distance, pair, count: free });
         }
     }
     // Each row is built in its slot of `rows`; on an error the rows appended here are removed.
-    if !selected.is_empty() {
+    if count > 0 {
         let factor = match mass.into() {
             InertiaFactor::Dense(cholesky) => PairFactor::Rows(factor_rows(cholesky)),
             InertiaFactor::Tree(tree) => PairFactor::Tree(tree),
         };
         let start = rows.len();
-        // Built in place when a pair is not in the cache.
-        let built;
-        let table = if selected.iter().any(|&(_, index)| cache.get(index).is_none()) {
-            built = SupportTable::new(model);
-            Some(&built)
-        } else {
-            None
-        };
+        // Built when the first pair that is not in the cache is evaluated.
+        let mut built = None;
         for (index, _) in chosen.iter().enumerate().filter(|(_, &flag)| flag) {
+            if built.is_none() && cache.get(index).is_none() {
+                built = Some(SupportTable::new(model));
+            }
+            let table = built.as_ref();
             let mut result = Ok(());
             let pushed = rows.push_with(|row| {
                 result = pair_row_into(
@@ -373,6 +426,6 @@ pub fn collision_rows_shared<
             }
         }
     }
-    report.rows = selected.len();
+    report.rows = count;
     Ok(report)
 }
