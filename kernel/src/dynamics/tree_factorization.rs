@@ -14,6 +14,8 @@ use super::tree_kernels::{combine_ancestor_columns, eliminate};
 use crate::math::sqrt;
 use crate::model::Model;
 
+mod reflected_mass;
+
 /// The symbolic part of [`TreeFactorization`]: for every coordinate `k` its ancestor chain
 /// `k, λ(k), λ(λ(k)), …` in the elimination tree. Depends on the model only.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -31,14 +31,15 @@ use crate::math::spatial::linear_at_point;
 use crate::model::{BodyId, Data, Model};
 use crate::tasks::{TaskError, TaskRow};
 
+mod kinematics;
 mod parameters;
 mod rows;
 mod selection;
 
+pub use kinematics::{factor_rows, inverse_reflected_masses};
 pub use parameters::CollisionParameters;
 pub use rows::{
-    collision_rows_from_geometry, collision_rows_shared, factor_rows, inverse_reflected_masses, self_collision_rows,
-    CollisionReport, PairRowCache,
+    collision_rows_from_geometry, collision_rows_shared, self_collision_rows, CollisionReport, PairRowCache,
 };
 
 /// Everything computed for one collision pair.
@@ -255,5 +256,7 @@ pub fn evaluate_pair<
 
 #[cfg(test)]
 mod reflected_mass_tests;
+#[cfg(test)]
+mod selection_tests;
 #[cfg(test)]
 mod tests;

@@ -94,3 +94,72 @@ fn single_row_reflected_masses_match_the_reference() {
         check_single_row_masses::<f32>(seed, 1e-3);
     }
 }
+
+/// `inverse_reflected_mass_of_head` (the leaf given) against the reference
+/// `inverse_reflected_masses` (every column): to the bit for heads that end at each
+/// coordinate, with their whole chain filled, with the leaf's own entry zero, with decoupled
+/// roots below the chain, with entries off the chain (the fallback) and for an empty head, on
+/// the plain factor and on decoupled ones; and against the dense `J M⁻¹ Jᵀ`.
+fn check_head_masses<T: RealField + Copy>(seed: u64, tol: f64) {
+    let model = branched::<T>();
+    let mut data = Data::new(&model);
+    let q = state(seed, 2.0).map(|e| nalgebra::convert::<f64, T>(e));
+    forward_kinematics(&model, &mut data, &q, &SVector::zeros()).unwrap();
+    let m = *crba(&model, &mut data);
+    let mut plain = TreeFactorization::new(&model);
+    plain.factorize(&m).unwrap();
+    let to64 = |x: T| nalgebra::try_convert::<T, f64>(x).unwrap();
+    let mut compared = 0;
+    for set in [&[][..], &[0_usize][..], &[0, 1]] {
+        let mut tree = plain.clone();
+        let mut cleared = m;
+        let mut decoupled = [false; N];
+        for &c in set {
+            decoupled[c] = true;
+            let diagonal = cleared[(c, c)];
+            cleared.row_mut(c).fill(T::zero());
+            cleared.column_mut(c).fill(T::zero());
+            cleared[(c, c)] = diagonal;
+        }
+        tree.decouple(&decoupled, &cleared).unwrap();
+        let dense_inverse = cleared.map(to64).try_inverse().unwrap();
+        for leaf in 0..N {
+            let values = state(seed ^ (leaf as u64 + 211), 1.0);
+            let mut on_chain = [T::zero(); N];
+            for &a in &chain(&tree, leaf) {
+                on_chain[a] = nalgebra::convert(values[a]);
+            }
+            let mut with_roots = on_chain;
+            for &c in set {
+                with_roots[c] = nalgebra::convert(0.5 + values[c]);
+            }
+            let mut zero_leaf = with_roots;
+            zero_leaf[leaf] = T::zero();
+            let mut off_chain = on_chain;
+            for c in 0..=leaf {
+                off_chain[c] = nalgebra::convert(0.25 + values[c]);
+            }
+            for row in [on_chain, with_roots, zero_leaf, off_chain] {
+                // The head ends at the leaf or at a decoupled root after it.
+                let end = row.iter().rposition(|x| !x.is_zero()).map_or(0, |p| p + 1).max(leaf + 1);
+                let fast = tree.inverse_reflected_mass_of_head(&row[..end]);
+                let [reference] = tree.inverse_reflected_masses([&row]);
+                assert_eq!(fast, reference, "set {set:?} leaf {leaf} row {row:?}");
+                let j = SVector::<f64, N>::from_fn(|c, _| to64(row[c]));
+                let dense = (j.transpose() * dense_inverse * j).x;
+                assert!((to64(fast) - dense).abs() <= tol * (1.0 + dense.abs()), "{} vs {dense}", to64(fast));
+                compared += 1;
+            }
+        }
+        assert_eq!(tree.inverse_reflected_mass_of_head(&[]), T::zero());
+    }
+    assert_eq!(compared, 3 * 4 * N);
+}
+
+#[test]
+fn head_reflected_masses_match_the_reference() {
+    for seed in 0..20 {
+        check_head_masses::<f64>(seed, 1e-10);
+        check_head_masses::<f32>(seed, 1e-3);
+    }
+}

@@ -1,161 +1,20 @@
-//! The fast collision rows of one cycle (Sec. 3.1.2–3.1.4): support-path pair Jacobians
-//! (3.17)–(3.18), both reflected masses (3.20) in one substitution over the inertia factor,
-//! the closed-form pair damping (3.23), rows shared between the fields of a cycle
-//! ([`PairRowCache`]), and the selection of the closest candidates per field. The plain
+//! The fast collision rows of one cycle (Sec. 3.1.2–3.1.4): the pair kinematics of
+//! [`super::kinematics`], the closed-form pair damping (3.23), rows shared between the fields
+//! of a cycle ([`PairRowCache`]), and the selection of the closest candidates per field. The plain
 //! per-pair evaluation they are tested against is [`super::evaluate_pair`].
 
 use heapless::Vec;
-use nalgebra::{convert, Cholesky, Const, RealField, RowSVector, SMatrix, Vector3};
+use nalgebra::{convert, RealField, RowSVector};
 
+use super::kinematics::{factor_rows, pair_kinematics, PairFactor, SupportTable};
 use super::parameters::CollisionParameters;
 use super::selection::{heapify, sift};
-use crate::dynamics::{DynamicsError, InertiaFactor, TreeFactorization};
+use crate::dynamics::InertiaFactor;
 use crate::math::sqrt;
-use crate::model::{BodyId, Data, Model};
-use crate::tasks::collision::model::{CollisionData, CollisionModel, CollisionPair};
+use crate::model::{Data, Model};
+use crate::tasks::collision::model::{CollisionData, CollisionModel};
 use crate::tasks::collision::volumes::Proximity;
 use crate::tasks::{TaskError, TaskRow, TaskRows};
-
-/// The inertia factor of the pair rows: the rows of a dense factor ([`factor_rows`]) or the
-/// tree-sparse factor (reflected masses by [`TreeFactorization::inverse_reflected_mass`] over
-/// the support path of each Jacobian).
-pub(super) enum PairFactor<'a, T: RealField, const N: usize> {
-    Rows(SMatrix<T, N, N>),
-    Tree(&'a TreeFactorization<T, N>),
-}
-
-/// The rows of the Cholesky factor `L` of `M = L Lᵀ` as contiguous slices: `Lᵀ` in
-/// column-major storage (column `i` holds row `i` of `L`; only its first `i + 1` entries, the
-/// lower triangle, are written). Built once per [`collision_rows_from_geometry`] call for the
-/// dot-product forward substitutions of [`inverse_reflected_masses`].
-pub fn factor_rows<T: RealField + Copy, const N: usize>(mass_cholesky: &Cholesky<T, Const<N>>) -> SMatrix<T, N, N> {
-    let mut rows = SMatrix::<T, N, N>::zeros();
-    let out = rows.as_mut_slice();
-    for (c, column) in mass_cholesky.l_dirty().as_slice().chunks_exact(N).enumerate() {
-        for (r, &x) in column.iter().enumerate().skip(c) {
-            if let Some(slot) = out.get_mut(r * N + c) {
-                *slot = x;
-            }
-        }
-    }
-    rows
-}
-
-/// `(‖L⁻¹ b₁‖², …, ‖L⁻¹ b_K‖²)` with `M = L Lᵀ` given by [`factor_rows`] (1/kg): the inverse
-/// reflected masses `J M⁻¹ Jᵀ` (3.20) of the Jacobian rows `J = bₖᵀ`.
-///
-/// Forward substitution in dot-product form over the rows of `L`,
-/// `yᵢ = (bᵢ − Σ_{k<i} l_ik y_k) / l_ii`, with the same operations in the same order as the
-/// column-oriented [`inverse_reflected_mass`](super::inverse_reflected_mass) (the reference), starting at the first nonzero
-/// entry of the right-hand sides (the entries of `y` before it are zero).
-pub fn inverse_reflected_masses<T: RealField + Copy, const N: usize, const K: usize>(
-    factor_rows: &SMatrix<T, N, N>,
-    rhs: [&[T; N]; K],
-) -> Result<[T; K], TaskError> {
-    // `y[k]` holds the K solutions' entries `k` side by side: one pass over each row of `L`
-    // serves every right-hand side.
-    let mut y = [[T::zero(); K]; N];
-    let start = rhs.iter().map(|b| b.iter().position(|x| !x.is_zero()).unwrap_or(N)).fold(N, usize::min);
-    let rows = factor_rows.as_slice().chunks_exact(N).skip(start);
-    for (i, row) in (start..N).zip(rows) {
-        let (Some(before), Some(&diag), Some(done)) = (row.get(start..i), row.get(i), y.get(start..i)) else {
-            break;
-        };
-        if diag.is_zero() {
-            return Err(TaskError::Singular);
-        }
-        let mut sum = [T::zero(); K];
-        for (s, b) in sum.iter_mut().zip(rhs) {
-            *s = b.get(i).copied().unwrap_or_else(T::zero);
-        }
-        for (&l, yk) in before.iter().zip(done) {
-            for (s, &x) in sum.iter_mut().zip(yk) {
-                *s += -(x * l);
-            }
-        }
-        if let Some(yi) = y.get_mut(i) {
-            for (x, s) in yi.iter_mut().zip(sum) {
-                *x = s / diag;
-            }
-        }
-    }
-    let mut norms = [T::zero(); K];
-    for yk in y.get(start..).unwrap_or_default() {
-        for (n, &x) in norms.iter_mut().zip(yk) {
-            *n += x * x;
-        }
-    }
-    Ok(norms)
-}
-
-/// The kinematic tree as the support-path walks of [`projected_jacobian_into`] read it: per
-/// body its parent (`usize::MAX`: the world) and its joint's drive term when it has exactly
-/// one (`coordinate = usize::MAX` otherwise: no term, or several, read from the model). Built
-/// once per [`collision_rows_shared`] call that evaluates a pair (a row not in the cache), instead of reading the body
-/// descriptions in every walk.
-pub(super) struct SupportTable<T, const B: usize> {
-    parent: [usize; B],
-    coordinate: [usize; B],
-    coefficient: [T; B],
-}
-
-impl<T: RealField + Copy, const B: usize> SupportTable<T, B> {
-    pub(super) fn new<const N: usize, const F: usize>(model: &Model<T, N, B, F>) -> Self {
-        let mut table = Self { parent: [usize::MAX; B], coordinate: [usize::MAX; B], coefficient: [T::zero(); B] };
-        let slots = table.parent.iter_mut().zip(table.coordinate.iter_mut()).zip(table.coefficient.iter_mut());
-        for (body, ((parent, coordinate), coefficient)) in model.bodies().iter().zip(slots) {
-            *parent = body.parent.map_or(usize::MAX, |p| p.0);
-            if let [term] = body.drive.terms() {
-                *coordinate = term.coordinate;
-                *coefficient = term.coefficient;
-            }
-        }
-        table
-    }
-}
-
-/// Adds `eᵀ J_{x,q}` for the point `point` (world, m) on `body` to `row` (zero on entry): per
-/// joint on the support path, `eᵀ (v_S + ω_S × x) = eᵀ v_S + ω_Sᵀ (x × e)` spread over the
-/// joint's drive terms, (3.17)–(3.18), the path and single drive terms read from `table`. The
-/// fast form of [`projected_jacobian`](super::projected_jacobian).
-#[allow(clippy::too_many_arguments, reason = "the model, its table, the state and the point")]
-fn projected_jacobian_into<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
-    model: &Model<T, N, B, F>,
-    table: &SupportTable<T, B>,
-    data: &Data<T, N, B, F>,
-    body: BodyId,
-    point: &Vector3<T>,
-    direction: &Vector3<T>,
-    row: &mut [T; N],
-) -> Result<(), TaskError> {
-    let bodies = model.bodies();
-    bodies.get(body.0).ok_or(DynamicsError::UnknownBody)?;
-    let moment = point.cross(direction);
-    let (e, m) = (direction, &moment);
-    let mut next = body.0;
-    for _ in 0..B {
-        let (Some(&parent), Some(&coordinate), Some(&coefficient), Some(s)) = (
-            table.parent.get(next),
-            table.coordinate.get(next),
-            table.coefficient.get(next),
-            data.motion_subspaces.get(next),
-        ) else {
-            break;
-        };
-        let value = e.x * s.w + e.y * s.a + e.z * s.b + (m.x * s.x + m.y * s.y + m.z * s.z);
-        if let Some(x) = row.get_mut(coordinate) {
-            *x += value * coefficient;
-        } else if let Some(joint) = bodies.get(next) {
-            for term in joint.drive.terms() {
-                if let Some(x) = row.get_mut(term.coordinate) {
-                    *x += value * term.coefficient;
-                }
-            }
-        }
-        next = parent;
-    }
-    Ok(())
-}
 
 /// The configuration-dependent part of the pair rows of one cycle, shared by the collision
 /// fields that evaluate the same geometry (the strong and the weak field of Fig. 6.3): per pair,
@@ -163,12 +22,31 @@ fn projected_jacobian_into<T: RealField + Copy, const N: usize, const B: usize, 
 /// reflected masses `m_i⁻¹ + m_j⁻¹` (3.20). A pair whose row one field computed costs the next
 /// field only its force law. Valid for one geometry: [`Self::clear`] it when the kinematics or
 /// the inertia factor change (every cycle). Holds up to `C` pairs; a pair that does not fit is
-/// computed again, never dropped.
+/// computed again, never dropped. Also holds the selection of the first field that had to drop
+/// candidates ([`Selection`]), which decides every later field's selection with as many free
+/// rows without a heap.
 #[derive(Clone, Debug)]
 pub struct PairRowCache<T: RealField, const N: usize, const P: usize, const C: usize> {
     /// Entry of each pair in `entries` (`u16::MAX`: none).
     slot: [u16; P],
     entries: Vec<CachedPairRow<T, N>, C>,
+    pub(super) selection: Option<Selection<T>>,
+}
+
+/// A field's selection when it had more candidates than free rows: the `count` smallest
+/// `(distance, pair index)` of its candidates (the pairs closer than its emit distance `a`
+/// with a direction), the last of them `(distance, pair)`. Another field with the same
+/// geometry, `count` free rows and emit distance `b` selects the candidates up to that pair,
+/// `(d, k) ≤ (distance, pair)`: if `distance < b`, the selected pairs are candidates of that
+/// field too and every other candidate of it comes after the last one (its distance is at
+/// least `a`, or it was a candidate of the first field and not selected); otherwise each of
+/// its candidates (`d < b ≤ distance < a`) was selected, there are at most `count` of them
+/// and the field takes them all. In both cases that is the field's own selection.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Selection<T> {
+    distance: T,
+    pair: usize,
+    pub(super) count: usize,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -179,15 +57,16 @@ struct CachedPairRow<T: RealField, const N: usize> {
 
 impl<T: RealField + Copy, const N: usize, const P: usize, const C: usize> Default for PairRowCache<T, N, P, C> {
     fn default() -> Self {
-        Self { slot: [u16::MAX; P], entries: Vec::new() }
+        Self { slot: [u16::MAX; P], entries: Vec::new(), selection: None }
     }
 }
 
 impl<T: RealField + Copy, const N: usize, const P: usize, const C: usize> PairRowCache<T, N, P, C> {
-    /// Forgets every pair (a new geometry or inertia factor).
+    /// Forgets every pair and the selection (a new geometry or inertia factor).
     pub fn clear(&mut self) {
         self.slot = [u16::MAX; P];
         self.entries.clear();
+        self.selection = None;
     }
 
     fn get(&self, pair: usize) -> Option<&CachedPairRow<T, N>> {
@@ -297,70 +176,6 @@ pub(super) fn pair_row<
     Ok(row)
 }
 
-/// The configuration-dependent part of pair `pair`'s row: the two projected Jacobians written in
-/// place ([`projected_jacobian_into`]), their difference written into `jacobian`, and the sum of
-/// both inverse reflected masses (3.20), returned: one forward substitution over the factor for
-/// both ([`inverse_reflected_masses`] on dense rows) or one substitution along each support
-/// path ([`TreeFactorization::inverse_reflected_mass`] on the tree factor); none for a world-fixed volume, whose mass is infinite. The proximity must have a direction.
-#[allow(clippy::too_many_arguments, reason = "the pair, the model with its table, the state and the factor")]
-fn pair_kinematics<
-    T: RealField + Copy,
-    const N: usize,
-    const B: usize,
-    const F: usize,
-    const V: usize,
-    const P: usize,
->(
-    collision_model: &CollisionModel<T, V, P>,
-    proximity: &Proximity<T>,
-    model: &Model<T, N, B, F>,
-    table: &SupportTable<T, B>,
-    data: &Data<T, N, B, F>,
-    factor: &PairFactor<'_, T, N>,
-    pair: usize,
-    jacobian: &mut RowSVector<T, N>,
-) -> Result<T, TaskError> {
-    let invalid = TaskError::InvalidParameter { name: "pair" };
-    let &CollisionPair { first, second } = collision_model.pairs().get(pair).ok_or(invalid)?;
-    let (Some(a), Some(b)) = (collision_model.volume(first), collision_model.volume(second)) else {
-        return Err(invalid);
-    };
-    let e = proximity.direction.ok_or(TaskError::Singular)?.into_inner();
-    let mut jacobian_first = [T::zero(); N];
-    let mut jacobian_second = [T::zero(); N];
-    if let Some(body) = a.body {
-        projected_jacobian_into(model, table, data, body, &proximity.core_first, &e, &mut jacobian_first)?;
-    }
-    if let Some(body) = b.body {
-        projected_jacobian_into(model, table, data, body, &proximity.core_second, &e, &mut jacobian_second)?;
-    }
-    let inverse_mass_sum = match (a.body.is_some(), b.body.is_some(), factor) {
-        (true, true, PairFactor::Rows(rows)) => {
-            let [wi, wj] = inverse_reflected_masses(rows, [&jacobian_first, &jacobian_second])?;
-            wi + wj
-        }
-        (true, false, PairFactor::Rows(rows)) => inverse_reflected_masses(rows, [&jacobian_first])?[0],
-        (false, true, PairFactor::Rows(rows)) => inverse_reflected_masses(rows, [&jacobian_second])?[0],
-        (true, true, PairFactor::Tree(tree)) => {
-            tree.inverse_reflected_mass(&jacobian_first) + tree.inverse_reflected_mass(&jacobian_second)
-        }
-        (true, false, PairFactor::Tree(tree)) => tree.inverse_reflected_mass(&jacobian_first),
-        (false, true, PairFactor::Tree(tree)) => tree.inverse_reflected_mass(&jacobian_second),
-        (false, false, _) => T::zero(),
-    };
-    // The difference and its finiteness in one pass (no early exit: a branch-free flag).
-    let mut finite = inverse_mass_sum.is_finite();
-    for ((x, &ji), &jj) in jacobian.as_mut_slice().iter_mut().zip(&jacobian_first).zip(&jacobian_second) {
-        let value = jj - ji;
-        finite &= value.is_finite();
-        *x = value;
-    }
-    if !finite {
-        return Err(TaskError::NonFinite);
-    }
-    Ok(inverse_mass_sum)
-}
-
 /// What [`self_collision_rows`] did in one cycle (telemetry).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CollisionReport<T> {
@@ -386,7 +201,7 @@ pub struct CollisionReport<T> {
 ///
 /// Preconditions: `forward_kinematics` at `(q, q̇)`, then `crba` and the inertia factor `mass`
 /// ([`InertiaFactor`]: `mass_matrix_cholesky`'s dense factor, O(R·N²) for the reflected masses,
-/// or a [`TreeFactorization`], O(R·Σ depth) over the support paths).
+/// or a [`TreeFactorization`](crate::dynamics::TreeFactorization), O(R·Σ depth) over the support paths).
 /// Writes `collision`; appends to `rows`. Cost O(V + P·R) plus the reflected masses. On error `rows` is
 /// unchanged (the geometry in `collision` is updated).
 pub fn self_collision_rows<
@@ -500,63 +315,96 @@ pub fn collision_rows_shared<
     let free = R.saturating_sub(rows.len());
     let limit = parameters.emit_distance();
     let mut report = CollisionReport { candidates: 0, rows: 0, dropped: 0, undefined_direction: 0, min_distance: None };
-    // The `free` closest candidates `(distance, pair index)`: filled in pair order, then kept as
-    // a binary max-heap by distance whose root (the farthest) a closer candidate replaces,
-    // O(log R) per replacement.
-    let mut selected: Vec<(T, usize), R> = Vec::new();
-    let mut heap = false;
-    for (index, proximity) in collision.proximities.iter().take(collision_model.pairs().len()).enumerate() {
-        let d = proximity.distance;
-        if !d.is_finite() {
-            return Err(TaskError::NonFinite);
-        }
-        report.min_distance = Some(report.min_distance.map_or(d, |m: T| m.min(d)));
-        if d >= limit {
-            continue;
-        }
-        report.candidates += 1;
-        if proximity.direction.is_none() {
-            report.undefined_direction += 1;
-            continue;
-        }
-        if selected.len() < free {
-            let _ = selected.push((d, index));
-            continue;
-        }
-        report.dropped += 1;
-        if !heap {
-            heapify(&mut selected);
-            heap = true;
-        }
-        // A candidate at the root's distance stays out (the earlier pair is kept).
-        if selected.first().is_some_and(|root| d < root.0) {
-            sift(&mut selected, 0, (d, index));
-        }
-    }
     // Rows in pair order: a pass over a membership mask of the pairs instead of a sort, whose
     // ordering-violation panic path would survive in the image.
     let mut chosen = [false; P];
-    for &(_, index) in &selected {
-        if let Some(flag) = chosen.get_mut(index) {
-            *flag = true;
+    let mut count = 0;
+    // A field of this cycle that had to drop candidates selected the `free` smallest
+    // `(distance, pair index)`; this field's selection is then its candidates up to that
+    // field's last one (see `Selection`), without a heap.
+    if let Some(shared) = cache.selection.filter(|s| s.count == free) {
+        for (index, (proximity, flag)) in
+            collision.proximities.iter().take(collision_model.pairs().len()).zip(chosen.iter_mut()).enumerate()
+        {
+            let d = proximity.distance;
+            if !d.is_finite() {
+                return Err(TaskError::NonFinite);
+            }
+            report.min_distance = Some(report.min_distance.map_or(d, |m: T| m.min(d)));
+            if d >= limit {
+                continue;
+            }
+            report.candidates += 1;
+            if proximity.direction.is_none() {
+                report.undefined_direction += 1;
+                continue;
+            }
+            if d < shared.distance || (d == shared.distance && index <= shared.pair) {
+                *flag = true;
+                count += 1;
+            }
+        }
+        report.dropped = report.candidates - report.undefined_direction - count;
+    } else {
+        // The `free` closest candidates `(distance, pair index)`: filled in pair order, then
+        // kept as a binary max-heap by distance whose root (the farthest) a closer candidate
+        // replaces, O(log R) per replacement.
+        let mut selected: Vec<(T, usize), R> = Vec::new();
+        let mut heap = false;
+        for (index, proximity) in collision.proximities.iter().take(collision_model.pairs().len()).enumerate() {
+            let d = proximity.distance;
+            if !d.is_finite() {
+                return Err(TaskError::NonFinite);
+            }
+            report.min_distance = Some(report.min_distance.map_or(d, |m: T| m.min(d)));
+            if d >= limit {
+                continue;
+            }
+            report.candidates += 1;
+            if proximity.direction.is_none() {
+                report.undefined_direction += 1;
+                continue;
+            }
+            if selected.len() < free {
+                let _ = selected.push((d, index));
+                continue;
+            }
+            report.dropped += 1;
+            if !heap {
+                heapify(&mut selected);
+                heap = true;
+            }
+            // `(d, index)` comes after every selected pair in pair order: it enters when it is
+            // closer than the root.
+            if selected.first().is_some_and(|root| d < root.0) {
+                sift(&mut selected, 0, (d, index));
+            }
+        }
+        count = selected.len();
+        for &(_, index) in &selected {
+            if let Some(flag) = chosen.get_mut(index) {
+                *flag = true;
+            }
+        }
+        // The heap holds the `free` smallest `(distance, pair index)`, the last one at its root.
+        if let (true, Some(&(distance, pair))) = (heap, selected.first()) {
+            cache.selection = Some(Selection { distance, pair, count: free });
         }
     }
     // Each row is built in its slot of `rows`; on an error the rows appended here are removed.
-    if !selected.is_empty() {
+    if count > 0 {
         let factor = match mass.into() {
             InertiaFactor::Dense(cholesky) => PairFactor::Rows(factor_rows(cholesky)),
             InertiaFactor::Tree(tree) => PairFactor::Tree(tree),
         };
         let start = rows.len();
-        // Built in place when a pair is not in the cache.
-        let built;
-        let table = if selected.iter().any(|&(_, index)| cache.get(index).is_none()) {
-            built = SupportTable::new(model);
-            Some(&built)
-        } else {
-            None
-        };
+        // Built when the first pair that is not in the cache is evaluated.
+        let mut built = None;
         for (index, _) in chosen.iter().enumerate().filter(|(_, &flag)| flag) {
+            if built.is_none() && cache.get(index).is_none() {
+                built = Some(SupportTable::new(model));
+            }
+            let table = built.as_ref();
             let mut result = Ok(());
             let pushed = rows.push_with(|row| {
                 result = pair_row_into(
@@ -578,6 +426,6 @@ pub fn collision_rows_shared<
             }
         }
     }
-    report.rows = selected.len();
+    report.rows = count;
     Ok(report)
 }

@@ -1,5 +1,6 @@
 #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
-use super::rows::{pair_row, PairFactor};
+use super::kinematics::PairFactor;
+use super::rows::pair_row;
 use super::*;
 use crate::dynamics::{crba, forward_kinematics, mass_matrix_cholesky, TreeFactorization};
 use crate::tasks::collision::{CollisionModelBuilder, SweptSphere};
@@ -8,7 +9,7 @@ use crate::test_models::{branched, state, Branched, B, F, N};
 use nalgebra::{convert, Vector3};
 
 const V: usize = 6;
-const P: usize = 15;
+pub(super) const P: usize = 15;
 
 fn v3<T: RealField + Copy>(x: f64, y: f64, z: f64) -> Vector3<T> {
     Vector3::new(convert(x), convert(y), convert(z))
@@ -17,7 +18,7 @@ fn v3<T: RealField + Copy>(x: f64, y: f64, z: f64) -> Vector3<T> {
 /// Volumes on both branches of the test tree and in the world: a capsule on the coupled
 /// branch, a swept triangle and a sphere on the prismatic branch, a capsule on the pitch
 /// body, a world-fixed floor triangle and a world-fixed sphere.
-fn collision_model<T: RealField + Copy>(robot: &Branched<T>) -> CollisionModel<T, V, P> {
+pub(super) fn collision_model<T: RealField + Copy>(robot: &Branched<T>) -> CollisionModel<T, V, P> {
     let mut c = CollisionModelBuilder::<T, V, P>::new();
     let r = |x: f64| convert::<f64, T>(x);
     c.add_volume(Some(BodyId(4)), SweptSphere::capsule(v3(0.0, 0.0, 0.0), v3(0.15, 0.02, 0.0), r(0.05))).unwrap();
