@@ -120,16 +120,14 @@ fn fit_geometry(
 /// A box of `size` (m) placed by `origin`: the rectangle in the mid-plane across its thinnest
 /// side, as two triangles swept by half that side.
 fn box_triangles(size: [f64; 3], origin: &Placement<f64>) -> Vec<(SweptSphere<f64>, String)> {
-    let thin = (0..3).min_by(|&i, &j| size[i].total_cmp(&size[j])).unwrap_or(0);
-    let (u, v) = ((thin + 1) % 3, (thin + 2) % 3);
-    let corner = |su: f64, sv: f64| {
-        let mut p = Vector3::zeros();
-        p[u] = su * size[u] / 2.0;
-        p[v] = sv * size[v] / 2.0;
-        (origin * Point3::from(p)).coords
-    };
+    let extent = Vector3::from(size);
+    let thin = extent.imin();
+    let axes = [Vector3::x(), Vector3::y(), Vector3::z()];
+    let half_side = |k: usize| axes.get(k % 3).map_or_else(Vector3::zeros, |axis| axis * extent.dot(axis) / 2.0);
+    let (u, v) = (half_side(thin + 1), half_side(thin + 2));
+    let corner = |su: f64, sv: f64| (origin * Point3::from(u * su + v * sv)).coords;
     let [c0, c1, c2, c3] = [corner(-1.0, -1.0), corner(1.0, -1.0), corner(1.0, 1.0), corner(-1.0, 1.0)];
-    let radius = size[thin] / 2.0;
+    let radius = extent.min() / 2.0;
     let source = format!("box {} x {} x {}", size[0], size[1], size[2]);
     vec![
         (outward(SweptSphere::swept_triangle(c0, c1, c2, radius)), source.clone()),
@@ -157,10 +155,13 @@ pub fn mesh_vertices(filename: &str, scale: [f64; 3], packages: Option<&Path>) -
         .collect())
 }
 
+/// A link's name and points in its frame (m).
+pub type LinkPoints = (String, Vec<Vector3<f64>>);
+
 /// Points on the surface of every `<collision>` primitive of the URDF `text`, by link (link
 /// frame, m): a mesh's vertices, a box's corners, 32 points on each rim of a cylinder (and a
 /// capsule's cylinder), 26 on a sphere. The tests check that the fitted volumes contain them.
-pub fn primitive_points(text: &str, packages: Option<&Path>) -> Result<Vec<(String, Vec<Vector3<f64>>)>, String> {
+pub fn primitive_points(text: &str, packages: Option<&Path>) -> Result<Vec<LinkPoints>, String> {
     let robot = urdf_rs::read_from_string(text).map_err(|e| format!("malformed URDF: {e}"))?;
     let mut out = Vec::new();
     for link in &robot.links {
@@ -481,14 +482,14 @@ pub fn readme_section(fitted: &Fitted) -> String {
 }
 
 #[cfg(test)]
-#[allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "test code: failures should panic")]
+#[allow(clippy::unwrap_used, clippy::indexing_slicing, clippy::panic, reason = "test code: failures should panic")]
 mod tests {
     use super::*;
 
     #[test]
     fn the_bounding_capsule_contains_every_point() {
         let points: Vec<Vector3<f64>> = (0..50)
-            .map(|k| f64::from(k))
+            .map(f64::from)
             .map(|t| Vector3::new(0.01 * t, 0.03 * (t * 0.7).sin(), 0.02 * (t * 1.3).cos()))
             .collect();
         let capsule = outward(bounding_capsule(&points).unwrap());
