@@ -1,10 +1,10 @@
 //! Code generation: a URDF-loaded robot → the `no_std` Rust constructor the firmware uses.
 //!
 //! A robot has one source of truth, its URDF. The host reads it with [`crate::urdf`]. The board
-//! cannot parse XML, so [`model_source`] writes the loaded description out as Rust:
+//! cannot parse XML, so `model_source` writes the loaded description out as Rust:
 //! `ModelBuilder` calls with the model's `f64` values as literals, converted to the scalar `T`
 //! with `nalgebra::convert` by the helpers of `fixtures::builder`. Two kinds of module are
-//! written by the same code ([`Module`]):
+//! written by the same code (`Module`):
 //!
 //! - Justin's `fixtures/src/justin/generated.rs` ([`justin_source`]), a child of
 //!   `fixtures::justin`, which defines `N`, `BODIES` and `JustinModel`. The test
