@@ -1,23 +1,28 @@
-//! Code generation: a URDF-loaded model → the `no_std` Rust constructor the firmware uses.
+//! Code generation: a URDF-loaded robot → the `no_std` Rust constructor the firmware uses.
 //!
-//! The Justin-like robot has one source of truth, `fixtures/urdf/justin.urdf`. The host loads
-//! it with [`crate::urdf::load`]. The board cannot parse XML, so [`justin_source`] writes the
-//! loaded model out as Rust: `ModelBuilder` calls with the model's `f64` values as literals,
-//! converted to the scalar `T` with `nalgebra::convert`. The file is checked in as
-//! `fixtures/src/justin/generated.rs`. The test `thesis-tests::fixtures_models` regenerates it
-//! and fails if the checked-in copy differs. With `UPDATE_GENERATED=1` it rewrites the file.
+//! A robot has one source of truth, its URDF. The host reads it with [`crate::urdf`]. The board
+//! cannot parse XML, so `model_source` writes the loaded description out as Rust:
+//! `ModelBuilder` calls with the model's `f64` values as literals, converted to the scalar `T`
+//! with `nalgebra::convert` by the helpers of `fixtures::builder`. Two kinds of module are
+//! written by the same code (`Module`):
+//!
+//! - Justin's `fixtures/src/justin/generated.rs` ([`justin_source`]), a child of
+//!   `fixtures::justin`, which defines `N`, `BODIES` and `JustinModel`. The test
+//!   `thesis-tests::fixtures_models` regenerates it and fails if the checked-in copy differs;
+//!   with `UPDATE_GENERATED=1` it rewrites the file.
+//! - An imported robot's whole module `fixtures/robots/<name>/mod.rs` (`host-sim import`,
+//!   [`crate::import`]), which defines its own sizes, names its frozen joints and its TCPs, and
+//!   has `pub fn model<T>()`.
 //!
 //! Literals use Rust's shortest round-trip formatting, so in `f64` the generated model equals
-//! the loaded one bit for bit. The generated code relies on helpers and constants of its parent
-//! module (`fixtures::justin`): `N`, `BODIES`, `JustinModel`, and the private functions
-//! `vector`, `placement`, `revolute`, `prismatic`, `coupled`, `inertia`, `limits`.
+//! the loaded one bit for bit.
 
 use std::fmt::Write as _;
+use std::path::Path;
 
 use kernel::model::{JointKind, Placement};
-use kernel::Model;
 
-use crate::urdf::UrdfRobot;
+use crate::urdf::{self, Coupling, Description};
 
 /// Repository-relative path of the URDF the Justin constructor is generated from.
 pub const JUSTIN_URDF: &str = "fixtures/urdf/justin.urdf";
@@ -26,85 +31,140 @@ pub const JUSTIN_GENERATED: &str = "fixtures/src/justin/generated.rs";
 /// The command that regenerates [`JUSTIN_GENERATED`].
 pub const REGENERATE_COMMAND: &str = "UPDATE_GENERATED=1 cargo test -p thesis-tests fixtures_models";
 
-/// Source of `fixtures/src/justin/generated.rs` for the Justin-like robot loaded from
-/// [`JUSTIN_URDF`] with coupled joints coupled (`N = 20` coordinates, 21 bodies). `F` is only
-/// the capacity used for loading; the generated `FRAMES` is the actual number of links.
-pub fn justin_source<const F: usize>(robot: &UrdfRobot<20, 21, F>) -> String {
-    model_source(robot, JUSTIN_URDF)
+/// Source of `fixtures/src/justin/generated.rs` from the Justin URDF at `urdf` (the file
+/// [`JUSTIN_URDF`] names), loaded with coupled joints coupled (`N = 20`, 21 bodies).
+pub fn justin_source(urdf: &Path) -> Result<String, String> {
+    let description = urdf::describe_file(urdf, Coupling::Coupled)?;
+    Ok(model_source(&description, JUSTIN_URDF, &Module::JustinChild))
 }
 
-/// Source of a generated constructor module for `robot`, loaded from the URDF at `urdf_path`
-/// (named in the header only).
+/// The kind of module [`model_source`] writes.
+pub(crate) enum Module<'a> {
+    /// Justin's `generated.rs`: its parent module defines `N`, `BODIES` and `JustinModel`.
+    JustinChild,
+    /// A robot's whole module, written by `host-sim import`.
+    Robot(&'a RobotModule),
+}
+
+/// What an imported robot's module says beyond its model.
+pub(crate) struct RobotModule {
+    /// The command that regenerates the module.
+    pub(crate) command: String,
+    /// Movable URDF joints frozen at zero (not on a chain from the root to a TCP).
+    pub(crate) frozen_joints: Vec<String>,
+    /// The TCP links, in command-line order.
+    pub(crate) tcps: Vec<String>,
+    /// Whether `--base planar` added the platform coordinates `base_x`, `base_y`, `base_theta`.
+    pub(crate) planar_base: bool,
+}
+
+/// Source of a generated constructor module for the robot `d`, loaded from the URDF at
+/// `urdf_path` (named in the header only).
 ///
 /// The module defines `FRAMES` (one frame per URDF link), `JOINT_NAMES`, `FRAME_NAMES`,
-/// `BODY_NAMES`, one `FrameId` constant per link (its name in upper case), and
-/// `pub(super) fn build<T>()`. Names must be valid Rust identifiers in upper case. Every URDF
-/// link name is, if it uses letters, digits and underscores.
-pub fn model_source<const N: usize, const B: usize, const F: usize>(
-    robot: &UrdfRobot<N, B, F>,
-    urdf_path: &str,
-) -> String {
-    let model = &robot.model;
+/// `BODY_NAMES`, one `FrameId` constant per link (its name in upper case) and the constructor.
+/// Names must be valid Rust identifiers in upper case. Every URDF link name is, if it uses
+/// letters, digits and underscores.
+pub(crate) fn model_source(d: &Description, urdf_path: &str, module: &Module) -> String {
     let mut s = String::new();
     let mut line = |text: &str| {
         s.push_str(text);
         s.push('\n');
     };
+    let regenerate = match module {
+        Module::JustinChild => REGENERATE_COMMAND,
+        Module::Robot(robot) => robot.command.as_str(),
+    };
+    let joint_names: Vec<String> = d.coordinates.iter().map(|c| c.joint.clone()).collect();
+    let frame_names: Vec<String> = d.frames.iter().map(|f| f.link.clone()).collect();
+    let body_names: Vec<String> = d.bodies.iter().map(|b| b.link.clone()).collect();
     line(&format!("//! Generated by `host-sim/src/codegen.rs` from `{urdf_path}`. Do not edit."));
     line("//!");
-    line(&format!("//! Regenerate with `{REGENERATE_COMMAND}`."));
+    line(&format!("//! Regenerate with `{regenerate}`."));
     line("//! Values are the loaded model's `f64` numbers (fixed links merged into their bodies, placements");
     line("//! composed), converted to `T` with `nalgebra::convert`.");
+    if let Module::Robot(robot) = module {
+        robot_docs(&mut line, robot, &joint_names);
+    }
     line("#![allow(clippy::approx_constant, reason = \"the literals reproduce the URDF's values exactly\")]");
     line("");
     line("use kernel::model::{JointDrive, ModelBuilder, ModelError};");
-    line("use kernel::FrameId;");
+    match module {
+        Module::JustinChild => line("use kernel::FrameId;"),
+        Module::Robot(_) => line("use kernel::{FrameId, Model};"),
+    }
     line("use nalgebra::RealField;");
     line("");
-    line("use super::{coupled, inertia, limits, placement, prismatic, revolute, vector, JustinModel, BODIES, N};");
-    line("");
-    line("/// Number of fixed frames: one at the origin of every URDF link, in depth-first order.");
-    line(&format!("pub const FRAMES: usize = {};", model.frames().len()));
-    line("");
-    line("/// URDF joint of each generalized coordinate: `JOINT_NAMES[k]` drives `q[k]`.");
-    line(&format!("pub const JOINT_NAMES: [&str; N] = [{}];", quoted(&robot.joint_names)));
-    line("/// URDF link of each frame: `FRAME_NAMES[i]` is the link at `FrameId(i)`'s origin.");
-    line(&format!("pub const FRAME_NAMES: [&str; FRAMES] = [{}];", quoted(&robot.frame_names)));
-    line("/// URDF link of each body (the child link of the body's moving joint).");
-    line(&format!("pub const BODY_NAMES: [&str; BODIES] = [{}];", quoted(&robot.body_names)));
-    line("");
-    for (i, (name, frame)) in robot.frame_names.iter().zip(model.frames()).enumerate() {
-        let attached = match frame.parent {
-            Some(body) => format!("attached to body {} (`{}`)", body.0, name_of(&robot.body_names, body.0)),
-            None => "fixed in the world".to_owned(),
-        };
-        line(&format!("/// Frame at the origin of link `{name}`, {attached}."));
-        line(&format!("pub const {}: FrameId = FrameId({i});", name.to_uppercase()));
+    line(&format!("use crate::builder::{{{}}};", helpers(d).join(", ")));
+    match module {
+        Module::JustinChild => line("use super::{JustinModel, BODIES, N};"),
+        Module::Robot(_) => {
+            line("");
+            line("/// Number of generalized coordinates: the controlled joints, in tree order.");
+            line(&format!("pub const N: usize = {};", d.coordinates.len()));
+            line("/// Number of bodies: one per controlled joint (coupled joints included).");
+            line(&format!("pub const BODIES: usize = {};", d.bodies.len()));
+        }
     }
     line("");
-    line("/// Builds the model; see `super::model`.");
-    line("pub(super) fn build<T: RealField + Copy>() -> Result<JustinModel<T>, ModelError> {");
+    line("/// Number of fixed frames: one at the origin of every URDF link, in depth-first order.");
+    line(&format!("pub const FRAMES: usize = {};", d.frames.len()));
+    if let Module::Robot(robot) = module {
+        line("/// The robot's model type.");
+        line("pub type RobotModel<T> = Model<T, N, BODIES, FRAMES>;");
+        line("/// Movable URDF joints frozen at zero (not on a chain from the root to a TCP).");
+        let frozen = robot.frozen_joints.len();
+        line(&format!("pub const FROZEN_JOINTS: [&str; {frozen}] = [{}];", quoted(&robot.frozen_joints)));
+        line("/// The TCP frames, in the order of the import command's `--tcp` options.");
+        let tcps: Vec<String> = robot.tcps.iter().map(|t| t.to_uppercase()).collect();
+        line(&format!("pub const TCPS: [FrameId; {}] = [{}];", tcps.len(), tcps.join(", ")));
+    }
+    line("");
+    line("/// URDF joint of each generalized coordinate: `JOINT_NAMES[k]` drives `q[k]`.");
+    line(&format!("pub const JOINT_NAMES: [&str; N] = [{}];", quoted(&joint_names)));
+    line("/// URDF link of each frame: `FRAME_NAMES[i]` is the link at `FrameId(i)`'s origin.");
+    line(&format!("pub const FRAME_NAMES: [&str; FRAMES] = [{}];", quoted(&frame_names)));
+    line("/// URDF link of each body (the child link of the body's moving joint).");
+    line(&format!("pub const BODY_NAMES: [&str; BODIES] = [{}];", quoted(&body_names)));
+    line("");
+    for (i, frame) in d.frames.iter().enumerate() {
+        let attached = match frame.parent {
+            Some(body) => format!("attached to body {body} (`{}`)", name_of(&body_names, body)),
+            None => "fixed in the world".to_owned(),
+        };
+        line(&format!("/// Frame at the origin of link `{}`, {attached}.", frame.link));
+        line(&format!("pub const {}: FrameId = FrameId({i});", frame.link.to_uppercase()));
+    }
+    line("");
+    match module {
+        Module::JustinChild => {
+            line("/// Builds the model; see `super::model`.");
+            line("pub(super) fn build<T: RealField + Copy>() -> Result<JustinModel<T>, ModelError> {");
+        }
+        Module::Robot(_) => {
+            line("/// Builds the model: units m, kg, kg m², rad; limits in rad (m), rad/s (m/s), Nm (N).");
+            line("pub fn model<T: RealField + Copy>() -> Result<RobotModel<T>, ModelError> {");
+        }
+    }
     line(&format!(
         "    let mut builder = ModelBuilder::<T, N, BODIES, FRAMES>::new(vector({}));",
-        array(model.gravity.iter())
+        array(urdf::GRAVITY.iter())
     ));
-    let referenced = referenced_bodies(model);
-    for (i, body) in model.bodies().iter().enumerate() {
-        let parent = body.parent.map_or_else(|| "None".to_owned(), |p| format!("Some(b{})", p.0));
-        let axis = array(body.joint.axis().iter());
-        let joint = match body.joint {
+    let referenced = referenced_bodies(d);
+    for (i, body) in d.bodies.iter().enumerate() {
+        let parent = body.parent.map_or_else(|| "None".to_owned(), |p| format!("Some(b{p})"));
+        let axis = array(body.kind.axis().iter());
+        let joint = match body.kind {
             JointKind::Revolute { .. } => format!("revolute({axis})"),
             JointKind::Prismatic { .. } => format!("prismatic({axis})"),
         };
-        let terms = body.drive.terms();
-        let drive = match terms {
-            [term] if term.coefficient == 1.0 && body.drive.offset() == 0.0 => {
-                format!("JointDrive::actuated({})", term.coordinate)
+        let drive = match body.terms.as_slice() {
+            [(coordinate, coefficient)] if *coefficient == 1.0 && body.offset == 0.0 => {
+                format!("JointDrive::actuated({coordinate})")
             }
-            _ => {
-                let list: Vec<String> =
-                    terms.iter().map(|t| format!("({}, {})", t.coordinate, literal(t.coefficient))).collect();
-                format!("coupled({i}, [{}], {})?", list.join(", "), literal(body.drive.offset()))
+            terms => {
+                let list: Vec<String> = terms.iter().map(|(k, c)| format!("({k}, {})", literal(*c))).collect();
+                format!("coupled({i}, [{}], {})?", list.join(", "), literal(body.offset))
             }
         };
         let inertia = format!(
@@ -113,26 +173,26 @@ pub fn model_source<const N: usize, const B: usize, const F: usize>(
             array(body.inertia.com.iter()),
             array(body.inertia.rotational.transpose().iter())
         );
-        line(&format!("    // Body {i}: link `{}`.", name_of(&robot.body_names, i)));
+        line(&format!("    // Body {i}: link `{}`.", body.link));
         let binding = if referenced.contains(&i) { format!("let b{i} = ") } else { String::new() };
         line(&format!(
             "    {binding}builder.add_body({parent}, {}, {joint}, {drive}, {inertia})?;",
             placement(&body.joint_placement)
         ));
     }
-    for (name, frame) in robot.frame_names.iter().zip(model.frames()) {
-        let parent = frame.parent.map_or_else(|| "None".to_owned(), |p| format!("Some(b{})", p.0));
-        line(&format!("    builder.add_frame({parent}, {})?; // {name}", placement(&frame.placement)));
+    for frame in &d.frames {
+        let parent = frame.parent.map_or_else(|| "None".to_owned(), |p| format!("Some(b{p})"));
+        line(&format!("    builder.add_frame({parent}, {})?; // {}", placement(&frame.placement), frame.link));
     }
-    let l = &model.limits;
     line("    builder.limits(limits(");
-    for (vector, unit) in [
-        (&l.position_lower, "lower position (rad, m)"),
-        (&l.position_upper, "upper position (rad, m)"),
-        (&l.velocity, "velocity (rad/s, m/s)"),
-        (&l.effort, "effort (Nm, N)"),
+    let column = |f: fn(&urdf::CoordinateSpec) -> f64| -> Vec<f64> { d.coordinates.iter().map(f).collect() };
+    for (values, unit) in [
+        (column(|c| c.lower), "lower position (rad, m)"),
+        (column(|c| c.upper), "upper position (rad, m)"),
+        (column(|c| c.velocity), "velocity (rad/s, m/s)"),
+        (column(|c| c.effort), "effort (Nm, N)"),
     ] {
-        line(&format!("        {}, // {unit}", array(vector.iter())));
+        line(&format!("        {}, // {unit}", array(values.iter())));
     }
     line("    ));");
     line("    builder.try_build()");
@@ -140,11 +200,49 @@ pub fn model_source<const N: usize, const B: usize, const F: usize>(
     s
 }
 
+/// The module docs of an imported robot: controlled, frozen and TCP frames.
+fn robot_docs(line: &mut impl FnMut(&str), robot: &RobotModule, joint_names: &[String]) {
+    line("//!");
+    line(&format!(
+        "//! Controlled joints (`N = {}`, the joints on the chains from the root to the TCPs):",
+        joint_names.len()
+    ));
+    line(&format!("//! {}.", backquoted(joint_names)));
+    if robot.planar_base {
+        line("//! `base_x`, `base_y`, `base_theta` are the planar platform coordinates added by `--base planar`.");
+    }
+    line("//!");
+    if robot.frozen_joints.is_empty() {
+        line("//! Frozen joints: none.");
+    } else {
+        line("//! Frozen joints (fixed at zero, their links merged into the controlled bodies):");
+        line(&format!("//! {}.", backquoted(&robot.frozen_joints)));
+    }
+    line("//!");
+    line(&format!("//! TCP frames: {}.", backquoted(&robot.tcps)));
+}
+
+/// The `fixtures::builder` helpers the generated code calls, sorted.
+fn helpers(d: &Description) -> Vec<&'static str> {
+    let mut used = vec!["inertia", "limits", "placement", "vector"];
+    if d.bodies.iter().any(|b| matches!(b.kind, JointKind::Revolute { .. })) {
+        used.push("revolute");
+    }
+    if d.bodies.iter().any(|b| matches!(b.kind, JointKind::Prismatic { .. })) {
+        used.push("prismatic");
+    }
+    if d.bodies.iter().any(|b| !matches!(b.terms.as_slice(), [(_, c)] if *c == 1.0 && b.offset == 0.0)) {
+        used.push("coupled");
+    }
+    used.sort_unstable();
+    used
+}
+
 /// Bodies named as the parent of another body or of a frame.
-fn referenced_bodies<const N: usize, const B: usize, const F: usize>(model: &Model<f64, N, B, F>) -> Vec<usize> {
-    let parents = model.bodies().iter().filter_map(|b| b.parent);
-    let frames = model.frames().iter().filter_map(|f| f.parent);
-    let mut ids: Vec<usize> = parents.chain(frames).map(|b| b.0).collect();
+fn referenced_bodies(d: &Description) -> Vec<usize> {
+    let parents = d.bodies.iter().filter_map(|b| b.parent);
+    let frames = d.frames.iter().filter_map(|f| f.parent);
+    let mut ids: Vec<usize> = parents.chain(frames).collect();
     ids.sort_unstable();
     ids.dedup();
     ids
@@ -174,6 +272,11 @@ fn literal(x: f64) -> String {
     } else {
         format!("{x:?}")
     }
+}
+
+/// `` `a`, `b`, … ``.
+fn backquoted(names: &[String]) -> String {
+    names.iter().map(|n| format!("`{n}`")).collect::<Vec<_>>().join(", ")
 }
 
 /// `"a", "b", …`.
@@ -221,8 +324,8 @@ mod tests {
             <joint name="t" type="fixed"><parent link="arm"/><child link="tip"/>
               <origin xyz="0 0 1"/></joint>
         </robot>"#;
-        let robot = crate::urdf::load_str::<1, 1, 3>(urdf, crate::urdf::Coupling::Coupled).unwrap();
-        let source = model_source(&robot, "r.urdf");
+        let description = urdf::describe(urdf, Coupling::Coupled).unwrap();
+        let source = model_source(&description, "r.urdf", &Module::JustinChild);
         assert!(source.contains("pub const FRAMES: usize = 3;"));
         assert!(source.contains("pub const JOINT_NAMES: [&str; N] = [\"j\"];"));
         assert!(source.contains("pub const TIP: FrameId = FrameId(2);"));

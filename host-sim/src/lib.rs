@@ -8,6 +8,7 @@
 //! Modules:
 //! - [`urdf`]: URDF → kernel [`kernel::Model`] (fixed links lumped into their parents).
 //! - [`dynamics_cli`]: the `dynamics` subcommand (M, C, g, J of a URDF at given states).
+//! - [`import`]: the `import` subcommand: a URDF → `fixtures/robots/<name>/` (model, collision model).
 //! - [`sim`]: the simulator and its `hal` implementations.
 //! - [`plant`]: the realistic plant's friction, torque lag, delay and sensor noise.
 //! - [`controllers`]: controllers run in the loop by scenarios.
@@ -23,6 +24,7 @@
 pub mod codegen;
 pub mod controllers;
 pub mod dynamics_cli;
+pub mod import;
 pub mod mobile_controller;
 pub mod output;
 pub mod pil;

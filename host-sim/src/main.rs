@@ -1,9 +1,10 @@
-//! `host-sim` command line: run scenarios, list them, evaluate dynamics of a URDF.
+//! `host-sim` command line: run scenarios, list them, evaluate dynamics of a URDF, import a robot.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use host_sim::import::ImportOptions;
 use host_sim::plant::PlantKind;
 use host_sim::scalar::Scalar;
 use host_sim::scenarios::{Progress, RunOptions, DEFAULT_RECORD_EVERY};
@@ -61,6 +62,33 @@ enum Command {
         #[arg(long)]
         states: PathBuf,
     },
+    /// Import a robot from its URDF into fixtures/robots/<name>/: the no_std model constructor
+    /// (joints on the chains to the TCPs controlled, the others frozen), the swept-sphere
+    /// collision model with its pair list, a README. Run from the repository root.
+    Import {
+        /// URDF file (repository-relative).
+        #[arg(long)]
+        urdf: String,
+        /// Robot name: the directory and module fixtures::robots::<name> (lower case).
+        #[arg(long)]
+        name: String,
+        /// TCP link; repeat for each arm.
+        #[arg(long = "tcp", required = true)]
+        tcps: Vec<String>,
+        /// `planar`: add the platform coordinates x, y, θ in front of the root link.
+        #[arg(long, value_enum)]
+        base: Option<Base>,
+        /// Directory holding the ROS packages that `package://` mesh URIs name.
+        #[arg(long)]
+        package_path: Option<String>,
+    },
+}
+
+/// The base `import --base` adds.
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum Base {
+    /// An omnidirectional platform: prismatic x, y and continuous θ about z.
+    Planar,
 }
 
 fn main() -> ExitCode {
@@ -80,6 +108,11 @@ fn main() -> ExitCode {
         }
         Command::Dynamics { urdf, frame, states } => {
             host_sim::dynamics_cli::run(&urdf, &frame, &states).map(|json| println!("{json}"))
+        }
+        Command::Import { urdf, name, tcps, base, package_path } => {
+            let planar_base = matches!(base, Some(Base::Planar));
+            let options = ImportOptions { root: PathBuf::from("."), urdf, name, tcps, planar_base, package_path };
+            host_sim::import::run(&options)
         }
     };
     match result {

@@ -136,9 +136,9 @@ pub fn coordinate_count(path: &Path, coupling: Coupling) -> Result<usize, String
 /// A size-independent description of the robot, the step between the URDF and a [`Model`].
 #[derive(Clone, Debug)]
 pub(crate) struct Description {
-    bodies: Vec<BodySpec>,
-    frames: Vec<FrameSpec>,
-    coordinates: Vec<CoordinateSpec>,
+    pub(crate) bodies: Vec<BodySpec>,
+    pub(crate) frames: Vec<FrameSpec>,
+    pub(crate) coordinates: Vec<CoordinateSpec>,
 }
 
 impl Description {
@@ -154,32 +154,32 @@ impl Description {
 }
 
 #[derive(Clone, Debug)]
-struct BodySpec {
-    link: String,
-    joint: String,
-    parent: Option<usize>,
-    joint_placement: Placement<f64>,
-    kind: JointKind<f64>,
-    inertia: Inertia<f64>,
+pub(crate) struct BodySpec {
+    pub(crate) link: String,
+    pub(crate) joint: String,
+    pub(crate) parent: Option<usize>,
+    pub(crate) joint_placement: Placement<f64>,
+    pub(crate) kind: JointKind<f64>,
+    pub(crate) inertia: Inertia<f64>,
     /// `(coordinate, coefficient)` terms and offset of the joint's drive.
-    terms: Vec<(usize, f64)>,
-    offset: f64,
+    pub(crate) terms: Vec<(usize, f64)>,
+    pub(crate) offset: f64,
 }
 
 #[derive(Clone, Debug)]
-struct FrameSpec {
-    link: String,
-    parent: Option<usize>,
-    placement: Placement<f64>,
+pub(crate) struct FrameSpec {
+    pub(crate) link: String,
+    pub(crate) parent: Option<usize>,
+    pub(crate) placement: Placement<f64>,
 }
 
 #[derive(Clone, Debug)]
-struct CoordinateSpec {
-    joint: String,
-    lower: f64,
-    upper: f64,
-    velocity: f64,
-    effort: f64,
+pub(crate) struct CoordinateSpec {
+    pub(crate) joint: String,
+    pub(crate) lower: f64,
+    pub(crate) upper: f64,
+    pub(crate) velocity: f64,
+    pub(crate) effort: f64,
 }
 
 /// One `<coupling>` element (or a `<mimic>`): `q_joint = Σ multiplier · q_term + offset`.
@@ -594,7 +594,7 @@ fn rotation_rpy([roll, pitch, yaw]: [f64; 3]) -> Rotation3<f64> {
 }
 
 /// Placement of a URDF `<origin>`; `context` names its element for errors.
-fn pose(origin: &urdf_rs::Pose, context: &str) -> Result<Placement<f64>, String> {
+pub(crate) fn pose(origin: &urdf_rs::Pose, context: &str) -> Result<Placement<f64>, String> {
     let (xyz, rpy) = (origin.xyz.0, origin.rpy.0);
     if !xyz.iter().chain(rpy.iter()).all(|x| x.is_finite()) {
         return Err(format!("{context}: origin is not finite"));

@@ -18,6 +18,8 @@ mod fixtures_models;
 #[cfg(test)]
 mod hierarchy;
 #[cfg(test)]
+mod imported_robots;
+#[cfg(test)]
 mod manipulability;
 #[cfg(test)]
 mod multilevel;

@@ -1,0 +1,517 @@
+//! The imported robot's swept-sphere collision model: volumes fitted to the URDF's
+//! `<collision>` geometry, and the pair survey that lists the pairs the controller never needs.
+//!
+//! **Fitting** (each volume contains its primitive; the points are rounded to 0.1 mm and the
+//! radius is rounded up with a 0.1 mm margin, so the written numbers still contain it):
+//! - sphere → the sphere;
+//! - cylinder of radius `r` and length `L` → the capsule between its end centres with radius `r`
+//!   (exact on the mantle, the caps bulge by `r`); a URDF capsule → the same capsule;
+//! - box → the rectangle in the mid-plane across its thinnest side (two triangles) swept by
+//!   half that side (exact, as Justin's chest);
+//! - mesh → its bounding capsule: the axis is the vertices' principal direction through their
+//!   centroid, the radius the largest distance of a vertex from that axis, the end points the
+//!   shortest segment on the axis that keeps every vertex inside. Meshes are read with `stl_io`
+//!   (STL only); `package://<package>/<path>` resolves to `<--package-path>/<package>/<path>`. A
+//!   capsule is convex, so containing the vertices it contains the whole mesh.
+//!
+//! **Pair survey.** Pairs on one body and pairs of adjacent links are dropped by the kernel's rules
+//! ([`kernel::tasks::collision::exclusion_rule`]; the same rule is applied here on the
+//! description). Every other pair's distance is sampled over [`SURVEY_SAMPLES`] random
+//! configurations (uniform within the joint limits, `±π` for continuous joints, seed
+//! [`SURVEY_SEED`]); a pair is excluded as `constant` when its distance does not change,
+//! `never_close` when it stays above the potential's activation distance
+//! `d0` ([`ACTIVATION_DISTANCE_M`], Table 3.1) plus [`SURVEY_MARGIN_M`] (its potential would never act), and
+//! `always_near` when it stays below `d0` (its potential would never switch off and would only
+//! bias the posture). This is the classification of Justin's exclusions
+//! (`fixtures/collision/justin.collision`), whose survey used a grid instead of random samples.
+
+use std::path::Path;
+
+use kernel::model::JointKind;
+use kernel::model::Placement;
+use kernel::tasks::collision::{proximity, Core, SweptSphere};
+use nalgebra::{Matrix3, Point3, Rotation3, SymmetricEigen, Translation3, Vector3};
+use rand::rngs::Xoshiro256PlusPlus;
+use rand::{RngExt, SeedableRng};
+use urdf_rs::Geometry;
+
+use super::ImportOptions;
+use crate::urdf::{self, Description};
+
+/// Random configurations of the pair survey.
+pub const SURVEY_SAMPLES: usize = 20_000;
+/// Seed of the pair survey's configurations.
+pub const SURVEY_SEED: u64 = 0x5eed_c011_1510_0015;
+/// The collision potential's activation distance `d0` (m), thesis Table 3.1.
+pub const ACTIVATION_DISTANCE_M: f64 = 0.15;
+/// Margin above `d0` a `never_close` pair keeps in every sample (m): the samples only bound the
+/// true smallest distance from above.
+pub const SURVEY_MARGIN_M: f64 = 0.05;
+/// Distance range below which a pair counts as constant (m).
+const CONSTANT_TOLERANCE_M: f64 = 1e-9;
+/// Resolution of the written numbers (m).
+const RESOLUTION_M: f64 = 1e-4;
+
+/// One fitted volume, in the frame of its link.
+#[derive(Clone, Debug)]
+pub struct FittedVolume {
+    /// Volume name: `<link>_<k>` for the link's `k`-th collision element (`_a`, `_b` for a box's
+    /// two triangles).
+    pub name: String,
+    /// The URDF link whose frame the shape is given in.
+    pub link: String,
+    /// The volume.
+    pub shape: SweptSphere<f64>,
+    /// The primitive it was fitted to, for the file's comments.
+    pub source: String,
+}
+
+/// The fitted volumes of a robot.
+#[derive(Clone, Debug)]
+pub struct Fitted {
+    /// Every volume, in link and collision-element order.
+    pub volumes: Vec<FittedVolume>,
+}
+
+/// Fits volumes to every `<collision>` element of `robot`. `packages` resolves `package://` URIs.
+pub fn fit(robot: &urdf_rs::Robot, packages: Option<&Path>) -> Result<Fitted, String> {
+    let mut volumes = Vec::new();
+    for link in &robot.links {
+        for (k, collision) in link.collision.iter().enumerate() {
+            let context = format!("link {} <collision> {k}", link.name);
+            let origin = urdf::pose(&collision.origin, &context)?;
+            let name = format!("{}_{k}", link.name);
+            let fitted = fit_geometry(&collision.geometry, &origin, packages).map_err(|e| format!("{context}: {e}"))?;
+            let suffixes = if fitted.len() > 1 { ["_a", "_b"].as_slice() } else { [""].as_slice() };
+            for ((shape, source), suffix) in fitted.into_iter().zip(suffixes) {
+                volumes.push(FittedVolume { name: format!("{name}{suffix}"), link: link.name.clone(), shape, source });
+            }
+        }
+    }
+    Ok(Fitted { volumes })
+}
+
+/// The volume(s) of one primitive placed by `origin`, each with its description.
+fn fit_geometry(
+    geometry: &Geometry,
+    origin: &Placement<f64>,
+    packages: Option<&Path>,
+) -> Result<Vec<(SweptSphere<f64>, String)>, String> {
+    let at = |x: f64, y: f64, z: f64| origin * Point3::new(x, y, z);
+    Ok(match geometry {
+        Geometry::Sphere { radius } => {
+            vec![(outward(SweptSphere::sphere(at(0.0, 0.0, 0.0).coords, *radius)), format!("sphere r {radius}"))]
+        }
+        Geometry::Cylinder { radius, length } | Geometry::Capsule { radius, length } => {
+            let (a, b) = (at(0.0, 0.0, -length / 2.0).coords, at(0.0, 0.0, length / 2.0).coords);
+            vec![(outward(SweptSphere::capsule(a, b, *radius)), format!("cylinder r {radius} L {length}"))]
+        }
+        Geometry::Box { size } => box_triangles(size.0, origin),
+        Geometry::Mesh { filename, scale } => {
+            let scale = scale.as_ref().map_or([1.0; 3], |s| s.0);
+            let vertices = mesh_vertices(filename, scale, packages)?;
+            let points: Vec<Vector3<f64>> = vertices.iter().map(|v| (origin * Point3::from(*v)).coords).collect();
+            let capsule = bounding_capsule(&points).ok_or_else(|| format!("mesh {filename} has no vertices"))?;
+            vec![(outward(capsule), format!("bounding capsule of mesh {filename} ({} vertices)", points.len()))]
+        }
+    })
+}
+
+/// A box of `size` (m) placed by `origin`: the rectangle in the mid-plane across its thinnest
+/// side, as two triangles swept by half that side.
+fn box_triangles(size: [f64; 3], origin: &Placement<f64>) -> Vec<(SweptSphere<f64>, String)> {
+    let extent = Vector3::from(size);
+    let thin = extent.imin();
+    let axes = [Vector3::x(), Vector3::y(), Vector3::z()];
+    let half_side = |k: usize| axes.get(k % 3).map_or_else(Vector3::zeros, |axis| axis * extent.dot(axis) / 2.0);
+    let (u, v) = (half_side(thin + 1), half_side(thin + 2));
+    let corner = |su: f64, sv: f64| (origin * Point3::from(u * su + v * sv)).coords;
+    let [c0, c1, c2, c3] = [corner(-1.0, -1.0), corner(1.0, -1.0), corner(1.0, 1.0), corner(-1.0, 1.0)];
+    let radius = extent.min() / 2.0;
+    let source = format!("box {} x {} x {}", size[0], size[1], size[2]);
+    vec![
+        (outward(SweptSphere::swept_triangle(c0, c1, c2, radius)), source.clone()),
+        (outward(SweptSphere::swept_triangle(c0, c2, c3, radius)), source),
+    ]
+}
+
+/// The vertices of the STL mesh `filename` (m, mesh frame, scaled).
+pub fn mesh_vertices(filename: &str, scale: [f64; 3], packages: Option<&Path>) -> Result<Vec<Vector3<f64>>, String> {
+    let path = match filename.strip_prefix("package://") {
+        Some(rest) => {
+            let dir =
+                packages.ok_or_else(|| format!("mesh {filename}: give --package-path to resolve package:// URIs"))?;
+            dir.join(rest)
+        }
+        None => Path::new(filename.strip_prefix("file://").unwrap_or(filename)).to_path_buf(),
+    };
+    let mut file = std::fs::File::open(&path).map_err(|e| format!("mesh {}: {e}", path.display()))?;
+    let mesh = stl_io::read_stl(&mut file).map_err(|e| format!("mesh {} (only STL is read): {e}", path.display()))?;
+    let [sx, sy, sz] = scale;
+    Ok(mesh
+        .vertices
+        .iter()
+        .map(|v| Vector3::new(f64::from(v[0]) * sx, f64::from(v[1]) * sy, f64::from(v[2]) * sz))
+        .collect())
+}
+
+/// A link's name and points in its frame (m).
+pub type LinkPoints = (String, Vec<Vector3<f64>>);
+
+/// Points on the surface of every `<collision>` primitive of the URDF `text`, by link (link
+/// frame, m): a mesh's vertices, a box's corners, 32 points on each rim of a cylinder (and a
+/// capsule's cylinder), 26 on a sphere. The tests check that the fitted volumes contain them.
+pub fn primitive_points(text: &str, packages: Option<&Path>) -> Result<Vec<LinkPoints>, String> {
+    let robot = urdf_rs::read_from_string(text).map_err(|e| format!("malformed URDF: {e}"))?;
+    let mut out = Vec::new();
+    for link in &robot.links {
+        for (k, collision) in link.collision.iter().enumerate() {
+            let origin = urdf::pose(&collision.origin, &format!("link {} <collision> {k}", link.name))?;
+            let local = match &collision.geometry {
+                Geometry::Sphere { radius } => directions().into_iter().map(|d| d.normalize() * *radius).collect(),
+                Geometry::Cylinder { radius, length } | Geometry::Capsule { radius, length } => (0..64)
+                    .map(|i| {
+                        let angle = f64::from(i % 32) * std::f64::consts::TAU / 32.0;
+                        let z = if i < 32 { -length / 2.0 } else { length / 2.0 };
+                        Vector3::new(radius * angle.cos(), radius * angle.sin(), z)
+                    })
+                    .collect(),
+                Geometry::Box { size } => directions()
+                    .into_iter()
+                    .filter(|d| d.iter().all(|c| c.abs() > 0.5))
+                    .map(|d| d.component_mul(&Vector3::from(size.0)) / 2.0)
+                    .collect(),
+                Geometry::Mesh { filename, scale } => {
+                    mesh_vertices(filename, scale.as_ref().map_or([1.0; 3], |s| s.0), packages)?
+                }
+            };
+            out.push((link.name.clone(), local.iter().map(|p| (origin * Point3::from(*p)).coords).collect()));
+        }
+    }
+    Ok(out)
+}
+
+/// The 26 offsets of a cube's centre to its neighbours, components in `{−1, 0, 1}`.
+fn directions() -> Vec<Vector3<f64>> {
+    let steps = [-1.0, 0.0, 1.0];
+    let mut out = Vec::new();
+    for x in steps {
+        for y in steps {
+            for z in steps {
+                let d = Vector3::new(x, y, z);
+                if d != Vector3::zeros() {
+                    out.push(d);
+                }
+            }
+        }
+    }
+    out
+}
+
+/// The bounding capsule of `points` along their principal direction (`None` without points).
+fn bounding_capsule(points: &[Vector3<f64>]) -> Option<SweptSphere<f64>> {
+    let count = points.len() as f64;
+    let centroid = points.iter().sum::<Vector3<f64>>() / count.max(1.0);
+    let covariance = points.iter().map(|p| (p - centroid) * (p - centroid).transpose()).sum::<Matrix3<f64>>();
+    let eigen = SymmetricEigen::new(covariance);
+    let axis = eigen.eigenvectors.column(eigen.eigenvalues.imax()).into_owned();
+    let along = |p: &Vector3<f64>| (p - centroid).dot(&axis);
+    let across = |p: &Vector3<f64>| (p - centroid - axis * along(p)).norm();
+    let radius = points.iter().map(across).fold(f64::NAN, f64::max);
+    let reach = |p: &Vector3<f64>| (radius * radius - across(p).powi(2)).max(0.0).sqrt();
+    let low = points.iter().map(|p| along(p) + reach(p)).fold(f64::INFINITY, f64::min);
+    let high = points.iter().map(|p| along(p) - reach(p)).fold(f64::NEG_INFINITY, f64::max);
+    radius.is_finite().then(|| {
+        let (a, b) = (low.min(high), low.max(high));
+        SweptSphere::capsule(centroid + axis * a, centroid + axis * b, radius)
+    })
+}
+
+/// The volume with its points rounded to [`RESOLUTION_M`] and its radius grown to cover the
+/// rounding: it still contains the original.
+fn outward(volume: SweptSphere<f64>) -> SweptSphere<f64> {
+    let round = |p: Vector3<f64>| p.map(|x| (x / RESOLUTION_M).round() * RESOLUTION_M);
+    let core = match volume.core {
+        Core::Point(p) => Core::Point(round(p)),
+        Core::Segment([a, b]) => Core::Segment([round(a), round(b)]),
+        Core::Triangle([a, b, c]) => Core::Triangle([round(a), round(b), round(c)]),
+    };
+    let radius = ((volume.radius + RESOLUTION_M) / RESOLUTION_M).ceil() * RESOLUTION_M;
+    SweptSphere { core, radius }
+}
+
+/// Why a pair is excluded (the reasons of `justin.collision`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Reason {
+    /// The distance does not change.
+    Constant,
+    /// The distance stays above `d0` plus the margin.
+    NeverClose,
+    /// The distance stays below `d0`.
+    AlwaysNear,
+}
+
+impl Reason {
+    /// The name in the collision file.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Constant => "constant",
+            Self::NeverClose => "never_close",
+            Self::AlwaysNear => "always_near",
+        }
+    }
+}
+
+/// An excluded pair with its sampled distance range (m).
+#[derive(Clone, Debug)]
+pub struct Exclusion {
+    /// Volume indices.
+    pub pair: (usize, usize),
+    /// Why.
+    pub reason: Reason,
+    /// Smallest and largest sampled distance (m).
+    pub range: (f64, f64),
+}
+
+/// The survey's result.
+#[derive(Clone, Debug)]
+pub struct Survey {
+    /// Pairs excluded by the survey.
+    pub excluded: Vec<Exclusion>,
+    /// Pairs left to the controller.
+    pub enabled: usize,
+}
+
+/// Surveys every pair of `volumes` the kernel's rules keep (see the module docs).
+pub(crate) fn survey(d: &Description, volumes: &[FittedVolume]) -> Result<Survey, String> {
+    let attached: Vec<(Option<usize>, SweptSphere<f64>)> = volumes
+        .iter()
+        .map(|v| {
+            let frame =
+                d.frames.iter().find(|f| f.link == v.link).ok_or_else(|| format!("internal: no frame {}", v.link))?;
+            Ok((frame.parent, v.shape.transformed(&frame.placement)))
+        })
+        .collect::<Result<_, String>>()?;
+    let mut pairs = Vec::new();
+    for i in 0..attached.len() {
+        for j in i + 1..attached.len() {
+            if let (Some((a, _)), Some((b, _))) = (attached.get(i), attached.get(j)) {
+                if !excluded_by_rule(d, *a, *b) {
+                    pairs.push(((i, j), (f64::INFINITY, f64::NEG_INFINITY)));
+                }
+            }
+        }
+    }
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(SURVEY_SEED);
+    for _ in 0..SURVEY_SAMPLES {
+        let q: Vec<f64> = d
+            .coordinates
+            .iter()
+            .map(|c| {
+                let (lo, hi) = if c.lower.is_finite() && c.upper.is_finite() {
+                    (c.lower, c.upper)
+                } else {
+                    (-std::f64::consts::PI, std::f64::consts::PI)
+                };
+                rng.random_range(lo..=hi)
+            })
+            .collect();
+        let placements = body_placements(d, &q);
+        let world: Vec<SweptSphere<f64>> = attached
+            .iter()
+            .map(|(body, shape)| match body.and_then(|b| placements.get(b)) {
+                Some(p) => shape.transformed(p),
+                None => *shape,
+            })
+            .collect();
+        for ((i, j), (lo, hi)) in &mut pairs {
+            if let (Some(a), Some(b)) = (world.get(*i), world.get(*j)) {
+                let distance = proximity(a, b).distance;
+                (*lo, *hi) = (lo.min(distance), hi.max(distance));
+            }
+        }
+    }
+    let classify = |(lo, hi): (f64, f64)| {
+        if hi - lo < CONSTANT_TOLERANCE_M {
+            Some(Reason::Constant)
+        } else if lo > ACTIVATION_DISTANCE_M + SURVEY_MARGIN_M {
+            Some(Reason::NeverClose)
+        } else if hi < ACTIVATION_DISTANCE_M {
+            Some(Reason::AlwaysNear)
+        } else {
+            None
+        }
+    };
+    let excluded: Vec<Exclusion> = pairs
+        .iter()
+        .filter_map(|&(pair, range)| classify(range).map(|reason| Exclusion { pair, reason, range }))
+        .collect();
+    Ok(Survey { enabled: pairs.len() - excluded.len(), excluded })
+}
+
+/// The kernel's exclusion rule ([`kernel::tasks::collision::exclusion_rule`]) on the
+/// description: the same body, or adjacent links (parent and child, or grandparent when the
+/// child sits at its parent's origin).
+fn excluded_by_rule(d: &Description, a: Option<usize>, b: Option<usize>) -> bool {
+    if a == b {
+        return true;
+    }
+    let (Some(a), Some(b)) = (a, b) else { return false };
+    let parent = |x: usize| d.bodies.get(x).and_then(|body| body.parent);
+    let at_parent_origin =
+        |x: usize| d.bodies.get(x).is_some_and(|body| body.joint_placement.translation.vector == Vector3::zeros());
+    let adjacent = |child: usize, ancestor: usize| {
+        parent(child) == Some(ancestor) || (at_parent_origin(child) && parent(child).and_then(parent) == Some(ancestor))
+    };
+    adjacent(a, b) || adjacent(b, a)
+}
+
+/// World placement of every body at coordinates `q` (bodies come after their parents).
+pub(crate) fn body_placements(d: &Description, q: &[f64]) -> Vec<Placement<f64>> {
+    let mut placements: Vec<Placement<f64>> = Vec::with_capacity(d.bodies.len());
+    for body in &d.bodies {
+        let value = body.terms.iter().map(|&(k, c)| c * q.get(k).copied().unwrap_or(0.0)).sum::<f64>() + body.offset;
+        let motion = match body.kind {
+            JointKind::Revolute { axis } => {
+                Placement::from_parts(Translation3::identity(), Rotation3::from_axis_angle(&axis, value))
+            }
+            JointKind::Prismatic { axis } => {
+                Placement::from_parts(Translation3::from(axis.into_inner() * value), Rotation3::identity())
+            }
+        };
+        let parent = body.parent.and_then(|p| placements.get(p)).copied().unwrap_or_else(Placement::identity);
+        placements.push(parent * body.joint_placement * motion);
+    }
+    placements
+}
+
+/// A point as `x y z`.
+fn point(p: &Vector3<f64>) -> String {
+    format!("{} {} {}", number(p.x), number(p.y), number(p.z))
+}
+
+/// A length at [`RESOLUTION_M`] without trailing zeros (`-0` written as `0`).
+fn number(x: f64) -> String {
+    let text = format!("{x:.4}");
+    let text = text.trim_end_matches('0').trim_end_matches('.');
+    if text == "-0" {
+        "0".to_owned()
+    } else {
+        text.to_owned()
+    }
+}
+
+/// The collision file `<name>.collision` (format of `fixtures/collision/justin.collision`).
+pub fn file(options: &ImportOptions, fitted: &Fitted, survey: &Survey) -> String {
+    let mut s = format!(
+        "# Collision model of {} ({}), generated by `host-sim import`; do not edit.\n",
+        options.name, options.urdf
+    );
+    s.push_str(&format!("# Regenerate with: {}\n#\n", options.command()));
+    s.push_str("# Each volume contains the URDF <collision> primitive above it (host-sim/src/import/collision.rs:\n");
+    s.push_str("# cylinder -> capsule, box -> mid-plane rectangle swept by half its thickness, mesh -> bounding\n");
+    s.push_str("# capsule); points rounded to 0.1 mm, radii rounded up with a 0.1 mm margin.\n#\n");
+    s.push_str("# Units: m. Points are in the frame of the named URDF link. The group is the link of the body the\n");
+    s.push_str("# volume moves with (`world` for the root).\n#\n# Line formats:\n");
+    s.push_str("#   sphere   <name> <group> <link> <radius> <x y z>\n");
+    s.push_str("#   capsule  <name> <group> <link> <radius> <x y z> <x y z>\n");
+    s.push_str("#   triangle <name> <group> <link> <radius> <x y z> <x y z> <x y z>\n");
+    s.push_str("#   exclude  <volume> <volume> <reason>\n");
+    s.push_str("# Pairs on the same body and pairs of adjacent links are excluded by the kernel's rules; `exclude`\n");
+    s.push_str(&format!(
+        "# lines list the others, from the distances over {SURVEY_SAMPLES} random configurations (seed {SURVEY_SEED:#x}):\n"
+    ));
+    s.push_str("#   constant:    the distance does not change;\n");
+    s.push_str(&format!(
+        "#   never_close: it stays above d0 + {SURVEY_MARGIN_M} m = {} m (d0 = {ACTIVATION_DISTANCE_M} m, Table 3.1);\n",
+        ACTIVATION_DISTANCE_M + SURVEY_MARGIN_M
+    ));
+    s.push_str("#   always_near: it stays below d0.\n\n");
+    s.push_str(&format!("# ---- volumes: {} ----\n", fitted.volumes.len()));
+    for v in &fitted.volumes {
+        s.push_str(&format!("# {}\n", v.source));
+        let group = &v.link;
+        let r = number(v.shape.radius);
+        let line = match &v.shape.core {
+            Core::Point(p) => format!("sphere   {} {group} {} {r}   {}", v.name, v.link, point(p)),
+            Core::Segment([a, b]) => {
+                format!("capsule  {} {group} {} {r}   {}   {}", v.name, v.link, point(a), point(b))
+            }
+            Core::Triangle([a, b, c]) => {
+                format!("triangle {} {group} {} {r}   {}   {}   {}", v.name, v.link, point(a), point(b), point(c))
+            }
+        };
+        s.push_str(&line);
+        s.push('\n');
+    }
+    s.push_str(&format!(
+        "\n# ---- exclusions: {} pairs; {} pairs enabled ----\n",
+        survey.excluded.len(),
+        survey.enabled
+    ));
+    for e in &survey.excluded {
+        let name = |i: usize| fitted.volumes.get(i).map_or("?", |v| v.name.as_str());
+        s.push_str(&format!(
+            "exclude {} {} {}  # {:+.3} ... {:+.3}\n",
+            name(e.pair.0),
+            name(e.pair.1),
+            e.reason.name(),
+            e.range.0,
+            e.range.1
+        ));
+    }
+    s
+}
+
+/// The README's collision section.
+pub fn readme_section(fitted: &Fitted) -> String {
+    let mut s = String::from("## Collision model\n\n");
+    s.push_str(
+        "Swept-sphere volumes fitted to the URDF's `<collision>` elements (`host-sim/src/import/collision.rs`): ",
+    );
+    s.push_str("a cylinder or capsule becomes a capsule, a box the rectangle in its mid-plane swept by half its ");
+    s.push_str("thickness, a mesh (STL) its bounding capsule along the vertices' principal direction. The pair ");
+    s.push_str(&format!(
+        "exclusions come from a survey over {SURVEY_SAMPLES} random configurations (see the header of the `.collision` file).\n\n"
+    ));
+    s.push_str("| volume | link | fitted to |\n| --- | --- | --- |\n");
+    for v in &fitted.volumes {
+        s.push_str(&format!("| `{}` | `{}` | {} |\n", v.name, v.link, v.source));
+    }
+    s
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::indexing_slicing, clippy::panic, reason = "test code: failures should panic")]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_bounding_capsule_contains_every_point() {
+        let points: Vec<Vector3<f64>> = (0..50)
+            .map(f64::from)
+            .map(|t| Vector3::new(0.01 * t, 0.03 * (t * 0.7).sin(), 0.02 * (t * 1.3).cos()))
+            .collect();
+        let capsule = outward(bounding_capsule(&points).unwrap());
+        let worst = points.iter().map(|p| capsule.signed_distance_to(p)).fold(f64::NEG_INFINITY, f64::max);
+        assert!(worst <= 0.0, "a point lies {worst} m outside");
+        // Along x the points span 0.49 m: the capsule is not much longer.
+        let Core::Segment([a, b]) = capsule.core else { panic!("not a capsule") };
+        assert!((a - b).norm() + 2.0 * capsule.radius < 0.49 + 0.15, "{capsule:?}");
+    }
+
+    #[test]
+    fn a_box_is_covered_by_its_mid_plane_rectangle() {
+        let origin =
+            Placement::from_parts(Translation3::new(0.1, 0.0, 0.2), Rotation3::from_euler_angles(0.3, 0.0, 0.5));
+        let volumes = box_triangles([0.2, 0.05, 0.1], &origin);
+        assert_eq!(volumes.len(), 2);
+        assert!((volumes[0].0.radius - 0.0251).abs() < 1e-12);
+        for corner in 0..8 {
+            let sign = |bit: usize| if corner >> bit & 1 == 1 { 1.0 } else { -1.0 };
+            let p = (origin * Point3::new(0.1 * sign(0), 0.025 * sign(1), 0.05 * sign(2))).coords;
+            let inside = volumes.iter().map(|(v, _)| v.signed_distance_to(&p)).fold(f64::INFINITY, f64::min);
+            assert!(inside <= 0.0, "corner {corner} outside by {inside}");
+        }
+    }
+}

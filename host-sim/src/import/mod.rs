@@ -1,0 +1,419 @@
+//! `host-sim import`: a robot's URDF → everything the repository keeps for it under
+//! `fixtures/robots/<name>/`.
+//!
+//! 1. **Controlled joints.** The joints on the chains from the root link to the TCP links are the
+//!    robot's coordinates. Every other movable joint (head, wheels, casters, grippers) is frozen:
+//!    its `type` becomes `fixed` (at zero, so its `<origin>` is the placement), its `<mimic>` and
+//!    `<coupling>` are dropped, and its child link is merged into the controlled body like any
+//!    fixed link. `--base planar` adds the platform coordinates `base_x`, `base_y` (prismatic)
+//!    and `base_theta` (continuous) between a new root link `world` and the URDF's root.
+//! 2. **Model.** The prepared URDF goes through the same loader ([`crate::urdf`]) and the same
+//!    code generator ([`crate::codegen`]) as Justin's, into `mod.rs`, a module of
+//!    `fixtures::robots` (the index `fixtures/robots/mod.rs` is rewritten to list every robot).
+//! 3. **Collision model** ([`collision`]): swept-sphere volumes fitted to the URDF's
+//!    `<collision>` geometry and the pair survey, written to `<name>.collision` in the format of
+//!    `fixtures/collision/justin.collision`.
+//! 4. **`README.md`**: the command, the controlled, frozen and TCP frames, the collision model.
+//!
+//! [`generate`] computes the files without writing them (the tests compare them with the
+//! checked-in copies); [`run`] writes them.
+
+pub mod collision;
+
+use std::collections::{HashMap, HashSet};
+use std::path::{Path, PathBuf};
+
+use crate::codegen::{self, Module, RobotModule};
+use crate::urdf::{self, Coupling, Description};
+
+/// Repository-relative directory of the imported robots.
+pub const ROBOTS_DIR: &str = "fixtures/robots";
+
+/// Platform limits `--base planar` gives its coordinates: position (m), velocity (m/s, rad/s)
+/// and effort (N, Nm) of `base_x`/`base_y` and of `base_theta`. Justin's platform values
+/// (`fixtures/JUSTIN.md` §4).
+const PLANAR_LIMITS: [(&str, &str, &str, f64, f64); 3] = [
+    ("base_x", "prismatic", "1 0 0", 1.1, 1000.0),
+    ("base_y", "prismatic", "0 1 0", 1.1, 1000.0),
+    ("base_theta", "continuous", "0 0 1", 2.1, 500.0),
+];
+/// Position range of the planar translations (m): a room-sized floor.
+const PLANAR_RANGE_M: f64 = 100.0;
+
+/// What to import.
+#[derive(Clone, Debug)]
+pub struct ImportOptions {
+    /// Repository root: the paths below are relative to it.
+    pub root: PathBuf,
+    /// The URDF file, as given on the command line.
+    pub urdf: String,
+    /// Robot name: the directory under [`ROBOTS_DIR`] and the Rust module (a lower-case identifier).
+    pub name: String,
+    /// TCP links, at least one.
+    pub tcps: Vec<String>,
+    /// Add the planar platform coordinates `x, y, θ`.
+    pub planar_base: bool,
+    /// Directory that holds the ROS packages `package://` mesh URIs name (`<dir>/<package>/…`).
+    pub package_path: Option<String>,
+}
+
+impl ImportOptions {
+    /// The command line that reproduces this import (written into the generated files).
+    pub fn command(&self) -> String {
+        let mut command =
+            format!("cargo run -p host-sim --release -- import --urdf {} --name {}", self.urdf, self.name);
+        for tcp in &self.tcps {
+            command.push_str(&format!(" --tcp {tcp}"));
+        }
+        if self.planar_base {
+            command.push_str(" --base planar");
+        }
+        if let Some(dir) = &self.package_path {
+            command.push_str(&format!(" --package-path {dir}"));
+        }
+        command
+    }
+
+    /// The robot's directory.
+    pub fn directory(&self) -> PathBuf {
+        self.root.join(ROBOTS_DIR).join(&self.name)
+    }
+}
+
+/// The generated files of one robot: `(file name, contents)` in its directory.
+pub type Files = Vec<(String, String)>;
+
+/// Generates the files of the robot without writing them.
+///
+/// Errors (one line each): unreadable or malformed URDF (every loader error of
+/// [`crate::urdf::load`]), an invalid name, no or an unknown TCP link, a floating or planar
+/// joint on a controlled chain, a controlled joint coupled to a frozen one, a link name that
+/// is no Rust identifier or clashes with a generated constant, a mesh that cannot be read.
+pub fn generate(options: &ImportOptions) -> Result<Files, String> {
+    check_identifier(&options.name, "robot name")?;
+    if options.name.chars().any(|c| c.is_ascii_uppercase()) {
+        return Err(format!("robot name {}: use lower case (it is a Rust module name)", options.name));
+    }
+    if options.tcps.is_empty() {
+        return Err("no TCP frame: give at least one --tcp <link>".to_owned());
+    }
+    let path = options.root.join(&options.urdf);
+    let text = std::fs::read_to_string(&path).map_err(|e| format!("cannot read URDF {}: {e}", path.display()))?;
+    let prepared = prepare(&text, &options.tcps, options.planar_base).map_err(|e| format!("{}: {e}", options.urdf))?;
+    let description =
+        urdf::describe(&prepared.text, Coupling::Coupled).map_err(|e| format!("{}: {e}", options.urdf))?;
+    check_names(&description)?;
+    let module = RobotModule {
+        command: options.command(),
+        frozen_joints: prepared.frozen.clone(),
+        tcps: options.tcps.clone(),
+        planar_base: options.planar_base,
+    };
+    let source = codegen::model_source(&description, &options.urdf, &Module::Robot(&module));
+    let packages = options.package_path.as_ref().map(|dir| options.root.join(dir));
+    let robot = urdf_rs::read_from_string(&prepared.text).map_err(|e| format!("{}: {e}", options.urdf))?;
+    let fitted = collision::fit(&robot, packages.as_deref())?;
+    let survey = collision::survey(&description, &fitted.volumes)?;
+    let collision_file = collision::file(options, &fitted, &survey);
+    let readme = readme(options, &description, &module, &fitted, &survey);
+    Ok(vec![
+        ("mod.rs".to_owned(), source),
+        (format!("{}.collision", options.name), collision_file),
+        ("README.md".to_owned(), readme),
+    ])
+}
+
+/// Imports the robot: writes its files and rewrites the index `fixtures/robots/mod.rs`.
+pub fn run(options: &ImportOptions) -> Result<(), String> {
+    let files = generate(options)?;
+    let directory = options.directory();
+    std::fs::create_dir_all(&directory).map_err(|e| format!("cannot create {}: {e}", directory.display()))?;
+    for (name, contents) in &files {
+        let path = directory.join(name);
+        std::fs::write(&path, contents).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+        println!("wrote {}", path.display());
+    }
+    let index = options.root.join(ROBOTS_DIR).join("mod.rs");
+    let contents = robots_index(&options.root.join(ROBOTS_DIR))?;
+    std::fs::write(&index, contents).map_err(|e| format!("cannot write {}: {e}", index.display()))?;
+    println!("wrote {}; rebuild to use fixtures::robots::{}", index.display(), options.name);
+    Ok(())
+}
+
+/// The index module `fixtures/robots/mod.rs`: one `pub mod` per robot directory with a `mod.rs`.
+pub fn robots_index(robots_dir: &Path) -> Result<String, String> {
+    let entries = std::fs::read_dir(robots_dir).map_err(|e| format!("cannot list {}: {e}", robots_dir.display()))?;
+    let mut names: Vec<String> = entries
+        .filter_map(Result::ok)
+        .filter(|entry| entry.path().join("mod.rs").is_file())
+        .filter_map(|entry| entry.file_name().into_string().ok())
+        .collect();
+    names.sort();
+    let mut s = String::from(
+        "//! Robots imported from their URDFs by `cargo run -p host-sim --release -- import`, one module\n\
+         //! per directory of `fixtures/robots/`, each generated (see its `README.md`). This index is\n\
+         //! rewritten by every import.\n",
+    );
+    for name in names {
+        s.push_str(&format!("\n#[rustfmt::skip]\npub mod {name};\n"));
+    }
+    Ok(s)
+}
+
+/// The URDF prepared for the loader, and the joints it froze.
+struct Prepared {
+    text: String,
+    /// Movable joints frozen at zero, in file order.
+    frozen: Vec<String>,
+}
+
+/// Freezes the joints off the chains to `tcps` and adds the planar base if asked.
+fn prepare(text: &str, tcps: &[String], planar_base: bool) -> Result<Prepared, String> {
+    let mut root: xml::Element = text.parse().map_err(|e| format!("malformed XML: {e}"))?;
+    let joints = joint_elements(&root);
+    let parent_joint: HashMap<&str, &JointElement> = joints.iter().map(|j| (j.child.as_str(), j)).collect();
+    let links: HashSet<String> = root.get_children("link", None).filter_map(|l| attribute(l, "name")).collect();
+    let mut controlled: HashSet<String> = HashSet::new();
+    for tcp in tcps {
+        if !links.contains(tcp) {
+            return Err(format!("unknown TCP frame {tcp}: the URDF has no link of that name"));
+        }
+        let mut link = tcp.as_str();
+        let mut steps = 0;
+        while let Some(joint) = parent_joint.get(link) {
+            if matches!(joint.kind.as_str(), "floating" | "planar") {
+                return Err(format!(
+                    "joint {} on the chain to TCP {tcp} is {}: only revolute, continuous, prismatic and fixed \
+                     joints can be controlled (use --base planar for a mobile base)",
+                    joint.name, joint.kind
+                ));
+            }
+            controlled.insert(joint.name.clone());
+            link = joint.parent.as_str();
+            steps += 1;
+            if steps > joints.len() {
+                return Err(format!("kinematic loop on the chain to TCP {tcp}"));
+            }
+        }
+    }
+    let movable = |kind: &str| kind != "fixed";
+    let frozen: Vec<String> =
+        joints.iter().filter(|j| movable(&j.kind) && !controlled.contains(&j.name)).map(|j| j.name.clone()).collect();
+    for joint in joints.iter().filter(|j| controlled.contains(&j.name)) {
+        if let Some(source) = joint.mimic.as_ref().filter(|m| frozen.contains(m)) {
+            return Err(format!("controlled joint {} mimics the frozen joint {source}", joint.name));
+        }
+    }
+    freeze(&mut root, &frozen);
+    if planar_base {
+        add_planar_base(&mut root, &links)?;
+    }
+    Ok(Prepared { text: root.to_string(), frozen })
+}
+
+/// A `<joint>` element's names.
+struct JointElement {
+    name: String,
+    kind: String,
+    parent: String,
+    child: String,
+    mimic: Option<String>,
+}
+
+fn attribute(element: &xml::Element, name: &str) -> Option<String> {
+    element.get_attribute(name, None).map(str::to_owned)
+}
+
+fn child_attribute(element: &xml::Element, child: &str, name: &str) -> Option<String> {
+    element.get_child(child, None).and_then(|c| attribute(c, name))
+}
+
+fn joint_elements(root: &xml::Element) -> Vec<JointElement> {
+    root.get_children("joint", None)
+        .map(|j| JointElement {
+            name: attribute(j, "name").unwrap_or_default(),
+            kind: attribute(j, "type").unwrap_or_default(),
+            parent: child_attribute(j, "parent", "link").unwrap_or_default(),
+            child: child_attribute(j, "child", "link").unwrap_or_default(),
+            mimic: child_attribute(j, "mimic", "joint"),
+        })
+        .collect()
+}
+
+/// Makes the `frozen` joints fixed (without `<mimic>`) and drops their `<coupling>` elements.
+fn freeze(root: &mut xml::Element, frozen: &[String]) {
+    let is_frozen = |e: &xml::Element, key: &str| attribute(e, key).is_some_and(|name| frozen.contains(&name));
+    root.children.retain(|child| match child {
+        xml::Xml::ElementNode(e) => !(e.name == "coupling" && is_frozen(e, "joint")),
+        _ => true,
+    });
+    for child in &mut root.children {
+        let xml::Xml::ElementNode(joint) = child else { continue };
+        if joint.name != "joint" || !is_frozen(joint, "name") {
+            continue;
+        }
+        joint.set_attribute("type".to_owned(), None, "fixed".to_owned());
+        joint.children.retain(|c| !matches!(c, xml::Xml::ElementNode(e) if e.name == "mimic"));
+    }
+}
+
+/// Adds `world ─base_x─ base_x_link ─base_y─ base_y_link ─base_theta─ <root link>`.
+fn add_planar_base(root: &mut xml::Element, links: &HashSet<String>) -> Result<(), String> {
+    let joints = joint_elements(root);
+    let children: HashSet<&str> = joints.iter().map(|j| j.child.as_str()).collect();
+    let mut roots = links.iter().filter(|l| !children.contains(l.as_str()));
+    let (Some(robot_root), None) = (roots.next(), roots.next()) else {
+        return Err("--base planar needs exactly one root link".to_owned());
+    };
+    let chain = ["world", "base_x_link", "base_y_link", robot_root.as_str()];
+    if let Some(taken) = chain.iter().take(3).find(|name| links.contains(**name)) {
+        return Err(format!("--base planar adds a link {taken}, but the URDF already has one"));
+    }
+    let mut snippet = String::from(
+        "<robot name=\"base\"><link name=\"world\"/><link name=\"base_x_link\"/><link name=\"base_y_link\"/>",
+    );
+    for (k, (name, kind, axis, velocity, effort)) in PLANAR_LIMITS.iter().enumerate() {
+        let (parent, child) =
+            (chain.get(k).copied().unwrap_or_default(), chain.get(k + 1).copied().unwrap_or_default());
+        let range = if *kind == "prismatic" {
+            format!("lower=\"-{PLANAR_RANGE_M}\" upper=\"{PLANAR_RANGE_M}\" ")
+        } else {
+            String::new()
+        };
+        snippet.push_str(&format!(
+            "<joint name=\"{name}\" type=\"{kind}\"><parent link=\"{parent}\"/><child link=\"{child}\"/>\
+             <axis xyz=\"{axis}\"/><limit {range}velocity=\"{velocity}\" effort=\"{effort}\"/></joint>"
+        ));
+    }
+    snippet.push_str("</robot>");
+    let base: xml::Element = snippet.parse().map_err(|e| format!("internal: planar base XML: {e}"))?;
+    root.children.extend(base.children);
+    Ok(())
+}
+
+/// Checks that `name` is a Rust identifier (letters, digits, underscores; not starting with a digit).
+fn check_identifier(name: &str, what: &str) -> Result<(), String> {
+    let mut chars = name.chars();
+    let first_ok = chars.next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_');
+    if first_ok && chars.all(|c| c.is_ascii_alphanumeric() || c == '_') {
+        Ok(())
+    } else {
+        Err(format!("{what} {name:?} is not a Rust identifier (letters, digits and underscores)"))
+    }
+}
+
+/// Every link name gives a distinct constant that clashes with none the module defines.
+fn check_names(d: &Description) -> Result<(), String> {
+    const RESERVED: [&str; 8] =
+        ["N", "BODIES", "FRAMES", "FROZEN_JOINTS", "TCPS", "JOINT_NAMES", "FRAME_NAMES", "BODY_NAMES"];
+    let mut seen = HashSet::new();
+    for frame in &d.frames {
+        check_identifier(&frame.link, "link name")?;
+        let constant = frame.link.to_uppercase();
+        if RESERVED.contains(&constant.as_str()) || !seen.insert(constant.clone()) {
+            return Err(format!("link name {} gives the constant {constant}, which is taken", frame.link));
+        }
+    }
+    Ok(())
+}
+
+/// `README.md` of an imported robot.
+fn readme(
+    options: &ImportOptions,
+    d: &Description,
+    module: &RobotModule,
+    fitted: &collision::Fitted,
+    survey: &collision::Survey,
+) -> String {
+    let list = |names: &[String]| {
+        if names.is_empty() {
+            "none".to_owned()
+        } else {
+            names.iter().map(|n| format!("`{n}`")).collect::<Vec<_>>().join(", ")
+        }
+    };
+    let joints: Vec<String> = d.coordinates.iter().map(|c| c.joint.clone()).collect();
+    let name = &options.name;
+    let mut s = format!("# {name}: imported from `{}`\n\n", options.urdf);
+    s.push_str("Generated by `host-sim import` (`host-sim/src/import/`); do not edit. Regenerate with:\n\n");
+    s.push_str(&format!("```sh\n{}\n```\n\n", options.command()));
+    s.push_str("| file | what |\n| --- | --- |\n");
+    s.push_str(&format!(
+        "| `mod.rs` | the `no_std` model constructor `fixtures::robots::{name}::model::<T>()` (N = {}, {} bodies, {} frames) |\n",
+        d.coordinates.len(),
+        d.bodies.len(),
+        d.frames.len()
+    ));
+    s.push_str(&format!(
+        "| `{name}.collision` | swept-sphere collision model ({} volumes) and its pair exclusions ({} listed, {} pairs enabled) |\n\n",
+        fitted.volumes.len(),
+        survey.excluded.len(),
+        survey.enabled
+    ));
+    s.push_str(&format!(
+        "**Controlled joints** (the chains from the root link to the TCPs, in coordinate order): {}.\n\n",
+        list(&joints)
+    ));
+    if module.planar_base {
+        s.push_str(&format!(
+            "`--base planar` added `base_x`, `base_y` (±{PLANAR_RANGE_M} m, 1.1 m/s, 1000 N) and `base_theta` \
+             (continuous, 2.1 rad/s, 500 Nm): Justin's platform limits.\n\n"
+        ));
+    }
+    s.push_str(&format!(
+        "**Frozen joints** (fixed at zero; their links are merged into the controlled bodies): {}.\n\n",
+        list(&module.frozen_joints)
+    ));
+    s.push_str(&format!("**TCP frames**: {}.\n\n", list(&module.tcps)));
+    s.push_str(&collision::readme_section(fitted));
+    s
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "test code: failures should panic")]
+mod tests {
+    use super::*;
+
+    /// base ─j1─ a ─j2─ b (tcp) and a ─g─ finger (gripper), a ─h─ head on base.
+    const URDF: &str = r#"<robot name="r">
+        <link name="base"/><link name="a"/><link name="b"/><link name="finger"/><link name="head"/>
+        <joint name="j1" type="revolute"><parent link="base"/><child link="a"/>
+          <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+        <joint name="j2" type="revolute"><parent link="a"/><child link="b"/>
+          <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+        <joint name="g" type="prismatic"><parent link="b"/><child link="finger"/>
+          <limit lower="0" upper="1" effort="1" velocity="1"/></joint>
+        <joint name="h" type="continuous"><parent link="base"/><child link="head"/></joint>
+    </robot>"#;
+
+    #[test]
+    fn joints_off_the_chains_are_frozen() {
+        let prepared = prepare(URDF, &["b".to_owned()], false).unwrap();
+        assert_eq!(prepared.frozen, ["g", "h"]);
+        let d = urdf::describe(&prepared.text, Coupling::Coupled).unwrap();
+        let joints: Vec<&str> = d.coordinates.iter().map(|c| c.joint.as_str()).collect();
+        assert_eq!(joints, ["j1", "j2"]);
+        assert_eq!(d.frames.len(), 5);
+    }
+
+    #[test]
+    fn planar_base_adds_three_coordinates_first() {
+        let prepared = prepare(URDF, &["finger".to_owned()], true).unwrap();
+        assert_eq!(prepared.frozen, ["h"]);
+        let d = urdf::describe(&prepared.text, Coupling::Coupled).unwrap();
+        let joints: Vec<&str> = d.coordinates.iter().map(|c| c.joint.as_str()).collect();
+        assert_eq!(joints, ["base_x", "base_y", "base_theta", "j1", "j2", "g"]);
+        assert_eq!((d.coordinates[0].lower, d.coordinates[0].upper, d.coordinates[2].velocity), (-100.0, 100.0, 2.1));
+    }
+
+    #[test]
+    fn bad_input_gets_a_one_line_error() {
+        let unknown = prepare(URDF, &["nope".to_owned()], false).err().unwrap();
+        assert_eq!(unknown, "unknown TCP frame nope: the URDF has no link of that name");
+        let floating = URDF.replace(r#"name="j1" type="revolute""#, r#"name="j1" type="floating""#);
+        let error = prepare(&floating, &["b".to_owned()], false).err().unwrap();
+        assert!(error.starts_with("joint j1 on the chain to TCP b is floating"), "{error}");
+        assert!(check_identifier("9lives", "robot name").is_err());
+        assert!(!error.contains('\n'));
+    }
+}
