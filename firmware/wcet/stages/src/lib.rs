@@ -9,7 +9,7 @@ use fixtures::justin::collision::JustinCollisionModel;
 use fixtures::justin::whole_body;
 use fixtures::justin::JustinModel;
 use hal::{JointSample, PlatformSample};
-use kernel::controller::config::{Field, Hand};
+use kernel::controller::config::{Field, Hand, TaskKind, TaskSpec};
 use kernel::controller::messages::Command;
 use kernel::controller::SensorFrame;
 use kernel::dynamics::{coriolis_matrix, crba, forward_kinematics, frame_jacobian, gravity, mass_matrix_cholesky};
@@ -197,9 +197,15 @@ pub const CAPACITY_START: u32 = NOMINAL_FRAMES + ADVERSARIAL_FRAMES + 2;
 /// Capacity frames: every adversarial configuration and the home pose again, with both
 /// collision fields widened by [`capacity_commands`].
 pub const CAPACITY_FRAMES: u32 = ADVERSARIAL_FRAMES + 1;
-/// All frames: nominal, adversarial, one faulty (NaN) frame, one valid frame after it, then the
-/// capacity frames.
-pub const STEP_FRAMES: u32 = CAPACITY_START + CAPACITY_FRAMES;
+/// First frame of the hierarchy transition (see [`transition_command`]): the capacity frames
+/// again, with a task moving between the levels.
+pub const TRANSITION_START: u32 = CAPACITY_START + CAPACITY_FRAMES;
+/// Transition frames: every capacity configuration once more, while [`transition_command`]'s
+/// hierarchy change is in progress (they are capacity frames: class `capacity`).
+pub const TRANSITION_FRAMES: u32 = CAPACITY_FRAMES;
+/// All frames: nominal, adversarial, one faulty (NaN) frame, one valid frame after it, the
+/// capacity frames, then the capacity frames during a hierarchy transition.
+pub const STEP_FRAMES: u32 = TRANSITION_START + TRANSITION_FRAMES;
 
 /// Influence distance (m) of both collision fields in the capacity frames: larger than any
 /// distance between two of Justin's volumes, so the broad phase skips no pair, all 214 pairs are
@@ -224,9 +230,36 @@ pub fn capacity_commands(k: u32) -> Option<[Command<S>; 2]> {
     Some([widened(Field::Strong)?, widened(Field::Weak)?])
 }
 
-/// Applies the planner commands of frame `k` ([`capacity_commands`]); `false` if one is refused.
+/// The task that [`transition_command`] moves: the right arm's singularity avoidance (one row),
+/// from level 1 to level 0.
+pub const TRANSITION_TASK: TaskKind = TaskKind::SingularityAvoidance(Hand::Right);
+
+/// The planner command applied before frame `k`: at [`TRANSITION_START`], the Fig. 6.3 hierarchy
+/// with [`TRANSITION_TASK`] moved from level 1 to level 0. During the transition (`transition_s`,
+/// 1 s, so through every transition frame) the task's rows are on both levels, scaled by the
+/// cubic (4.68): one more row updates the level-0 projector and one more row is on the last
+/// level, the most the row capacity allows at capacity (the capacity frames hold 127 of
+/// `MAX_ROWS = 128` rows; moving a task of `k` rows needs `k` more, so only a one-row task can
+/// move while both collision fields are full).
+pub fn transition_command(k: u32) -> Option<Command<S>> {
+    if k != TRANSITION_START {
+        return None;
+    }
+    let mut command = Command::SetHierarchy(Default::default());
+    if let Command::SetHierarchy(tasks) = &mut command {
+        for spec in whole_body::fig_6_3_hierarchy(Hand::Right) {
+            let level = if spec.kind == TRANSITION_TASK { 0 } else { spec.level };
+            tasks.push(TaskSpec { level, ..spec }).ok()?;
+        }
+    }
+    Some(command)
+}
+
+/// Applies the planner commands of frame `k` ([`capacity_commands`], [`transition_command`]);
+/// `false` if one is refused.
 pub fn prepare(controller: &mut JustinController, k: u32) -> bool {
     capacity_commands(k).is_none_or(|commands| commands.iter().all(|command| controller.apply(command).is_ok()))
+        && transition_command(k).is_none_or(|command| controller.apply(&command).is_ok())
 }
 
 /// Which input class frame `k` belongs to.
@@ -314,8 +347,14 @@ pub fn step_frame(k: u32, speed: &SVector<S, N>) -> Frame {
         v[0] = c(0.1);
         return frame(cycle, &q, &v);
     }
-    // Capacity frames repeat the adversarial configurations (then the home pose).
-    let a = if k >= CAPACITY_START { k - CAPACITY_START } else { k - NOMINAL_FRAMES };
+    // Capacity and transition frames repeat the adversarial configurations (then the home pose).
+    let a = if k >= TRANSITION_START {
+        k - TRANSITION_START
+    } else if k >= CAPACITY_START {
+        k - CAPACITY_START
+    } else {
+        k - NOMINAL_FRAMES
+    };
     if k >= CAPACITY_START && a == ADVERSARIAL_FRAMES {
         return frame(cycle, &home, &SVector::zeros());
     }

@@ -358,3 +358,119 @@ pub fn exclusion_rule<T: RealField + Copy, const N: usize, const B: usize, const
     };
     (adjacent(a, b) || adjacent(b, a)).then_some(Exclusion::Adjacent)
 }
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
+    use nalgebra::{convert, RealField, SVector, Vector3};
+
+    use super::*;
+    use crate::dynamics::forward_kinematics;
+    use crate::tasks::collision::proximity;
+    use crate::test_models::{branched, state, Branched};
+
+    fn v3<T: RealField + Copy>(x: f64, y: f64, z: f64) -> Vector3<T> {
+        Vector3::new(convert(x), convert(y), convert(z))
+    }
+
+    /// Capsules, swept triangles and spheres on the branches of the test tree and in the world
+    /// (a floor triangle, a wall triangle standing on it, a sphere), overlapping at many states.
+    fn model<T: RealField + Copy>(robot: &Branched<T>) -> CollisionModel<T, 8, 28> {
+        let mut c = CollisionModelBuilder::<T, 8, 28>::new();
+        let r = |x: f64| convert::<f64, T>(x);
+        let body = |k| Some(BodyId(k));
+        c.add_volume(body(4), SweptSphere::capsule(v3(0.0, 0.0, 0.0), v3(0.15, 0.02, 0.0), r(0.05))).unwrap();
+        let fingers = SweptSphere::swept_triangle(v3(0.0, 0.0, 0.0), v3(0.1, 0.0, 0.05), v3(0.0, 0.12, 0.1), r(0.03));
+        c.add_volume(body(6), fingers).unwrap();
+        c.add_volume(body(5), SweptSphere::sphere(v3(0.05, -0.02, 0.1), r(0.06))).unwrap();
+        c.add_volume(body(2), SweptSphere::capsule(v3(0.05, 0.0, 0.0), v3(0.25, 0.0, 0.0), r(0.04))).unwrap();
+        let plate = SweptSphere::swept_triangle(v3(0.0, -0.1, 0.0), v3(0.2, 0.1, 0.0), v3(0.0, 0.1, 0.0), r(0.02));
+        c.add_volume(body(3), plate).unwrap();
+        let floor =
+            SweptSphere::swept_triangle(v3(-5.0, -5.0, -0.2), v3(10.0, -5.0, -0.2), v3(-5.0, 10.0, -0.2), r(0.0));
+        c.add_volume(None, floor).unwrap();
+        c.add_volume(
+            None,
+            SweptSphere::swept_triangle(v3(0.3, -1.0, -0.2), v3(0.3, 1.0, -0.2), v3(0.3, 0.0, 1.0), r(0.01)),
+        )
+        .unwrap();
+        c.add_volume(None, SweptSphere::sphere(v3(0.4, 0.3, 0.5), r(0.1))).unwrap();
+        c.try_build(robot, &[]).unwrap()
+    }
+
+    /// The broad phase as a plain per-pair evaluation: the bounding-sphere gap, then each
+    /// triangle's slab, each test on its own, else the exact proximity.
+    fn reference<T: RealField + Copy>(
+        cm: &CollisionModel<T, 8, 28>,
+        cd: &CollisionData<T, 8, 28>,
+    ) -> std::vec::Vec<Proximity<T>> {
+        let mut out = std::vec::Vec::new();
+        for pair in cm.pairs() {
+            let (a, b) = (&cd.world_volumes[pair.first.0], &cd.world_volumes[pair.second.0]);
+            let ((ca, ra), (cb, rb)) = (cd.bounding_spheres[pair.first.0], cd.bounding_spheres[pair.second.0]);
+            let culled = |distance| Proximity { distance, core_first: ca, core_second: cb, direction: None };
+            let mut result = None;
+            if let Some(limit) = cd.exact_within {
+                let (separation2, reach) = ((ca - cb).norm_squared(), limit + ra + rb);
+                if reach <= T::zero() || separation2 > reach * reach {
+                    let gap = sqrt(separation2) - ra - rb;
+                    if gap > limit {
+                        result = Some(culled(gap));
+                    }
+                }
+                for (volume, center, ball) in [(a, cb, rb), (b, ca, ra)] {
+                    let needed = limit + volume.radius + ball;
+                    let frame = volume.core.triangle_frame();
+                    let slab = if let Core::Triangle(_) = volume.core {
+                        (needed > T::zero() && separation2 > needed * needed)
+                            .then(|| frame.slab_gap(volume.radius, &center, ball, limit))
+                            .flatten()
+                    } else {
+                        None
+                    };
+                    result = result.or(slab.map(culled));
+                }
+            }
+            out.push(result.unwrap_or_else(|| proximity(a, b)));
+        }
+        out
+    }
+
+    /// `compute_distances` (squared bounding-sphere test first, triangle frames shared by all
+    /// pairs of a volume) equals the plain per-pair broad phase bit for bit at random states (touching,
+    /// penetrating and distant volumes, a wall perpendicular and a floor parallel to other
+    /// triangles) for negative, zero, small and large cull distances and without one; both
+    /// kinds of cull and exact pairs occur.
+    fn broad_phase_matches_the_plain_evaluation<T: RealField + Copy>() {
+        let robot = branched::<T>();
+        let cm = model(&robot);
+        let mut cd = CollisionData::new(&cm);
+        let mut data = Data::new(&robot);
+        let (mut exact, mut culled, mut touching) = (0, 0, 0);
+        for seed in 0..200 {
+            forward_kinematics(&robot, &mut data, &state(seed, 1.5).cast::<T>(), &SVector::zeros()).unwrap();
+            for limit in [None, Some(-0.05), Some(0.0), Some(0.02), Some(0.1), Some(0.4), Some(10.0)] {
+                cd.exact_within = limit.map(convert::<f64, T>);
+                cm.update(&data, &mut cd);
+                let plain = reference(&cm, &cd);
+                for (fast, plain) in cd.proximities.iter().zip(&plain) {
+                    assert_eq!(fast, plain, "seed {seed}, limit {limit:?}");
+                    exact += usize::from(fast.direction.is_some());
+                    culled += usize::from(fast.direction.is_none() && fast.distance > T::zero());
+                    touching += usize::from(fast.distance <= T::zero());
+                }
+            }
+        }
+        assert!(exact > 5000 && culled > 5000 && touching > 500, "{exact} exact, {culled} culled, {touching} touching");
+    }
+
+    #[test]
+    fn broad_phase_matches_the_plain_evaluation_f64() {
+        broad_phase_matches_the_plain_evaluation::<f64>();
+    }
+
+    #[test]
+    fn broad_phase_matches_the_plain_evaluation_f32() {
+        broad_phase_matches_the_plain_evaluation::<f32>();
+    }
+}

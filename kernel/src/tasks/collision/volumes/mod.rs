@@ -206,8 +206,12 @@ pub(super) fn proximity_framed<T: RealField + Copy>(
     let (core_first, core_second) = closest_points_framed(&a.core, fa, &b.core, fb);
     let delta = core_second - core_first;
     let core_distance = sqrt(delta.norm_squared());
-    let direction =
-        if core_distance > direction_threshold() { Some(Unit::new_unchecked(delta / core_distance)) } else { None };
+    // One reciprocal for the three components (3.5).
+    let direction = if core_distance > direction_threshold() {
+        Some(Unit::new_unchecked(delta * (T::one() / core_distance)))
+    } else {
+        None
+    };
     Proximity { distance: core_distance - a.radius - b.radius, core_first, core_second, direction }
 }
 

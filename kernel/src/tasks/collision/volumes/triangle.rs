@@ -18,8 +18,10 @@ fn triangle_normal<T: RealField + Copy>([a, b, c]: &[Vector3<T>; 3]) -> Option<V
 
 /// A triangle `(v₀, v₁, v₂)` with the quantities every distance test against it shares: the
 /// edges `e_k = v_{k+1} − v_k` and `‖e_k‖²`; if it is not degenerate (`planar`), its normal `n`
-/// ([`triangle_normal`]), `‖n‖²` and the in-plane edge normals `n × e_k` that point into the
-/// triangle (zeros and one for a degenerate triangle, which has no plane).
+/// ([`triangle_normal`]), `‖n‖²`, the plane offset `n · v₀`, the in-plane edge normals
+/// `m_k = n × e_k` that point into the triangle and their offsets `m_k · v_k` (zeros and one for
+/// a degenerate triangle, which has no plane). A height or side test against the triangle is
+/// then one dot product and a subtraction.
 #[derive(Clone, Copy, Debug)]
 pub(in crate::tasks::collision) struct TriangleFrame<T: RealField> {
     vertices: [Vector3<T>; 3],
@@ -28,7 +30,9 @@ pub(in crate::tasks::collision) struct TriangleFrame<T: RealField> {
     planar: bool,
     normal: Vector3<T>,
     normal_length2: T,
+    offset: T,
     edge_normals: [Vector3<T>; 3],
+    edge_offsets: [T; 3],
 }
 
 impl<T: RealField + Copy> TriangleFrame<T> {
@@ -42,7 +46,9 @@ impl<T: RealField + Copy> TriangleFrame<T> {
             planar: false,
             normal: zero,
             normal_length2: T::one(),
+            offset: T::zero(),
             edge_normals: [zero; 3],
+            edge_offsets: [T::zero(); 3],
         }
     }
 
@@ -51,15 +57,21 @@ impl<T: RealField + Copy> TriangleFrame<T> {
         let edges = [b - a, c - b, a - c];
         let edge_length2 = edges.each_ref().map(|e| e.norm_squared());
         match triangle_normal(t) {
-            Some(normal) => Self {
-                vertices: *t,
-                edges,
-                edge_length2,
-                planar: true,
-                normal,
-                normal_length2: normal.norm_squared(),
-                edge_normals: edges.each_ref().map(|e| normal.cross(e)),
-            },
+            Some(normal) => {
+                let edge_normals = edges.each_ref().map(|e| normal.cross(e));
+                let [m0, m1, m2] = &edge_normals;
+                Self {
+                    vertices: *t,
+                    edges,
+                    edge_length2,
+                    planar: true,
+                    normal,
+                    normal_length2: normal.norm_squared(),
+                    offset: normal.dot(a),
+                    edge_normals,
+                    edge_offsets: [m0.dot(a), m1.dot(b), m2.dot(c)],
+                }
+            }
             None => Self {
                 vertices: *t,
                 edges,
@@ -67,16 +79,17 @@ impl<T: RealField + Copy> TriangleFrame<T> {
                 planar: false,
                 normal: Vector3::zeros(),
                 normal_length2: T::one(),
+                offset: T::zero(),
                 edge_normals: [Vector3::zeros(); 3],
+                edge_offsets: [T::zero(); 3],
             },
         }
     }
 
-    /// Signed height `n · (p − v₀)` of `p` above the plane (unnormalised; zero without a plane).
+    /// Signed height `n · p − n · v₀` of `p` above the plane (unnormalised; zero without a plane).
     #[inline]
     pub(super) fn height(&self, p: &Vector3<T>) -> T {
-        let [a, _, _] = &self.vertices;
-        self.normal.dot(&(p - a))
+        self.normal.dot(p) - self.offset
     }
 
     /// Broad phase against the triangle's plane: every point within `radius` of the triangle
@@ -116,8 +129,9 @@ impl<T: RealField + Copy> TriangleFrame<T> {
         }
     }
 
-    /// Bit `k` set if `x` lies on the inner side of edge `k`, `(n × e_k) · (x − v_k) ≥ 0` (the
-    /// triple products `n · (e_k × (x − v_k))` of [`closest_on_triangle`]'s test, regrouped):
+    /// Bit `k` set if `x` lies on the inner side of edge `k`, `m_k · x ≥ m_k · v_k` with
+    /// `m_k = n × e_k` (the triple products `n · (e_k × (x − v_k))` of the reference's test,
+    /// regrouped):
     /// [`INSIDE`] (all three bits) if the projection of `x` onto the plane lies inside or on the
     /// triangle; no bit for a degenerate triangle.
     #[inline]
@@ -125,12 +139,9 @@ impl<T: RealField + Copy> TriangleFrame<T> {
         if !self.planar {
             return 0;
         }
-        let zero = T::zero();
         let [m0, m1, m2] = &self.edge_normals;
-        let [a, b, c] = &self.vertices;
-        u8::from(m0.dot(&(x - a)) >= zero)
-            | u8::from(m1.dot(&(x - b)) >= zero) << 1
-            | u8::from(m2.dot(&(x - c)) >= zero) << 2
+        let [o0, o1, o2] = self.edge_offsets;
+        u8::from(m0.dot(x) >= o0) | u8::from(m1.dot(x) >= o1) << 1 | u8::from(m2.dot(x) >= o2) << 2
     }
 
     /// The projection of `x` (height `height`) onto the plane if `sides` (its [`Self::sides`])
@@ -292,7 +303,9 @@ pub(super) fn closest_triangle_triangle<T: RealField + Copy>(
     closest_triangles_framed(&TriangleFrame::new(s), &TriangleFrame::new(t))
 }
 
-/// [`closest_triangle_triangle`] of the triangles of the frames `fs` and `ft`.
+/// [`closest_triangle_triangle`] of the triangles of the frames `fs` and `ft`. Out of line: the
+/// longest of the pair tests, kept out of the per-pair loop that calls it.
+#[inline(never)]
 pub(super) fn closest_triangles_framed<T: RealField + Copy>(
     fs: &TriangleFrame<T>,
     ft: &TriangleFrame<T>,
@@ -364,4 +377,71 @@ pub(super) fn closest_triangles_framed<T: RealField + Copy>(
 fn straddles<T: RealField + Copy>([h0, h1, h2]: [T; 3]) -> bool {
     let zero = T::zero();
     !((h0 > zero && h1 > zero && h2 > zero) || (h0 < zero && h1 < zero && h2 < zero))
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::indexing_slicing, reason = "tests")]
+    use nalgebra::{convert, convert_unchecked, RealField, Vector3};
+
+    use super::super::tests::Rng;
+    use super::TriangleFrame;
+
+    /// The height `n · p − n · v₀` and the sides `m_k · x ≥ m_k · v_k` (offsets stored in the
+    /// frame) against the vertex-relative forms `n · (p − v₀)` and `m_k · (x − v_k) ≥ 0`, on random
+    /// triangles at up to `reach` m from the origin and points near them (in the plane, on an
+    /// edge's line, on a vertex, off the plane): the heights agree to `tol · ‖n‖ (‖p‖ + ‖v₀‖)`,
+    /// and a side bit differs only where the vertex-relative product is within that rounding
+    /// of zero. Returns (bits compared, bits that differ).
+    fn offsets_match_the_vertex_relative_forms<T: RealField + Copy>(reach: f64, tol: f64) -> (usize, usize) {
+        let mut rng = Rng(0x0FF5_E7A5 ^ reach.to_bits());
+        let cast = |p: Vector3<f64>| p.map(|x| convert::<f64, T>(x));
+        let (mut compared, mut differ) = (0, 0);
+        for case in 0..20_000 {
+            let center = rng.point() * reach;
+            let t = [rng.point(), rng.point(), rng.point()].map(|v| cast(center + v));
+            let frame = TriangleFrame::new(&t);
+            if !frame.planar {
+                continue;
+            }
+            let (u, w) = (convert::<f64, T>(rng.uniform()), convert::<f64, T>(rng.range(-0.5, 1.5)));
+            let x = match case % 4 {
+                0 => t[0] + (t[1] - t[0]) * u + (t[2] - t[0]) * (w * (T::one() - u)),
+                1 => t[1] + (t[2] - t[1]) * w,
+                2 => t[2],
+                _ => t[0] + cast(rng.point()),
+            };
+            let size = |v: &Vector3<T>| convert_unchecked::<T, f64>(v.norm());
+            let scale = tol * size(&frame.normal) * (size(&x) + size(&t[0]) + size(&(x - t[0])));
+            let plain = convert_unchecked::<T, f64>(frame.normal.dot(&(x - t[0])));
+            assert!((convert_unchecked::<T, f64>(frame.height(&x)) - plain).abs() <= scale, "height: {t:?} {x:?}");
+            let sides = frame.sides(&x);
+            for (k, (m, v)) in frame.edge_normals.iter().zip(&t).enumerate() {
+                let product = convert_unchecked::<T, f64>(m.dot(&(x - v)));
+                let bound = tol * size(m) * (size(&x) + size(v) + size(&(x - v)));
+                compared += 1;
+                if (sides >> k & 1 == 1) != (product >= 0.0) {
+                    differ += 1;
+                    assert!(product.abs() <= bound, "side {k}: {product} beyond {bound}: {t:?} {x:?}");
+                }
+            }
+        }
+        (compared, differ)
+    }
+
+    #[test]
+    fn offsets_match_the_vertex_relative_forms_f64() {
+        for reach in [0.0, 2.0, 100.0] {
+            let (compared, differ) = offsets_match_the_vertex_relative_forms::<f64>(reach, 1e-14);
+            assert!(compared > 40_000 && differ * 4 < compared, "{compared} {differ}");
+        }
+    }
+
+    #[test]
+    fn offsets_match_the_vertex_relative_forms_f32() {
+        for reach in [0.0, 2.0, 100.0] {
+            let (compared, differ) = offsets_match_the_vertex_relative_forms::<f32>(reach, 1e-5);
+            assert!(compared > 40_000 && differ * 4 < compared, "{compared} {differ}");
+        }
+    }
 }
