@@ -210,7 +210,7 @@ impl Runtime {
         }
         if report.steps == 0 {
             robot.periods_elapsed(1 + missed);
-            if JointTorqueInterface::read(robot) == Err(ErrorKind::Stale) {
+            if slot.controller().is_some() && JointTorqueInterface::read(robot) == Err(ErrorKind::Stale) {
                 self.on_link_fault(robot, slot, LinkFault::Missing, &mut report);
             }
         }
