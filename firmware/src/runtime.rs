@@ -24,7 +24,7 @@
 
 use core::mem::MaybeUninit;
 
-use fixtures::justin::{self, collision, whole_body};
+use fixtures::justin::{self, collision, whole_body, JustinModel};
 use hal::{ErrorKind, JointTorqueInterface, PlatformCommand, PlatformVelocityInterface, LEGS};
 use kernel::controller::faults::SafeOutput;
 use kernel::controller::messages::{fault_code, TelemetryMessage};
@@ -80,12 +80,12 @@ impl ControllerSlot {
         self.configured = false;
     }
 
-    /// Builds the controller of the setup `encoded` in place (not inlined, so that its
-    /// by-value temporaries leave the stack); the reply to send.
+    /// Builds the controller of the setup `encoded` for `model` in place (not inlined, so that
+    /// its by-value temporaries leave the stack); the reply to send.
     #[inline(never)]
-    pub fn configure(&mut self, encoded: &[u8]) -> SetupReply {
+    pub fn configure(&mut self, model: &JustinModel<f32>, encoded: &[u8]) -> SetupReply {
         self.configured = false;
-        match new_controller(encoded) {
+        match new_controller(model, encoded) {
             Ok(controller) => {
                 self.controller.write(controller);
                 self.configured = true;
@@ -96,21 +96,23 @@ impl ControllerSlot {
     }
 }
 
-/// The controller of a setup: Justin's model, its collision model with the setup's environment
-/// volumes, `controller_config` with its free platform axes, its hierarchy; every part checked
-/// by the kernel's constructors. Inlined into [`ControllerSlot::configure`], so that the
-/// controller is built in place there.
+/// The controller of a setup: Justin's `model` (built once at boot: the same for every setup),
+/// its collision model with the setup's environment volumes, `controller_config` with its free
+/// platform axes, its hierarchy; every part checked by the kernel's constructors. Inlined into
+/// [`ControllerSlot::configure`], so that the controller is built in place there.
 #[inline(always)]
-fn new_controller(encoded: &[u8]) -> Result<Controller, SetupFault> {
+fn new_controller(model: &JustinModel<f32>, encoded: &[u8]) -> Result<Controller, SetupFault> {
     let setup = setup::decode(encoded)?;
-    let model = justin::model::<f32>().map_err(|_| SetupFault::InvalidConfiguration)?;
-    let environment: heapless::Vec<SweptSphere<f32>, MAX_ENVIRONMENT_VOLUMES> =
-        setup.environment.iter().map(setup::Volume::swept_sphere).collect();
-    let collision = collision::collision_model_with_environment::<f32, VOLUMES, PAIRS>(&model, &environment)
+    let mut environment = heapless::Vec::<SweptSphere<f32>, MAX_ENVIRONMENT_VOLUMES>::new();
+    for volume in &setup.environment {
+        environment.push(volume.swept_sphere()).map_err(|_| SetupFault::InvalidEnvironment)?;
+    }
+    let collision = collision::collision_model_with_environment::<f32, VOLUMES, PAIRS>(model, &environment)
         .map_err(|_| SetupFault::InvalidEnvironment)?;
     let mut config = whole_body::controller_config::<f32>().map_err(|_| SetupFault::InvalidConfiguration)?;
     config.platform.admittance.free_axes = setup.free_base_axes;
-    Controller::try_new(model, collision, config, &setup.hierarchy).map_err(|_| SetupFault::InvalidConfiguration)
+    Controller::try_new(model.clone(), collision, config, &setup.hierarchy)
+        .map_err(|_| SetupFault::InvalidConfiguration)
 }
 
 /// What happened in one period, for logging.
@@ -167,6 +169,7 @@ impl Runtime {
         &mut self,
         robot: &mut Robot<P>,
         slot: &mut ControllerSlot,
+        model: &JustinModel<f32>,
         missed: u32,
         period_over: O,
     ) -> PeriodReport
@@ -189,7 +192,7 @@ impl Runtime {
             match received {
                 Received::Nothing => {}
                 Received::Closed => break,
-                Received::Setup(chunk) => self.on_setup_chunk(robot, slot, &chunk, &mut report),
+                Received::Setup(chunk) => self.on_setup_chunk(robot, slot, model, &chunk, &mut report),
                 Received::Sensor { lost } => {
                     let fault = (lost > 0).then_some(LinkFault::Missing);
                     if let Some(fault) = fault {
@@ -228,6 +231,7 @@ impl Runtime {
         &mut self,
         robot: &mut Robot<P>,
         slot: &mut ControllerSlot,
+        model: &JustinModel<f32>,
         chunk: &SetupChunk,
         report: &mut PeriodReport,
     ) where
@@ -240,7 +244,7 @@ impl Runtime {
         }
         let reply = match self.setup.push(chunk) {
             Ok(None) => return,
-            Ok(Some(encoded)) => slot.configure(encoded),
+            Ok(Some(encoded)) => slot.configure(model, encoded),
             Err(fault) => SetupReply::Refused(fault),
         };
         self.reply_to_setup(robot, reply, report);

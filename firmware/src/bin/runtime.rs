@@ -68,6 +68,11 @@ fn exit_failure() -> ! {
 fn main() -> ! {
     // SAFETY: the only reference to CONTROLLER, taken once before the loop.
     let slot = unsafe { &mut *core::ptr::addr_of_mut!(CONTROLLER) };
+    // The model is the same for every setup: built once, before the link is served.
+    let Ok(model) = fixtures::justin::model::<f32>() else {
+        defmt::error!("model construction failed");
+        exit_failure()
+    };
     let Some(peripherals) = cortex_m::Peripherals::take() else { exit_failure() };
     let mut robot = Robot::new(board::uart0(), WATCHDOG_PERIODS);
     let mut runtime = Runtime::new();
@@ -79,7 +84,7 @@ fn main() -> ! {
         let missed = now.wrapping_sub(seen).saturating_sub(1);
         seen = now;
         let stopwatch = Stopwatch::start();
-        let report = runtime.period(&mut robot, slot, missed, || board::ticks() != now);
+        let report = runtime.period(&mut robot, slot, &model, missed, || board::ticks() != now);
         if report.steps > 0 {
             runtime.record_cost(stopwatch.elapsed());
         }
