@@ -2,8 +2,8 @@
 //! platform-velocity interfaces implemented on the `link` frames.
 //!
 //! [`SerialRobot::receive`] takes the bytes the port has ready and reports what a complete frame
-//! was: a sensor frame (it becomes the sample both `read`s return), a planner command, or a link
-//! fault. `write_torque` and `write_velocity` stage the cycle's output, which
+//! was: a sensor frame (it becomes the sample both `read`s return), a planner command, a piece of
+//! the setup message, or a link fault. `write_torque` and `write_velocity` stage the cycle's output, which
 //! [`SerialRobot::send_actuator`] sends as one actuator frame together with what the traits
 //! cannot carry (output mode, brake, fault codes): a partial update of some joints never goes
 //! out. The watchdog is the robot's own, as the `hal` contract asks: `read` returns
@@ -13,7 +13,8 @@
 use hal::PlatformVelocityInterface;
 use hal::{ErrorKind, ErrorType, JointSample, JointTorqueInterface, PlatformCommand, PlatformSample, LEGS};
 use link::{
-    write_frame, ActuatorMsg, Frame, FrameReader, Joints, LinkError, LinkFault, OutputMode, Payload, MAX_MESSAGE_BYTES,
+    write_frame, ActuatorMsg, Frame, FrameReader, Joints, LinkError, LinkFault, OutputMode, Payload, SetupChunk,
+    MAX_MESSAGE_BYTES,
 };
 
 /// What one call of [`SerialRobot::receive`] found.
@@ -28,6 +29,8 @@ pub enum Received {
     },
     /// A planner command (the kernel's postcard encoding).
     Command(heapless::Vec<u8, MAX_MESSAGE_BYTES>),
+    /// A piece of the setup message (`link::setup`).
+    Setup(SetupChunk),
     /// A frame the link refused.
     Fault(LinkFault),
     /// The port failed or closed: nothing more this period.
@@ -98,8 +101,11 @@ where
                     None => Received::Fault(LinkFault::Corrupted),
                 },
                 Payload::Command(bytes) => Received::Command(bytes),
+                Payload::Setup(chunk) => Received::Setup(chunk),
                 // Frames only the board sends.
-                Payload::Actuator(_) | Payload::Telemetry(_) | Payload::Stats(_) => Received::Nothing,
+                Payload::Actuator(_) | Payload::Telemetry(_) | Payload::Stats(_) | Payload::SetupReply(_) => {
+                    Received::Nothing
+                }
             },
             Some(Err(LinkError::Io(_) | LinkError::Closed)) => Received::Closed,
             Some(Err(e)) => Received::Fault(link_fault(&e)),

@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
-# Panic-freedom evidence for `Controller::step` and `Controller::apply_bytes` (command decoding
-# and `apply`) in the release firmware (issues 8 and 16).
+# Panic-freedom evidence for `Controller::step`, `Controller::apply_bytes` (command decoding
+# and `apply`) and the runtime's setup (`ControllerSlot::configure`: assembling, decoding, building
+# the controller) in the release firmware (issues 8, 14 and 16).
 #
 # Links `src/bin/panic_check.rs` (main calls only `wcet_step` = the Justin controller's full
-# `step`, and `apply_bytes`, on opaque inputs) with a panic handler that calls an undefined
+# `step`, `apply_bytes` and the setup path, on opaque inputs) with a panic handler that calls an undefined
 # function: the link succeeds only if no panic path from either survives optimisation (release profile: opt 3, fat
 # LTO, 1 CGU, panic = abort). Variants: Cortex-M7 f32, Cortex-M7 f64 (DP FPU), Cortex-M4F f32.
 # On a failure it rebuilds with a defined handler and lists the functions that still call a
@@ -35,7 +36,7 @@ for v in "${variants[@]}"; do
             echo "panic-check $v: FAILED (wcet_step missing from the image: the check proves nothing)" >&2
             exit 2
         fi
-        echo "panic-check $v: OK (no panic path reachable from Controller::step or apply_bytes; $(size "$elf" | awk 'NR == 2 { print "text " $1 " B" }'))"
+        echo "panic-check $v: OK (no panic path reachable from Controller::step, apply_bytes or the setup; $(size "$elf" | awk 'NR == 2 { print "text " $1 " B" }'))"
         continue
     fi
     if ! grep -q 'step_has_a_panic_path' "$log"; then

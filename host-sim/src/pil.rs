@@ -3,7 +3,10 @@
 //!
 //! [`Firmware::start`] builds the image for the target core if needed (`cargo build` in
 //! `firmware/`, its own target directory per core), listens on a loopback TCP port, starts QEMU
-//! with UART0 connected to it, and waits for the connection. [`Firmware::step`] sends one sensor
+//! with UART0 connected to it, and waits for the connection. [`Firmware::configure`] sends the
+//! scenario's rig as the setup message ([`rig_setup`], `link::setup`: environment volumes, free
+//! platform axes, hierarchy, in CRC-checked chunks) and waits for the firmware to acknowledge it
+//! with the configuration's checksum: one image for every scenario. [`Firmware::step`] sends one sensor
 //! frame and waits for the actuator frame of the same cycle: lockstep on simulated time,
 //! however slowly QEMU runs. An answer that does not come within the timeout is an error,
 //! never a hang. The image logs through defmt on QEMU's semihosting stdout (faults, mode changes,
@@ -29,12 +32,15 @@ use std::time::{Duration, Instant};
 use embedded_io_adapters::std::FromStd;
 use fixtures::justin;
 use hal::{JointSample, PlatformSample};
+use kernel::controller::config::TaskSpec;
 use kernel::controller::faults::SafeOutput;
 use kernel::controller::messages::{encode_command, Command};
 use kernel::controller::{ActuatorFrame, SensorFrame};
+use kernel::tasks::collision::SweptSphere;
+use link::setup::{self, MAX_SETUP_BYTES};
 use link::{
-    encode, write_frame, ActuatorMsg, Frame, FrameReader, LinkError, OutputMode, Payload, RuntimeStats, SensorMsg,
-    MAX_ENCODED, MAX_MESSAGE_BYTES,
+    encode, write_frame, ActuatorMsg, Frame, FrameReader, LinkError, OutputMode, Payload, RigSetup, RuntimeStats,
+    SensorMsg, SetupChunk, SetupReply, Volume, MAX_ENCODED, MAX_MESSAGE_BYTES,
 };
 
 use crate::scalar::{narrow_command, widen_actuator_frame};
@@ -262,6 +268,23 @@ impl Firmware {
         }
     }
 
+    /// Configures the firmware's controller for the rig `setup` and waits for its
+    /// acknowledgement; an error if the firmware refuses it (its typed fault) or acknowledges
+    /// another configuration (checksum).
+    pub fn configure(&mut self, setup: &RigSetup) -> Result<(), String> {
+        let (chunks, checksum) = setup_chunks(setup)?;
+        for chunk in chunks {
+            self.send(Payload::Setup(chunk))?;
+        }
+        match self.next_setup_reply()? {
+            SetupReply::Accepted { checksum: acknowledged } if acknowledged == checksum => Ok(()),
+            SetupReply::Accepted { checksum: acknowledged } => {
+                Err(format!("setup: the firmware acknowledged checksum {acknowledged:#010x}, sent {checksum:#010x}"))
+            }
+            SetupReply::Refused(fault) => Err(format!("setup refused by the firmware: {fault:?}")),
+        }
+    }
+
     /// Sends a planner command (converted to `f32`); the firmware applies it before the next frame.
     pub fn apply(&mut self, command: &Command<f64>) -> Result<(), String> {
         let command = narrow_command(command)?;
@@ -299,13 +322,30 @@ impl Firmware {
     /// The next actuator frame the firmware sends (statistics and telemetry on the way are
     /// kept or skipped); an error after the answer timeout.
     pub fn next_actuator(&mut self) -> Result<ActuatorMsg, String> {
+        self.next_frame(|payload| match payload {
+            Payload::Actuator(answer) => Some(answer),
+            _ => None,
+        })
+    }
+
+    /// The firmware's next reply to a setup; an error after the answer timeout.
+    pub fn next_setup_reply(&mut self) -> Result<SetupReply, String> {
+        self.next_frame(|payload| match payload {
+            Payload::SetupReply(reply) => Some(reply),
+            _ => None,
+        })
+    }
+
+    /// The first frame `wanted` picks from what the firmware sends (statistics frames on the
+    /// way are kept); an error after the answer timeout.
+    fn next_frame<T>(&mut self, wanted: impl Fn(Payload) -> Option<T>) -> Result<T, String> {
         let deadline = Instant::now() + self.timeout;
         loop {
             let received = self.reader.read(&mut self.input).map_err(|e| self.link_error(&e))?;
-            match received.frame.payload {
-                Payload::Actuator(answer) => return Ok(answer),
-                Payload::Stats(stats) => self.stats = Some(stats),
-                Payload::Telemetry(_) | Payload::Sensor(_) | Payload::Command(_) => {}
+            if let Payload::Stats(stats) = received.frame.payload {
+                self.stats = Some(stats);
+            } else if let Some(found) = wanted(received.frame.payload) {
+                return Ok(found);
             }
             if Instant::now() > deadline {
                 return Err(self.timeout_message());
@@ -420,6 +460,31 @@ pub fn sensor_message(frame: &SensorFrame<f64, U>) -> Result<SensorMsg, String> 
         cycle: frame.platform.cycle,
     };
     SensorMsg::from_samples(&joints, &platform).ok_or_else(|| "more joints than a link frame carries".to_string())
+}
+
+/// The setup message of a rig: its environment volumes (world frame, rounded to `f32`), the
+/// platform axes its admittance moves and its hierarchy.
+pub fn rig_setup(
+    environment: &[SweptSphere<f64>],
+    free_base_axes: [bool; 3],
+    hierarchy: &[TaskSpec],
+) -> Result<RigSetup, String> {
+    let volumes: Vec<Volume> = environment.iter().map(Volume::from_swept_sphere).collect();
+    Ok(RigSetup {
+        environment: heapless::Vec::from_slice(&volumes).map_err(|_| "setup: too many environment volumes")?,
+        free_base_axes,
+        hierarchy: heapless::Vec::from_slice(hierarchy).map_err(|_| "setup: too many tasks")?,
+    })
+}
+
+/// The chunks of `setup` and the checksum the firmware acknowledges it with.
+pub fn setup_chunks(setup: &RigSetup) -> Result<(Vec<SetupChunk>, u32), String> {
+    let mut encoded = [0u8; MAX_SETUP_BYTES];
+    let chunks: Vec<SetupChunk> =
+        setup::split(setup, &mut encoded).ok_or("setup: larger than the firmware's buffer")?.collect();
+    let length = chunks.iter().map(|chunk| chunk.bytes.len()).sum();
+    let checksum = setup::checksum(encoded.get(..length).ok_or("setup: chunk lengths")?);
+    Ok((chunks, checksum))
 }
 
 /// The actuator frame in `f64`.

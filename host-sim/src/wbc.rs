@@ -29,8 +29,8 @@ use crate::sim::{
 
 /// Collision volumes: the robot's 28 plus up to four environment volumes (table, wall, …).
 pub const VOLUMES: usize = collision::VOLUMES + MAX_ENVIRONMENT;
-/// Most environment volumes.
-pub const MAX_ENVIRONMENT: usize = 4;
+/// Most environment volumes (as many as the firmware's setup message carries).
+pub const MAX_ENVIRONMENT: usize = link::setup::MAX_ENVIRONMENT_VOLUMES;
 /// Pair capacity: the robot's pairs plus 27 per environment volume.
 pub const PAIRS: usize = collision::PAIRS + 27 * MAX_ENVIRONMENT;
 
@@ -195,23 +195,16 @@ pub fn rig(
     Ok(Rig { sim, controller, driver, faulty_cycles: 0, min_distance_m: f64::INFINITY, torque_difference: 0.0, output })
 }
 
-/// Starts the firmware, if the rig is the one the image is built with: no environment volumes,
-/// [`whole_body::controller_config`], the Fig. 6.3 hierarchy for the right hand.
+/// Starts the firmware and configures its controller for the rig ([`crate::pil::rig_setup`]).
 fn firmware_for(
     target: crate::pil::Target,
     environment: &[SweptSphere<f64>],
     changes: ConfigChanges,
     hierarchy: &[TaskSpec],
 ) -> Result<Firmware, String> {
-    if !environment.is_empty()
-        || changes != ConfigChanges::NONE
-        || hierarchy != whole_body::fig_6_3_hierarchy(Hand::Right).as_slice()
-    {
-        return Err("--pil: the firmware image runs controller_config and the Fig. 6.3 hierarchy for the right \
-                    hand without environment volumes; this scenario's rig differs"
-            .into());
-    }
-    Firmware::start(target)
+    let mut firmware = Firmware::start(target)?;
+    firmware.configure(&crate::pil::rig_setup(environment, changes.free_base_axes, hierarchy)?)?;
+    Ok(firmware)
 }
 
 /// The default rig of Ch. 6: Justin at its home pose, the configuration of

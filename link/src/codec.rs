@@ -5,7 +5,7 @@ use crc::{Crc, CRC_32_ISO_HDLC};
 use crate::frames::Frame;
 
 /// The frame checksum: CRC-32 (ISO-HDLC, as Ethernet and zlib).
-const CHECKSUM: Crc<u32> = Crc::<u32>::new(&CRC_32_ISO_HDLC);
+pub(crate) const CHECKSUM: Crc<u32> = Crc::<u32>::new(&CRC_32_ISO_HDLC);
 /// Bytes of the checksum after the payload.
 const CHECKSUM_BYTES: usize = 4;
 /// Most bytes of a frame's postcard encoding plus its checksum.

@@ -3,6 +3,8 @@
 use hal::{JointSample, PlatformCommand, PlatformSample, LEGS};
 use serde::{Deserialize, Serialize};
 
+use crate::setup::{SetupChunk, SetupReply};
+
 /// Most joints a sensor or actuator frame carries.
 pub const MAX_JOINTS: usize = 32;
 /// Most bytes of an opaque planner command or telemetry message (the kernel's postcard encoding).
@@ -33,6 +35,10 @@ pub enum Payload {
     Telemetry(heapless::Vec<u8, MAX_MESSAGE_BYTES>),
     /// Board → host: the runtime's counters.
     Stats(RuntimeStats),
+    /// Host → board: one piece of the scenario's configuration ([`crate::setup`]).
+    Setup(SetupChunk),
+    /// Board → host: the answer to a setup.
+    SetupReply(SetupReply),
 }
 
 /// One control cycle's sensor values: the joints of the upper body and the platform.
@@ -80,6 +86,8 @@ pub enum LinkFault {
     Replayed,
     /// No sensor frame within the watchdog time, or a gap in the sequence numbers.
     Missing,
+    /// A sensor frame before a valid setup: there is no controller to step.
+    Unconfigured,
 }
 
 /// The controller's output for one cycle.

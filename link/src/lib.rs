@@ -2,7 +2,8 @@
 //!
 //! `#![no_std]`, no allocation. Every message is a [`Frame`]: a sequence number and one
 //! [`Payload`] (a sensor frame in, an actuator frame out, a planner command, telemetry or the
-//! board's runtime statistics). On the wire a frame is its postcard encoding followed by the
+//! board's runtime statistics; before the lockstep, the chunks of the [`setup`] message that
+//! configures the board's controller for the scenario, and the board's reply). On the wire a frame is its postcard encoding followed by the
 //! CRC-32 (ISO-HDLC) of that encoding, little-endian, COBS-encoded and terminated by a zero byte
 //! ([`codec`]). [`FrameReader`] reassembles frames from any [`embedded_io::Read`] byte stream
 //! and checks their sequence numbers; [`write_frame`] writes one to any [`embedded_io::Write`],
@@ -16,9 +17,11 @@
 pub mod codec;
 pub mod frames;
 pub mod reader;
+pub mod setup;
 
 pub use codec::{decode, encode, write_frame, LinkError, MAX_ENCODED, MAX_FRAME_BYTES};
 pub use frames::{
     ActuatorMsg, Frame, Joints, LinkFault, OutputMode, Payload, RuntimeStats, SensorMsg, MAX_JOINTS, MAX_MESSAGE_BYTES,
 };
 pub use reader::{FrameReader, ReadResult, Received, SequenceCheck};
+pub use setup::{RigSetup, SetupAssembler, SetupChunk, SetupFault, SetupReply, Volume, VolumeCore};

@@ -1,11 +1,14 @@
-//! Panic-freedom check of `Controller::step` and `Controller::apply_bytes` (issues 8 and 16):
-//! this image is only linked, never run.
+//! Panic-freedom check of `Controller::step`, `Controller::apply_bytes` (issues 8 and 16) and
+//! the runtime's setup (issue 14): this image is only linked, never run.
 //!
 //! `main` calls `wcet_step` (the full `Controller::step` of the Justin controller, f32 or f64
 //! with `wcet-f64`) on a controller and a frame the optimiser cannot see (`black_box`ed
-//! pointers), and `apply_bytes` (command decoding and `Controller::apply`) on bytes it cannot
-//! see, so the image contains both and everything they can reach, and nothing else of the
-//! kernel. The panic handler calls a function that does not exist: if any panic path
+//! pointers), `apply_bytes` (command decoding and `Controller::apply`) on bytes it cannot
+//! see, and the setup path of the board runtime on a chunk and a model it cannot see
+//! (assembling the chunks, decoding the setup, building the controller through the kernel's
+//! constructors: `ControllerSlot::configure`; the model is built once at boot, before the link
+//! is served), so the image contains all three and everything they can reach, and nothing else
+//! of the kernel. The panic handler calls a function that does not exist: if any panic path
 //! survives optimisation, the link fails with `undefined symbol: step_has_a_panic_path`.
 //! With the `panic-check-report` feature the handler is an ordinary loop instead, so that
 //! `wcet/panic_check.sh` can list the call sites of the remaining panic functions.
@@ -17,12 +20,19 @@ use core::mem::MaybeUninit;
 use core::panic::PanicInfo;
 
 use cortex_m_rt::entry;
+use firmware::runtime::ControllerSlot;
+use fixtures::justin::JustinModel;
+use link::setup::{SetupAssembler, SetupChunk};
 
 use wcet_stages::*;
 
 static mut CONTROLLER: MaybeUninit<JustinController> = MaybeUninit::uninit();
 static mut FRAME: MaybeUninit<Frame> = MaybeUninit::uninit();
 static mut COMMAND: [u8; 256] = [0; 256];
+static mut SLOT: ControllerSlot = ControllerSlot::new();
+static mut MODEL: MaybeUninit<JustinModel<f32>> = MaybeUninit::uninit();
+static mut CHUNK: MaybeUninit<SetupChunk> = MaybeUninit::uninit();
+static mut ASSEMBLER: SetupAssembler = SetupAssembler::new();
 
 #[entry]
 fn main() -> ! {
@@ -31,6 +41,10 @@ fn main() -> ! {
     let frame = core::hint::black_box(core::ptr::addr_of!(FRAME)).cast::<Frame>();
     let bytes = core::hint::black_box(core::ptr::addr_of!(COMMAND));
     let length = core::hint::black_box(256_usize);
+    let slot = core::hint::black_box(core::ptr::addr_of_mut!(SLOT));
+    let chunk = core::hint::black_box(core::ptr::addr_of!(CHUNK)).cast::<SetupChunk>();
+    let assembler = core::hint::black_box(core::ptr::addr_of_mut!(ASSEMBLER));
+    let model = core::hint::black_box(core::ptr::addr_of!(MODEL)).cast::<JustinModel<f32>>();
     loop {
         // SAFETY: not run; see the module docs.
         let sum = unsafe { wcet_step(&mut *controller, &*frame) };
@@ -40,6 +54,11 @@ fn main() -> ! {
         // SAFETY: as above.
         let applied = unsafe { (*controller).apply_bytes(command) };
         core::hint::black_box(applied.is_ok());
+        // SAFETY: as above.
+        if let Ok(Some(encoded)) = unsafe { (*assembler).push(&*chunk) } {
+            // SAFETY: as above.
+            core::hint::black_box(unsafe { (*slot).configure(&*model, encoded) });
+        }
     }
 }
 

@@ -1,24 +1,22 @@
-//! The control image: Justin's whole-body controller (`f32`, `controller_config`, Fig. 6.3
-//! hierarchy for the right hand) at 1 kHz on the SysTick tick, the robot behind UART0 through
-//! the `hal` traits (`firmware::serial_robot`: sensor and actuator frames of the `link` crate).
+//! The control image: Justin's whole-body controller (`f32`, `controller_config`, configured
+//! for the scenario by the setup message the host sends first: environment volumes, free
+//! platform axes, hierarchy) at 1 kHz on the SysTick tick, the robot behind UART0 through the
+//! `hal` traits (`firmware::serial_robot`: sensor and actuator frames of the `link` crate).
 //! Logs through defmt, its frames on semihosting stdout (the host decodes them with the image's
-//! `.defmt` table: `host-sim`'s PIL, or `defmt-print -e`): link faults, output mode changes, and
+//! `.defmt` table: `host-sim`'s PIL, or `defmt-print -e`): setup replies, link faults, output mode changes, and
 //! once per second the cycles run, deadline misses and the worst cycle's cost; timestamps are
 //! control ticks (ms). Runs until the board is reset (QEMU: killed); a panic is logged and ends
 //! the QEMU run as a failure.
 #![no_std]
 #![no_main]
 
-use core::mem::MaybeUninit;
 use core::panic::PanicInfo;
 
 use cortex_m_rt::entry;
 use cortex_m_semihosting::debug;
 use defmt_semihosting as _;
 use firmware::board::{self, Stopwatch};
-use firmware::runtime::{Controller, PeriodReport, Robot, Runtime};
-use fixtures::justin::{self, whole_body};
-use kernel::controller::config::Hand;
+use firmware::runtime::{ControllerSlot, PeriodReport, Robot, Runtime};
 
 /// Periods without a sensor frame before the runtime holds: generous, because under QEMU the
 /// host (simulating the robot in lockstep) shares the machine with the emulated core.
@@ -26,26 +24,13 @@ const WATCHDOG_PERIODS: u32 = 500;
 
 defmt::timestamp!("{=u32:ms}", board::ticks());
 
-// The controller (68 KB in f32) lives in `.bss`, not on the stack.
-static mut CONTROLLER: MaybeUninit<Controller> = MaybeUninit::uninit();
-
-/// Inlined into [`init`], so that the controller is built in place there: a separate frame
-/// returning it by value can cost several copies of it on the stack.
-#[inline(always)]
-fn new_controller() -> Option<Controller> {
-    let model = justin::model::<f32>().ok()?;
-    let collision = justin::collision::collision_model(&model).ok()?;
-    let config = whole_body::controller_config::<f32>().ok()?;
-    Controller::try_new(model, collision, config, &whole_body::fig_6_3_hierarchy(Hand::Right)).ok()
-}
-
-/// Builds the controller into `slot`; not inlined, so its by-value temporaries leave the stack.
-#[inline(never)]
-fn init(slot: &mut MaybeUninit<Controller>) -> Option<&mut Controller> {
-    Some(slot.write(new_controller()?))
-}
+// The controller (~90 KB in f32) lives in `.bss`, not on the stack.
+static mut CONTROLLER: ControllerSlot = ControllerSlot::new();
 
 fn log(report: &PeriodReport) {
+    if let Some(reply) = report.setup {
+        defmt::info!("setup {}", reply);
+    }
     if let Some(fault) = report.link_fault {
         defmt::warn!("link fault {}", fault);
     }
@@ -82,8 +67,10 @@ fn exit_failure() -> ! {
 #[entry]
 fn main() -> ! {
     // SAFETY: the only reference to CONTROLLER, taken once before the loop.
-    let Some(controller) = init(unsafe { &mut *core::ptr::addr_of_mut!(CONTROLLER) }) else {
-        defmt::error!("controller construction failed");
+    let slot = unsafe { &mut *core::ptr::addr_of_mut!(CONTROLLER) };
+    // The model is the same for every setup: built once, before the link is served.
+    let Ok(model) = fixtures::justin::model::<f32>() else {
+        defmt::error!("model construction failed");
         exit_failure()
     };
     let Some(peripherals) = cortex_m::Peripherals::take() else { exit_failure() };
@@ -97,7 +84,7 @@ fn main() -> ! {
         let missed = now.wrapping_sub(seen).saturating_sub(1);
         seen = now;
         let stopwatch = Stopwatch::start();
-        let report = runtime.period(&mut robot, controller, missed, || board::ticks() != now);
+        let report = runtime.period(&mut robot, slot, &model, missed, || board::ticks() != now);
         if report.steps > 0 {
             runtime.record_cost(stopwatch.elapsed());
         }
