@@ -21,7 +21,8 @@ use super::state::{ControllerState, Workspace};
 use super::task_set::{evaluate, EvaluationContext, Scratch};
 use super::trajectory::{JointTrajectory, PoseTrajectory};
 use crate::dynamics::{
-    coriolis_product, coriolis_transpose_velocity, crba, forward_kinematics, gravity, DynamicsError, TreeFactorization,
+    coriolis_transpose_velocity, coriolis_velocity_products, crba, forward_kinematics, gravity, kinematics,
+    DynamicsError, KinematicsLevel, TreeFactorization,
 };
 use crate::hierarchy::{project, HierarchyConfig, Weighting};
 use crate::math::sqrt;
@@ -95,7 +96,8 @@ impl<
         let dt = self.settings.config.period_s;
         let (q, v) = frame.coordinates();
         let (model, data) = (&self.settings.model, &mut self.work.data);
-        forward_kinematics(model, data, &q, &v).map_err(Fault::Dynamics)?;
+        // Everything the step reads; the 6×6 body inertias are not among it.
+        kinematics(model, data, &q, KinematicsLevel::Velocities(&v)).map_err(Fault::Dynamics)?;
         crba(model, data);
         gravity(model, data);
         let layout = self.settings.config.layout.platform;
@@ -148,11 +150,19 @@ impl<
         let terms =
             coupling_compensation_recursive(&self.settings.model, &self.work.data, &layout, &platform.acceleration)
                 .map_err(Fault::Platform)?;
+        // `Cᵀ q̇` for the observer: from the barrier's fused pass when it ran.
+        let mut coriolis_transpose = None;
         let compensation = terms.torque(self.settings.config.platform.compensation)
-            + self.speed_barrier(&v, dense_inverse.unwrap_or(InverseInertia::Factor(&inertia)));
+            + self.speed_barrier(
+                &v,
+                dense_inverse.unwrap_or(InverseInertia::Factor(&inertia)),
+                &mut coriolis_transpose,
+            );
         let compensation = self.blend_from_hold(&compensation, &v);
         let torque = self.guard_torque(&compensation, &inertia, dt);
-        self.commit(frame, &torque, &platform, &closed_loop, dt)
+        let coriolis_transpose =
+            coriolis_transpose.unwrap_or_else(|| coriolis_transpose_velocity(&self.settings.model, &self.work.data));
+        self.commit(frame, &torque, &platform, &closed_loop, &coriolis_transpose, dt)
     }
 
     /// Sets every target to the measured state (first valid frame).
@@ -329,8 +339,15 @@ impl<
     /// The joint speed barrier ([`mod@super::speed_barrier`]) on the upper body, from the measured `v`
     /// and the inverse closed-loop inertia `M̃⁻¹` (dense when the step formed it, else the
     /// factor). The driving torque is the levels' sum plus the observer's external-torque
-    /// estimate minus the velocity terms `C q̇`.
-    fn speed_barrier(&self, v: &SVector<T, N>, inverse: InverseInertia<'_, T, N>) -> SVector<T, N> {
+    /// estimate minus the velocity terms `C q̇`. When the barrier drives, `C q̇` comes from the
+    /// fused pass of [`coriolis_velocity_products`], whose `Cᵀ q̇` is left in
+    /// `coriolis_transpose` for the observer.
+    fn speed_barrier(
+        &self,
+        v: &SVector<T, N>,
+        inverse: InverseInertia<'_, T, N>,
+        coriolis_transpose: &mut Option<SVector<T, N>>,
+    ) -> SVector<T, N> {
         let active = self.settings.config.layout.coordinates(JointGroup::UpperBody);
         let limits =
             JointLimits { speed: &self.settings.model.limits.velocity, effort: &self.settings.model.limits.effort };
@@ -345,7 +362,8 @@ impl<
                 }
             }
             // `− C q̇` by one O(B) tree pass: the step does not form `C` (`data.coriolis` is stale).
-            let velocity_terms = coriolis_product(&self.settings.model, &self.work.data, v);
+            let (velocity_terms, transpose) = coriolis_velocity_products(&self.settings.model, &self.work.data);
+            *coriolis_transpose = Some(transpose);
             for (s, c) in sum.iter_mut().zip(&velocity_terms.data.0[0]) {
                 *s -= *c;
             }
@@ -445,13 +463,15 @@ impl<
         out.mode = mode;
     }
 
-    /// Checks the commands, updates the observer and the telemetry, writes the output.
+    /// Checks the commands, updates the observer (with `Cᵀ q̇` = `coriolis`) and the telemetry,
+    /// writes the output.
     fn commit(
         &mut self,
         frame: &SensorFrame<T, U>,
         torque: &SVector<T, N>,
         platform: &PlatformStep<T>,
         closed_loop: &nalgebra::SMatrix<T, N, N>,
+        coriolis: &SVector<T, N>,
         dt: T,
     ) -> Result<(), Fault> {
         let (velocity, leg_rates) = (&platform.velocity, &platform.leg_rates);
@@ -466,8 +486,7 @@ impl<
             *m = *t;
         }
         let observed = self.settings.config.layout.coordinates(JointGroup::UpperBody);
-        let coriolis = coriolis_transpose_velocity(&self.settings.model, &self.work.data);
-        let residual = *self.state.observer.update_with(&self.work.data, &coriolis, &measured, &observed, dt);
+        let residual = *self.state.observer.update_with(&self.work.data, coriolis, &measured, &observed, dt);
         let t = &mut self.state.telemetry;
         t.external_torque = residual;
         t.contact = sqrt(residual.norm_squared()) > self.settings.config.observer.contact_threshold;
