@@ -28,7 +28,7 @@ use crate::hierarchy::{project, HierarchyConfig, Weighting};
 use crate::math::sqrt;
 use crate::platform::avoidance::PlatformReference;
 use crate::platform::coupling_compensation::coupling_compensation_recursive;
-use crate::platform::storage::closed_loop_inertia;
+use crate::platform::storage::closed_loop_inertia_into;
 use crate::tasks::collision::PairRowCache;
 
 /// The platform commands of one cycle, after the guards.
@@ -101,8 +101,14 @@ impl<
         crba(model, data);
         gravity(model, data);
         let layout = self.settings.config.layout.platform;
-        let closed_loop =
-            closed_loop_inertia(&data.mass_matrix, &layout, &self.settings.config.platform.admittance.mass);
+        let closed_loop = &mut self.work.closed_loop;
+        closed_loop_inertia_into(
+            &data.mass_matrix,
+            &layout,
+            &self.settings.config.platform.admittance.mass,
+            closed_loop,
+        );
+        let closed_loop = &*closed_loop;
         // The plain `M = Lᵀ L` for the Cartesian damping design, shared by both hands (`None`:
         // not positive definite, the tasks fall back to their configured damping).
         let mut mass = TreeFactorization::from_structure(self.settings.tree);
@@ -118,7 +124,7 @@ impl<
                 *flag = true;
             }
         }
-        if mass_factored { inertia.decouple(&decoupled, &closed_loop) } else { inertia.factorize(&closed_loop) }
+        if mass_factored { inertia.decouple(&decoupled, closed_loop) } else { inertia.factorize(closed_loop) }
             .map_err(Fault::Dynamics)?;
         let mass = mass_factored.then_some(&mass);
         if !self.state.started {
@@ -128,16 +134,12 @@ impl<
         self.limit_contact_forces(dt)?;
         self.build_stack(mass, &inertia)?;
 
-        let inverse;
-        let mut dense_inverse = None;
-        let weighting = match self.settings.config.consistency {
-            Consistency::Static => Weighting::Identity,
-            Consistency::Dynamic => {
-                inverse = inertia.inverse();
-                dense_inverse = Some(InverseInertia::Dense(&inverse));
-                Weighting::InverseInertia(&inverse)
-            }
-        };
+        let dynamic = self.settings.config.consistency == Consistency::Dynamic;
+        if dynamic {
+            inertia.inverse_into(&mut self.work.inverse_inertia);
+        }
+        let weighting =
+            if dynamic { Weighting::InverseInertia(&self.work.inverse_inertia) } else { Weighting::Identity };
         let config = HierarchyConfig {
             recursion: self.settings.config.recursion,
             weighting,
@@ -155,14 +157,18 @@ impl<
         let compensation = terms.torque(self.settings.config.platform.compensation)
             + self.speed_barrier(
                 &v,
-                dense_inverse.unwrap_or(InverseInertia::Factor(&inertia)),
+                if dynamic {
+                    InverseInertia::Dense(&self.work.inverse_inertia)
+                } else {
+                    InverseInertia::Factor(&inertia)
+                },
                 &mut coriolis_transpose,
             );
         let compensation = self.blend_from_hold(&compensation, &v);
         let torque = self.guard_torque(&compensation, &inertia, dt);
         let coriolis_transpose =
             coriolis_transpose.unwrap_or_else(|| coriolis_transpose_velocity(&self.settings.model, &self.work.data));
-        self.commit(frame, &torque, &platform, &closed_loop, &coriolis_transpose, dt)
+        self.commit(frame, &torque, &platform, &coriolis_transpose, dt)
     }
 
     /// Sets every target to the measured state (first valid frame).
@@ -470,7 +476,6 @@ impl<
         frame: &SensorFrame<T, U>,
         torque: &SVector<T, N>,
         platform: &PlatformStep<T>,
-        closed_loop: &nalgebra::SMatrix<T, N, N>,
         coriolis: &SVector<T, N>,
         dt: T,
     ) -> Result<(), Fault> {
@@ -520,7 +525,7 @@ impl<
         let half: T = convert(0.5);
         // M̃ q̇ as a sum of the columns of M̃, in column order.
         let mut momentum = SVector::<T, N>::zeros();
-        for (column, v) in closed_loop.data.0.iter().zip(self.work.data.v.as_slice().iter()) {
+        for (column, v) in self.work.closed_loop.data.0.iter().zip(self.work.data.v.as_slice().iter()) {
             for (p, m) in momentum.as_mut_slice().iter_mut().zip(column.iter()) {
                 *p += *v * *m;
             }

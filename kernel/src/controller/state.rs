@@ -103,6 +103,10 @@ pub(super) struct Workspace<
     pub(super) cartesian_damping: PerHand<Vector6<T>>,
     /// The world-aligned TCP Jacobians of this cycle (contact-force limiter and Cartesian tasks).
     pub(super) tcp_jacobians: PerHand<SMatrix<T, 6, N>>,
+    /// The closed-loop inertia `M̃` (5.17) of this cycle.
+    pub(super) closed_loop: SMatrix<T, N, N>,
+    /// The dense `M̃⁻¹` of this cycle (dynamically consistent projection and speed barrier).
+    pub(super) inverse_inertia: SMatrix<T, N, N>,
 }
 
 impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const V: usize, const P: usize>
@@ -122,6 +126,8 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
             rows: TaskRows::new(),
             cartesian_damping: [Vector6::zeros(); 2],
             tcp_jacobians: [SMatrix::zeros(); 2],
+            closed_loop: SMatrix::zeros(),
+            inverse_inertia: SMatrix::zeros(),
         }
     }
 }

@@ -390,6 +390,13 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
     /// `N³/2`.
     pub fn inverse(&self) -> SMatrix<T, N, N> {
         let mut w = SMatrix::<T, N, N>::zeros();
+        self.inverse_into(&mut w);
+        w
+    }
+
+    /// [`Self::inverse`] written into `w` (every entry is overwritten; no temporary, no
+    /// zero fill).
+    pub fn inverse_into(&self, w: &mut SMatrix<T, N, N>) {
         let columns: &mut [[T; N]; N] = &mut w.data.0;
         for ((i, packed), &inverse) in self.rows.data.0.iter().enumerate().zip(self.reciprocal.iter()) {
             let Some((before, rest)) = columns.split_at_mut_checked(i) else { break };
@@ -412,7 +419,6 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
                 }
             }
         }
-        w
     }
 
     /// Solves `M x = b` in place (`x` holds `b` on entry) with the last factor:
