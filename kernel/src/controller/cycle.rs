@@ -17,7 +17,7 @@ use super::guard::{
 use super::layout::{Hand, JointGroup};
 use super::settings::ControllerSettings;
 use super::speed_barrier::{speed_barrier, InverseInertia, JointLimits};
-use super::state::{ControllerState, Workspace};
+use super::state::{ControllerState, InertiaFactors, Workspace};
 use super::task_set::{evaluate, EvaluationContext, Scratch};
 use super::trajectory::{JointTrajectory, PoseTrajectory};
 use crate::dynamics::{
@@ -71,9 +71,10 @@ impl<
 {
     /// One control cycle: never panics, always writes a checked output (the whole-body torque,
     /// or the safe output of [`super::faults`] with the fault in the telemetry).
-    pub(super) fn step(&mut self, frame: &SensorFrame<T, U>) {
+    /// `factors` holds the cycle's tree factors (overwritten).
+    pub(super) fn step(&mut self, frame: &SensorFrame<T, U>, factors: &mut InertiaFactors<T, N>) {
         self.state.telemetry.cycle = frame.joints.cycle;
-        match self.control(frame) {
+        match self.control(frame, factors) {
             Ok(()) => {
                 self.state.telemetry.fault = self.state.recovery.output().1;
                 self.state.telemetry.fault_cycles = 0;
@@ -89,7 +90,7 @@ impl<
         }
     }
 
-    fn control(&mut self, frame: &SensorFrame<T, U>) -> Result<(), Fault> {
+    fn control(&mut self, frame: &SensorFrame<T, U>, factors: &mut InertiaFactors<T, N>) -> Result<(), Fault> {
         let input_limits =
             self.state.recovery.input_limits(&self.settings.config.input_limits, &self.settings.config.recovery);
         validate_frame(&self.settings.model, &input_limits, frame, PLATFORM_DOF, self.state.last_cycle)?;
@@ -111,13 +112,13 @@ impl<
         let closed_loop = &*closed_loop;
         // The plain `M = Lᵀ L` for the Cartesian damping design, shared by both hands (`None`:
         // not positive definite, the tasks fall back to their configured damping).
-        let mut mass = TreeFactorization::from_structure(self.settings.tree);
+        let InertiaFactors { mass, inertia } = factors;
         let mass_factored = mass.factorize(&self.work.data.mass_matrix).is_ok();
         // The closed-loop inertia's tree factor, the one factor of every consumer of `M̃⁻¹`
         // (collision, torso, projection, force limit): the platform rows and columns decoupled
         // from the factor of `M` (or factored anew when `M` is not positive definite). Fails
         // with `MassMatrixNotPositiveDefinite` when `M̃` is not positive definite.
-        let mut inertia = mass.clone();
+        inertia.assign(mass);
         let mut decoupled = [false; N];
         for c in layout.axes().iter().filter_map(|a| a.coordinate()) {
             if let Some(flag) = decoupled.get_mut(c) {
@@ -126,13 +127,13 @@ impl<
         }
         if mass_factored { inertia.decouple(&decoupled, closed_loop) } else { inertia.factorize(closed_loop) }
             .map_err(Fault::Dynamics)?;
-        let mass = mass_factored.then_some(&mass);
+        let (mass, inertia) = (mass_factored.then_some(&*mass), &*inertia);
         if !self.state.started {
             self.start(&q, frame)?;
         }
         self.advance_targets(dt);
         self.limit_contact_forces(dt)?;
-        self.build_stack(mass, &inertia)?;
+        self.build_stack(mass, inertia)?;
 
         let dynamic = self.settings.config.consistency == Consistency::Dynamic;
         if dynamic {
@@ -160,12 +161,12 @@ impl<
                 if dynamic {
                     InverseInertia::Dense(&self.work.inverse_inertia)
                 } else {
-                    InverseInertia::Factor(&inertia)
+                    InverseInertia::Factor(inertia)
                 },
                 &mut coriolis_transpose,
             );
         let compensation = self.blend_from_hold(&compensation, &v);
-        let torque = self.guard_torque(&compensation, &inertia, dt);
+        let torque = self.guard_torque(&compensation, inertia, dt);
         let coriolis_transpose =
             coriolis_transpose.unwrap_or_else(|| coriolis_transpose_velocity(&self.settings.model, &self.work.data));
         self.commit(frame, &torque, &platform, &coriolis_transpose, dt)

@@ -15,6 +15,7 @@ use super::observer::MomentumObserver;
 use super::recovery::Recovery;
 use super::telemetry::Telemetry;
 use super::trajectory::{JointTrajectory, PoseTrajectory};
+use crate::dynamics::{TreeFactorization, TreeStructure};
 use crate::hierarchy::{HierarchyData, Stack};
 use crate::math::Placement;
 use crate::model::{Data, Model};
@@ -107,6 +108,24 @@ pub(super) struct Workspace<
     pub(super) closed_loop: SMatrix<T, N, N>,
     /// The dense `M̃⁻¹` of this cycle (dynamically consistent projection and speed barrier).
     pub(super) inverse_inertia: SMatrix<T, N, N>,
+}
+
+/// The step's two tree factors, kept between cycles so that no cycle builds or clones one: the
+/// plain `M = Lᵀ L` and the closed-loop `M̃ = Lᵀ L` (5.17) decoupled from it.
+#[derive(Clone, Debug)]
+pub(super) struct InertiaFactors<T: RealField, const N: usize> {
+    pub(super) mass: TreeFactorization<T, N>,
+    pub(super) inertia: TreeFactorization<T, N>,
+}
+
+impl<T: RealField + Copy, const N: usize> InertiaFactors<T, N> {
+    /// Zero factors over `structure`.
+    pub(super) fn new(structure: TreeStructure<N>) -> Self {
+        Self {
+            mass: TreeFactorization::from_structure(structure),
+            inertia: TreeFactorization::from_structure(structure),
+        }
+    }
 }
 
 impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const V: usize, const P: usize>

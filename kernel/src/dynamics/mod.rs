@@ -44,6 +44,7 @@ mod gravity;
 mod jacobian_derivative;
 mod kernels;
 mod rnea;
+mod tree_copy;
 mod tree_factorization;
 mod tree_kernels;
 

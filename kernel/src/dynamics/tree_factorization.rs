@@ -19,9 +19,9 @@ use crate::model::Model;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TreeStructure<const N: usize> {
     /// `chains[k][d]`: the `d`-th ancestor of `k` (`chains[k][0] = k`) for `d ≤ depth[k]`.
-    chains: [[u16; N]; N],
+    pub(super) chains: [[u16; N]; N],
     /// Number of ancestors of `k`.
-    depth: [u16; N],
+    pub(super) depth: [u16; N],
 }
 
 impl<const N: usize> TreeStructure<N> {
@@ -112,10 +112,10 @@ impl<const N: usize> TreeStructure<N> {
 /// suffix of the chain of `k`, every update pairs two packed rows element by element.
 #[derive(Clone, Debug)]
 pub struct TreeFactorization<T: RealField, const N: usize> {
-    structure: TreeStructure<N>,
-    rows: SMatrix<T, N, N>,
+    pub(super) structure: TreeStructure<N>,
+    pub(super) rows: SMatrix<T, N, N>,
     /// `1 / L_kk` of every coordinate: the solves multiply by it.
-    reciprocal: [T; N],
+    pub(super) reciprocal: [T; N],
 }
 
 impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
