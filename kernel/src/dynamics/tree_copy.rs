@@ -26,7 +26,7 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
 
 #[cfg(test)]
 mod tests {
-    #![allow(clippy::unwrap_used, reason = "tests")]
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
     use super::*;
     use crate::dynamics::{crba, forward_kinematics};
     use crate::model::Data;
