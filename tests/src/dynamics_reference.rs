@@ -3,7 +3,8 @@
 //! (`kernel/src/dynamics/reference.rs`, the kernel's original implementation) on Justin and the
 //! planar and mobile fixtures at random states: forward kinematics, `M` (CRBA) and the composite
 //! inertias `I^c`, `C` and the composite operators `B^c`, the matrix-free products `C x` and
-//! `Cᵀ q̇` (against the reference `C` times the vector), `g`, RNEA and every frame Jacobian; f64
+//! `Cᵀ q̇` (against the reference `C` times the vector; also both velocity products of one fused
+//! pass after the velocity-level kinematics pass), `g`, RNEA and every frame Jacobian; f64
 //! to rounding, f32 within single-precision accumulation of the f64 reference.
 #![allow(clippy::unwrap_used, clippy::indexing_slicing, clippy::panic, reason = "test code")]
 
@@ -15,8 +16,8 @@ mod reference {
 
 use kernel::dynamics::{
     composite_coriolis_operators, composite_inertia_matrices, coriolis_matrix, coriolis_product,
-    coriolis_transpose_velocity, crba, forward_kinematics, frame_jacobian, gravity, placement_kinematics, rnea,
-    support_kinematics,
+    coriolis_transpose_velocity, coriolis_velocity_products, crba, forward_kinematics, frame_jacobian, gravity,
+    kinematics as kinematics_pass, placement_kinematics, rnea, support_kinematics, KinematicsLevel,
 };
 use kernel::model::FrameId;
 use kernel::{Data, Model};
@@ -47,6 +48,24 @@ fn kinematics<T: RealField + Copy, const N: usize, const B: usize, const F: usiz
     DVector::from_vec(out)
 }
 
+/// What [`KinematicsLevel::Velocities`] writes that the reference writes too: placements,
+/// subspaces, velocities, drifts of every body and the frame placements, flattened.
+fn motion_kinematics<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
+    data: &Data<T, N, B, F>,
+) -> DVector<f64> {
+    let mut out = Vec::new();
+    for i in 0..B {
+        out.extend(to_f64(data.body_placements[i].to_homogeneous().as_slice()).iter());
+        out.extend(to_f64(data.motion_subspaces[i].as_slice()).iter());
+        out.extend(to_f64(data.body_velocities[i].as_slice()).iter());
+        out.extend(to_f64(data.body_drift_accelerations[i].as_slice()).iter());
+    }
+    for f in &data.frame_placements {
+        out.extend(to_f64(f.to_homogeneous().as_slice()).iter());
+    }
+    DVector::from_vec(out)
+}
+
 fn fast<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
     model: &Model<T, N, B, F>,
     q: &SVector<f64, N>,
@@ -59,7 +78,14 @@ fn fast<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
     // The matrix-free products, from the kinematics alone (before any other algorithm ran).
     let c_a = to_f64(coriolis_product(model, &data, &cast(a)).as_slice());
     let ct_v = to_f64(coriolis_transpose_velocity(model, &data).as_slice());
-    let mut out = vec![("kinematics", kinematics(&data))];
+    // The controller's pass (velocities, no 6×6 inertias) on a fresh workspace, and the fused
+    // `C q̇`, `Cᵀ q̇` on it.
+    let mut moving = Data::new(model);
+    kinematics_pass(model, &mut moving, &cast(q), KinematicsLevel::Velocities(&cast(v))).unwrap();
+    let (fused_c_v, fused_ct_v) = coriolis_velocity_products(model, &moving);
+    let mut out = vec![("kinematics", kinematics(&data)), ("velocity kinematics", motion_kinematics(&moving))];
+    out.push(("fused C q̇", to_f64(fused_c_v.as_slice())));
+    out.push(("fused Cᵀ q̇", to_f64(fused_ct_v.as_slice())));
     out.push(("M", to_f64(crba(model, &mut data).as_slice())));
     for ic in composite_inertia_matrices(&mut data) {
         out.push(("I^c", to_f64(ic.as_slice())));
@@ -88,12 +114,14 @@ fn plain<const N: usize, const B: usize, const F: usize>(
 ) -> Outputs {
     let mut data = Data::new(model);
     reference::forward_kinematics(model, &mut data, q, v);
-    let mut out = vec![("kinematics", kinematics(&data))];
+    let (c, bc) = reference::coriolis(model, &data);
+    let mut out = vec![("kinematics", kinematics(&data)), ("velocity kinematics", motion_kinematics(&data))];
+    out.push(("fused C q̇", to_f64((c * v).as_slice())));
+    out.push(("fused Cᵀ q̇", to_f64((c.transpose() * v).as_slice())));
     out.push(("M", to_f64(reference::crba(model, &data).as_slice())));
     for ic in &reference::composites(model, &data.body_inertias) {
         out.push(("I^c", to_f64(ic.as_slice())));
     }
-    let (c, bc) = reference::coriolis(model, &data);
     out.push(("C", to_f64(c.as_slice())));
     for b in &bc {
         out.push(("B^c", to_f64(b.as_slice())));

@@ -9,7 +9,7 @@ use crate::support::Rng;
 use fixtures::justin::{self, collision as jc};
 use kernel::dynamics::{crba, forward_kinematics, TreeFactorization};
 use kernel::model::{Data, Model};
-use kernel::platform::storage::closed_loop_inertia;
+use kernel::platform::storage::{closed_loop_inertia, closed_loop_inertia_into};
 use kernel::platform::{PlatformAxis, PlatformLayout};
 use kernel::tasks::cartesian_impedance::{
     cartesian_impedance, cartesian_impedance_factored, AxisMask, CartesianImpedance, CartesianImpedanceConfig,
@@ -62,6 +62,10 @@ fn factor_matches<T: RealField + Copy, const N: usize, const B: usize, const F: 
         let inverse_scale = dense_inverse.amax();
         let inverse = tree.inverse().map(f64_of);
         assert!((inverse - dense_inverse).amax() <= 1e3 * tolerance * inverse_scale, "case {case}: M⁻¹");
+        // In place over a stale matrix: every entry overwritten, the same bits as `inverse`.
+        let mut in_place = nalgebra::SMatrix::<T, N, N>::from_element(T::one() / T::zero());
+        tree.inverse_into(&mut in_place);
+        assert_eq!(in_place, tree.inverse(), "case {case}: inverse_into");
         let b = SVector::<f64, N>::from_fn(|_, _| rng.uniform(-5.0, 5.0));
         let mut x = b.map(convert::<f64, T>);
         tree.solve_mut(&mut x);
@@ -69,6 +73,10 @@ fn factor_matches<T: RealField + Copy, const N: usize, const B: usize, const F: 
         assert!((x.map(f64_of) - reference).amax() <= 1e3 * tolerance * (1.0 + reference.amax()), "case {case}");
         let Some(layout) = layout else { continue };
         let closed = closed_loop_inertia(&m, &layout, &Vector3::new(convert(0.8), convert(1.5), convert(0.3)));
+        let mut closed_in_place = nalgebra::SMatrix::<T, N, N>::from_element(T::one() / T::zero());
+        let admittance = Vector3::new(convert(0.8), convert(1.5), convert(0.3));
+        closed_loop_inertia_into(&m, &layout, &admittance, &mut closed_in_place);
+        assert_eq!(closed_in_place, closed, "case {case}: closed_loop_inertia_into");
         let mut decoupled = [false; N];
         for c in layout.axes().iter().filter_map(|a| a.coordinate()) {
             decoupled[c] = true;

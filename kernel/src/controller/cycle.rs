@@ -17,17 +17,18 @@ use super::guard::{
 use super::layout::{Hand, JointGroup};
 use super::settings::ControllerSettings;
 use super::speed_barrier::{speed_barrier, InverseInertia, JointLimits};
-use super::state::{ControllerState, Workspace};
+use super::state::{ControllerState, InertiaFactors, Workspace};
 use super::task_set::{evaluate, EvaluationContext, Scratch};
 use super::trajectory::{JointTrajectory, PoseTrajectory};
 use crate::dynamics::{
-    coriolis_product, coriolis_transpose_velocity, crba, forward_kinematics, gravity, DynamicsError, TreeFactorization,
+    coriolis_transpose_velocity, coriolis_velocity_products, crba, forward_kinematics, gravity, kinematics,
+    DynamicsError, KinematicsLevel, TreeFactorization,
 };
 use crate::hierarchy::{project, HierarchyConfig, Weighting};
 use crate::math::sqrt;
 use crate::platform::avoidance::PlatformReference;
 use crate::platform::coupling_compensation::coupling_compensation_recursive;
-use crate::platform::storage::closed_loop_inertia;
+use crate::platform::storage::closed_loop_inertia_into;
 use crate::tasks::collision::PairRowCache;
 
 /// The platform commands of one cycle, after the guards.
@@ -70,9 +71,10 @@ impl<
 {
     /// One control cycle: never panics, always writes a checked output (the whole-body torque,
     /// or the safe output of [`super::faults`] with the fault in the telemetry).
-    pub(super) fn step(&mut self, frame: &SensorFrame<T, U>) {
+    /// `factors` holds the cycle's tree factors (overwritten).
+    pub(super) fn step(&mut self, frame: &SensorFrame<T, U>, factors: &mut InertiaFactors<T, N>) {
         self.state.telemetry.cycle = frame.joints.cycle;
-        match self.control(frame) {
+        match self.control(frame, factors) {
             Ok(()) => {
                 self.state.telemetry.fault = self.state.recovery.output().1;
                 self.state.telemetry.fault_cycles = 0;
@@ -88,54 +90,57 @@ impl<
         }
     }
 
-    fn control(&mut self, frame: &SensorFrame<T, U>) -> Result<(), Fault> {
+    fn control(&mut self, frame: &SensorFrame<T, U>, factors: &mut InertiaFactors<T, N>) -> Result<(), Fault> {
         let input_limits =
             self.state.recovery.input_limits(&self.settings.config.input_limits, &self.settings.config.recovery);
         validate_frame(&self.settings.model, &input_limits, frame, PLATFORM_DOF, self.state.last_cycle)?;
         let dt = self.settings.config.period_s;
         let (q, v) = frame.coordinates();
         let (model, data) = (&self.settings.model, &mut self.work.data);
-        forward_kinematics(model, data, &q, &v).map_err(Fault::Dynamics)?;
+        // Everything the step reads; the 6×6 body inertias are not among it.
+        kinematics(model, data, &q, KinematicsLevel::Velocities(&v)).map_err(Fault::Dynamics)?;
         crba(model, data);
         gravity(model, data);
         let layout = self.settings.config.layout.platform;
-        let closed_loop =
-            closed_loop_inertia(&data.mass_matrix, &layout, &self.settings.config.platform.admittance.mass);
+        let closed_loop = &mut self.work.closed_loop;
+        closed_loop_inertia_into(
+            &data.mass_matrix,
+            &layout,
+            &self.settings.config.platform.admittance.mass,
+            closed_loop,
+        );
+        let closed_loop = &*closed_loop;
         // The plain `M = Lᵀ L` for the Cartesian damping design, shared by both hands (`None`:
         // not positive definite, the tasks fall back to their configured damping).
-        let mut mass = TreeFactorization::from_structure(self.settings.tree);
+        let InertiaFactors { mass, inertia } = factors;
         let mass_factored = mass.factorize(&self.work.data.mass_matrix).is_ok();
         // The closed-loop inertia's tree factor, the one factor of every consumer of `M̃⁻¹`
         // (collision, torso, projection, force limit): the platform rows and columns decoupled
         // from the factor of `M` (or factored anew when `M` is not positive definite). Fails
         // with `MassMatrixNotPositiveDefinite` when `M̃` is not positive definite.
-        let mut inertia = mass.clone();
+        inertia.assign(mass);
         let mut decoupled = [false; N];
         for c in layout.axes().iter().filter_map(|a| a.coordinate()) {
             if let Some(flag) = decoupled.get_mut(c) {
                 *flag = true;
             }
         }
-        if mass_factored { inertia.decouple(&decoupled, &closed_loop) } else { inertia.factorize(&closed_loop) }
+        if mass_factored { inertia.decouple(&decoupled, closed_loop) } else { inertia.factorize(closed_loop) }
             .map_err(Fault::Dynamics)?;
-        let mass = mass_factored.then_some(&mass);
+        let (mass, inertia) = (mass_factored.then_some(&*mass), &*inertia);
         if !self.state.started {
             self.start(&q, frame)?;
         }
         self.advance_targets(dt);
         self.limit_contact_forces(dt)?;
-        self.build_stack(mass, &inertia)?;
+        self.build_stack(mass, inertia)?;
 
-        let inverse;
-        let mut dense_inverse = None;
-        let weighting = match self.settings.config.consistency {
-            Consistency::Static => Weighting::Identity,
-            Consistency::Dynamic => {
-                inverse = inertia.inverse();
-                dense_inverse = Some(InverseInertia::Dense(&inverse));
-                Weighting::InverseInertia(&inverse)
-            }
-        };
+        let dynamic = self.settings.config.consistency == Consistency::Dynamic;
+        if dynamic {
+            inertia.inverse_into(&mut self.work.inverse_inertia);
+        }
+        let weighting =
+            if dynamic { Weighting::InverseInertia(&self.work.inverse_inertia) } else { Weighting::Identity };
         let config = HierarchyConfig {
             recursion: self.settings.config.recursion,
             weighting,
@@ -148,11 +153,23 @@ impl<
         let terms =
             coupling_compensation_recursive(&self.settings.model, &self.work.data, &layout, &platform.acceleration)
                 .map_err(Fault::Platform)?;
+        // `Cᵀ q̇` for the observer: from the barrier's fused pass when it ran.
+        let mut coriolis_transpose = None;
         let compensation = terms.torque(self.settings.config.platform.compensation)
-            + self.speed_barrier(&v, dense_inverse.unwrap_or(InverseInertia::Factor(&inertia)));
+            + self.speed_barrier(
+                &v,
+                if dynamic {
+                    InverseInertia::Dense(&self.work.inverse_inertia)
+                } else {
+                    InverseInertia::Factor(inertia)
+                },
+                &mut coriolis_transpose,
+            );
         let compensation = self.blend_from_hold(&compensation, &v);
-        let torque = self.guard_torque(&compensation, &inertia, dt);
-        self.commit(frame, &torque, &platform, &closed_loop, dt)
+        let torque = self.guard_torque(&compensation, inertia, dt);
+        let coriolis_transpose =
+            coriolis_transpose.unwrap_or_else(|| coriolis_transpose_velocity(&self.settings.model, &self.work.data));
+        self.commit(frame, &torque, &platform, &coriolis_transpose, dt)
     }
 
     /// Sets every target to the measured state (first valid frame).
@@ -329,8 +346,15 @@ impl<
     /// The joint speed barrier ([`mod@super::speed_barrier`]) on the upper body, from the measured `v`
     /// and the inverse closed-loop inertia `M̃⁻¹` (dense when the step formed it, else the
     /// factor). The driving torque is the levels' sum plus the observer's external-torque
-    /// estimate minus the velocity terms `C q̇`.
-    fn speed_barrier(&self, v: &SVector<T, N>, inverse: InverseInertia<'_, T, N>) -> SVector<T, N> {
+    /// estimate minus the velocity terms `C q̇`. When the barrier drives, `C q̇` comes from the
+    /// fused pass of [`coriolis_velocity_products`], whose `Cᵀ q̇` is left in
+    /// `coriolis_transpose` for the observer.
+    fn speed_barrier(
+        &self,
+        v: &SVector<T, N>,
+        inverse: InverseInertia<'_, T, N>,
+        coriolis_transpose: &mut Option<SVector<T, N>>,
+    ) -> SVector<T, N> {
         let active = self.settings.config.layout.coordinates(JointGroup::UpperBody);
         let limits =
             JointLimits { speed: &self.settings.model.limits.velocity, effort: &self.settings.model.limits.effort };
@@ -345,7 +369,8 @@ impl<
                 }
             }
             // `− C q̇` by one O(B) tree pass: the step does not form `C` (`data.coriolis` is stale).
-            let velocity_terms = coriolis_product(&self.settings.model, &self.work.data, v);
+            let (velocity_terms, transpose) = coriolis_velocity_products(&self.settings.model, &self.work.data);
+            *coriolis_transpose = Some(transpose);
             for (s, c) in sum.iter_mut().zip(&velocity_terms.data.0[0]) {
                 *s -= *c;
             }
@@ -445,13 +470,14 @@ impl<
         out.mode = mode;
     }
 
-    /// Checks the commands, updates the observer and the telemetry, writes the output.
+    /// Checks the commands, updates the observer (with `Cᵀ q̇` = `coriolis`) and the telemetry,
+    /// writes the output.
     fn commit(
         &mut self,
         frame: &SensorFrame<T, U>,
         torque: &SVector<T, N>,
         platform: &PlatformStep<T>,
-        closed_loop: &nalgebra::SMatrix<T, N, N>,
+        coriolis: &SVector<T, N>,
         dt: T,
     ) -> Result<(), Fault> {
         let (velocity, leg_rates) = (&platform.velocity, &platform.leg_rates);
@@ -466,8 +492,7 @@ impl<
             *m = *t;
         }
         let observed = self.settings.config.layout.coordinates(JointGroup::UpperBody);
-        let coriolis = coriolis_transpose_velocity(&self.settings.model, &self.work.data);
-        let residual = *self.state.observer.update_with(&self.work.data, &coriolis, &measured, &observed, dt);
+        let residual = *self.state.observer.update_with(&self.work.data, coriolis, &measured, &observed, dt);
         let t = &mut self.state.telemetry;
         t.external_torque = residual;
         t.contact = sqrt(residual.norm_squared()) > self.settings.config.observer.contact_threshold;
@@ -501,7 +526,7 @@ impl<
         let half: T = convert(0.5);
         // M̃ q̇ as a sum of the columns of M̃, in column order.
         let mut momentum = SVector::<T, N>::zeros();
-        for (column, v) in closed_loop.data.0.iter().zip(self.work.data.v.as_slice().iter()) {
+        for (column, v) in self.work.closed_loop.data.0.iter().zip(self.work.data.v.as_slice().iter()) {
             for (p, m) in momentum.as_mut_slice().iter_mut().zip(column.iter()) {
                 *p += *v * *m;
             }

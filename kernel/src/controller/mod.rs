@@ -94,7 +94,7 @@ use config::{ControllerConfig, Hand, TaskSpec, MAX_TASK_ROWS};
 use cycle::Cycle;
 use error::CommandError;
 use settings::{ControllerSettings, Derived};
-use state::{ControllerState, Workspace};
+use state::{ControllerState, InertiaFactors, Workspace};
 
 use crate::model::{Data, Model};
 use crate::tasks::cartesian_impedance::CartesianTarget;
@@ -272,6 +272,7 @@ pub struct Controller<
     settings: ControllerSettings<T, N, B, F, V, P>,
     state: ControllerState<T, N, U>,
     work: Workspace<T, N, B, F, V, P>,
+    factors: InertiaFactors<T, N>,
 }
 
 impl<
@@ -305,8 +306,9 @@ impl<
             Derived::try_new(&model, &config, hierarchy)?;
         Ok(Self {
             work: Workspace::new(&model, &collision_model, tasks.broad_phase_distance()),
+            factors: InertiaFactors::new(tree),
             state: ControllerState::new(&config, active, admittance, avoidance),
-            settings: ControllerSettings { model, collision_model, config, tasks, tree },
+            settings: ControllerSettings { model, collision_model, config, tasks },
         })
     }
 
@@ -365,7 +367,7 @@ impl<
     /// One control cycle: never panics, always returns a checked output (the whole-body torque,
     /// or the safe output of [`faults`] with the fault in the telemetry).
     pub fn step(&mut self, frame: &SensorFrame<T, U>) -> &ActuatorFrame<T, U> {
-        Cycle { settings: &self.settings, state: &mut self.state, work: &mut self.work }.step(frame);
+        Cycle { settings: &self.settings, state: &mut self.state, work: &mut self.work }.step(frame, &mut self.factors);
         &self.state.output
     }
 

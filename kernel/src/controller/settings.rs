@@ -1,6 +1,7 @@
 //! What the controller is configured with: the robot and collision models, the configuration
-//! and what is derived from them once (the validated task objects, the inertia's elimination
-//! tree). The cycle only reads it; accepted planner commands change it.
+//! and what is derived from them once (the validated task objects; the inertia's elimination
+//! tree, which the controller's tree factors are built on). The cycle only reads it; accepted
+//! planner commands change it.
 
 use nalgebra::RealField;
 
@@ -29,8 +30,6 @@ pub(super) struct ControllerSettings<
     pub(super) config: ControllerConfig<T, N>,
     /// The task objects of `config`, validated.
     pub(super) tasks: TaskSet<T, N>,
-    /// The elimination tree of the model's inertia ([`crate::dynamics::TreeFactorization`]).
-    pub(super) tree: TreeStructure<N>,
 }
 
 /// What the constructor validates and derives from the models and the configuration before it

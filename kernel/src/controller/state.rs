@@ -15,6 +15,7 @@ use super::observer::MomentumObserver;
 use super::recovery::Recovery;
 use super::telemetry::Telemetry;
 use super::trajectory::{JointTrajectory, PoseTrajectory};
+use crate::dynamics::{TreeFactorization, TreeStructure};
 use crate::hierarchy::{HierarchyData, Stack};
 use crate::math::Placement;
 use crate::model::{Data, Model};
@@ -103,6 +104,28 @@ pub(super) struct Workspace<
     pub(super) cartesian_damping: PerHand<Vector6<T>>,
     /// The world-aligned TCP Jacobians of this cycle (contact-force limiter and Cartesian tasks).
     pub(super) tcp_jacobians: PerHand<SMatrix<T, 6, N>>,
+    /// The closed-loop inertia `M̃` (5.17) of this cycle.
+    pub(super) closed_loop: SMatrix<T, N, N>,
+    /// The dense `M̃⁻¹` of this cycle (dynamically consistent projection and speed barrier).
+    pub(super) inverse_inertia: SMatrix<T, N, N>,
+}
+
+/// The step's two tree factors, kept between cycles so that no cycle builds or clones one: the
+/// plain `M = Lᵀ L` and the closed-loop `M̃ = Lᵀ L` (5.17) decoupled from it.
+#[derive(Clone, Debug)]
+pub(super) struct InertiaFactors<T: RealField, const N: usize> {
+    pub(super) mass: TreeFactorization<T, N>,
+    pub(super) inertia: TreeFactorization<T, N>,
+}
+
+impl<T: RealField + Copy, const N: usize> InertiaFactors<T, N> {
+    /// Zero factors over `structure`.
+    pub(super) fn new(structure: TreeStructure<N>) -> Self {
+        Self {
+            mass: TreeFactorization::from_structure(structure),
+            inertia: TreeFactorization::from_structure(structure),
+        }
+    }
 }
 
 impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const V: usize, const P: usize>
@@ -122,6 +145,8 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
             rows: TaskRows::new(),
             cartesian_damping: [Vector6::zeros(); 2],
             tcp_jacobians: [SMatrix::zeros(); 2],
+            closed_loop: SMatrix::zeros(),
+            inverse_inertia: SMatrix::zeros(),
         }
     }
 }

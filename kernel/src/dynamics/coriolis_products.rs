@@ -98,6 +98,50 @@ pub fn coriolis_transpose_velocity<T: RealField + Copy, const N: usize, const B:
     out
 }
 
+/// `(C(q, q̇) q̇, Cᵀ(q, q̇) q̇)` for the `C` of [`super::coriolis_matrix`] ((2.1), (2.7)) in
+/// one O(B) tree pass on the stored kinematics.
+///
+/// For `x = q̇` the pass of [`coriolis_product`] has `u_i = v_i` and `w_i = ζ_i` (the body
+/// velocity and drift of forward kinematics), and `½ İ_i v_i = ½ v_i ×* (I_i v_i)`, so the body
+/// force is RNEA's velocity product `f_i = I_i ζ_i + v_i ×* p_i` with the momentum
+/// `p_i = I_i v_i`; the same momenta summed over the subtrees give
+/// [`coriolis_transpose_velocity`]'s `Ṡ_jᵀ p^c_j`. Backward pass: `S_iᵀ f^c_i` and
+/// `Ṡ_iᵀ p^c_i`, mapped to coordinates as `Gᵀ τ_tree`.
+///
+/// Precondition: [`super::kinematics`] at `(q, q̇)` at [`super::KinematicsLevel::Velocities`]
+/// or above. Reads the motion subspaces, their rates, the body velocities and drifts and the
+/// world inertias; writes nothing. Cost O(B).
+pub fn coriolis_velocity_products<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
+    model: &Model<T, N, B, F>,
+    data: &Data<T, N, B, F>,
+) -> (SVector<T, N>, SVector<T, N>) {
+    // Per body its force `f_i` and momentum `p_i`, then their subtree sums.
+    let mut forces = [(Vector6::<T>::zeros(), Vector6::<T>::zeros()); B];
+    let per_body = forces
+        .iter_mut()
+        .zip(data.world_inertias.iter())
+        .zip(data.body_velocities.iter())
+        .zip(data.body_drift_accelerations.iter());
+    for (((slot, inertia), v), drift) in per_body {
+        let momentum = inertia.apply(v);
+        *slot = (add6(&inertia.apply(drift), &force_cross(v, &momentum)), momentum);
+    }
+    let (mut product, mut transpose) = (SVector::zeros(), SVector::zeros());
+    for (i, body) in model.bodies().iter().enumerate().rev() {
+        let (Some((f, p)), Some(s), Some(s_dot)) =
+            (forces.get(i).copied(), data.motion_subspaces.get(i), data.subspace_rates.get(i))
+        else {
+            continue;
+        };
+        add_to_coordinates(&mut product, &body.drive, dot6(s, &f));
+        add_to_coordinates(&mut transpose, &body.drive, dot6(s_dot, &p));
+        if let Some(parent) = body.parent.map(|p| p.0).filter(|p| *p < i).and_then(|p| forces.get_mut(p)) {
+            *parent = (add6(&parent.0, &f), add6(&parent.1, &p));
+        }
+    }
+    (product, transpose)
+}
+
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
@@ -138,6 +182,36 @@ mod tests {
             let (fast32, _) = products(&branched::<f32>(), &q, &v, &x);
             for (a, b) in fast32.iter().zip(matrix.iter()) {
                 prop_assert!((a - b).amax() <= 2e-5 * (1.0 + b.amax()), "f32: {:e}", (a - b).amax());
+            }
+        }
+
+        /// The fused `(C q̇, Cᵀ q̇)` after the velocity-level kinematics pass equals the two
+        /// separate passes after full forward kinematics and the products with the matrix of
+        /// [`coriolis_matrix`] (f64 to rounding, f32 within single-precision rounding).
+        #[test]
+        fn fused_velocity_products_equal_separate_passes(seed in any::<u64>()) {
+            let (q, v) = (state(seed, 2.0), state(seed ^ 3, 2.0));
+            let (separate, matrix) = products(&branched::<f64>(), &q, &v, &v);
+            let fused = |model: &Model<f64, N, B, F>| {
+                let mut data = Data::new(model);
+                crate::dynamics::kinematics(model, &mut data, &q, crate::dynamics::KinematicsLevel::Velocities(&v))
+                    .unwrap();
+                let (c_v, ct_v) = coriolis_velocity_products(model, &data);
+                [c_v, ct_v]
+            };
+            for ((a, b), c) in fused(&branched::<f64>()).iter().zip(separate.iter()).zip(matrix.iter()) {
+                prop_assert!((a - b).amax() <= 1e-12 * (1.0 + b.amax()), "f64 passes: {:e}", (a - b).amax());
+                prop_assert!((a - c).amax() <= 1e-12 * (1.0 + c.amax()), "f64 matrix: {:e}", (a - c).amax());
+            }
+            let m32 = branched::<f32>();
+            let mut data = Data::new(&m32);
+            let (q32, v32) = (q.map(|x| x as f32), v.map(|x| x as f32));
+            crate::dynamics::kinematics(&m32, &mut data, &q32, crate::dynamics::KinematicsLevel::Velocities(&v32))
+                .unwrap();
+            let (c_v, ct_v) = coriolis_velocity_products(&m32, &data);
+            for (a, c) in [c_v, ct_v].iter().zip(matrix.iter()) {
+                let a = a.map(f64::from);
+                prop_assert!((a - c).amax() <= 2e-5 * (1.0 + c.amax()), "f32: {:e}", (a - c).amax());
             }
         }
 

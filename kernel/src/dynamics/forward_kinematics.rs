@@ -1,6 +1,7 @@
 //! Forward kinematics: placements, motion subspaces, velocities and velocity-product
-//! accelerations of every body, and frame placements; and the position-only passes
-//! (placements and subspaces of every body or of one support path) built on the same step.
+//! accelerations of every body, and frame placements, by one pass whose level says what it
+//! computes ([`KinematicsLevel`]: placements only for CRBA and gravity, velocities for the
+//! controller, everything); and the placements of one support path, on the same step.
 
 use nalgebra::{ArrayStorage, Matrix3, RealField, Rotation3, SVector, Translation3, Vector3, Vector6};
 
@@ -9,7 +10,22 @@ use super::kernels::{add_scaled6, check_finite};
 use crate::math::spatial::{Motion, Placement};
 use crate::model::{Body, BodyId, Data, JointKind, Model, WorldInertia};
 
-/// Forward kinematics at state `(q, q̇)`.
+/// What one kinematics pass ([`kinematics`]) computes, each level including the one before.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum KinematicsLevel<'a, T: RealField, const N: usize> {
+    /// Placements `⁰X_i`, motion subspaces `S_i` and ten-parameter world inertias `I_i` of every
+    /// body: what [`super::crba`], [`super::gravity`] and the body-point Jacobians read
+    /// (Pinocchio's `crba(q)` computes the same before its backward pass). `q̇` is not read.
+    Placements,
+    /// And, at `q̇`, the body velocities `v_i`, subspace rates `Ṡ_i`, drifts `ζ_i` and the frame
+    /// placements: everything the velocity-dependent algorithms and the controller read; no 6×6
+    /// inertias.
+    Velocities(&'a SVector<T, N>),
+    /// And the 6×6 world inertias `body_inertias` ([`super::kinetic_energy`]).
+    Full(&'a SVector<T, N>),
+}
+
+/// Forward kinematics at state `(q, q̇)`: [`kinematics`] at [`KinematicsLevel::Full`].
 ///
 /// For each body `i` with parent `p` (world placements `⁰X`), the placement pass
 /// `joint_step`: `⁰X_i = ⁰X_p · X_J(placement) · X(q_i)`, motion subspace `S_i = (a; p_i × a)`
@@ -28,59 +44,13 @@ pub fn forward_kinematics<T: RealField + Copy, const N: usize, const B: usize, c
     q: &SVector<T, N>,
     v: &SVector<T, N>,
 ) -> Result<(), DynamicsError> {
-    check_finite(q, "q")?;
-    check_finite(v, "v")?;
-    data.q = *q;
-    data.v = *v;
-    for (i, body) in model.bodies().iter().enumerate() {
-        let parent = body.parent.map(|p| p.0);
-        let (placement, subspace) = joint_step(body, parent.and_then(|p| data.body_placements.get(p)), q);
-        let (parent_velocity, parent_drift) = match (
-            parent.and_then(|p| data.body_velocities.get(p)),
-            parent.and_then(|p| data.body_drift_accelerations.get(p)),
-        ) {
-            (Some(v), Some(z)) => (*v, *z),
-            _ => (Motion::zeros(), Motion::zeros()),
-        };
-        let rate = body.drive.evaluate(v, false);
-        let velocity = add_scaled6(&parent_velocity, &subspace, rate);
-        let subspace_rate = cross_motion(&velocity, &subspace);
-        let drift = add_scaled6(&parent_drift, &subspace_rate, rate);
-        let world_inertia = WorldInertia::from_body(&body.inertia, &placement);
-
-        let slots = (
-            data.body_placements.get_mut(i),
-            data.motion_subspaces.get_mut(i),
-            data.subspace_rates.get_mut(i),
-            data.body_velocities.get_mut(i),
-            data.body_drift_accelerations.get_mut(i),
-            data.body_inertias.get_mut(i),
-            data.world_inertias.get_mut(i),
-        );
-        if let (Some(x), Some(s), Some(sd), Some(vel), Some(z), Some(inertia), Some(wi)) = slots {
-            *x = placement;
-            *s = subspace;
-            *sd = subspace_rate;
-            *vel = velocity;
-            *z = drift;
-            *inertia = world_inertia.matrix();
-            *wi = world_inertia;
-        }
-    }
-    for (frame, slot) in model.frames().iter().zip(data.frame_placements.iter_mut()) {
-        *slot = match frame.parent.and_then(|p| data.body_placements.get(p.0)) {
-            Some(parent) => compose(parent, &frame.placement),
-            None => frame.placement,
-        };
-    }
-    Ok(())
+    kinematics(model, data, q, KinematicsLevel::Full(v))
 }
 
-/// Position kinematics at `q` for the joint-space inertia matrix and gravity: the placement
-/// pass of [`forward_kinematics`] (`joint_step`: placements `⁰X_i` and motion subspaces
-/// `S_i` of every body) and the world inertias `I_i` in ten-parameter form (Featherstone
-/// (2.63)); no velocities, drifts, 6×6 inertias or frame placements (Pinocchio's `crba(q)`
-/// computes the same before its backward pass).
+/// Position kinematics at `q` for the joint-space inertia matrix and gravity: [`kinematics`] at
+/// [`KinematicsLevel::Placements`] (placements `⁰X_i`, motion subspaces `S_i` and world inertias
+/// `I_i` in ten-parameter form, Featherstone (2.63); no velocities, drifts, 6×6 inertias or
+/// frame placements).
 ///
 /// Writes `q, body_placements, motion_subspaces, world_inertias`: enough for
 /// [`super::crba`], [`super::gravity`] and the body-point Jacobians
@@ -91,17 +61,82 @@ pub fn placement_kinematics<T: RealField + Copy, const N: usize, const B: usize,
     data: &mut Data<T, N, B, F>,
     q: &SVector<T, N>,
 ) -> Result<(), DynamicsError> {
+    kinematics(model, data, q, KinematicsLevel::Placements)
+}
+
+/// The kinematics pass at `q` (and the `q̇` of the level) up to `level`: per body, in tree
+/// order, the placement step `joint_step` and the ten-parameter world inertia `I_i`
+/// (Featherstone (2.63)); from [`KinematicsLevel::Velocities`] on also `v_i = v_p + S_i q̇_i`,
+/// `Ṡ_i = v_i × S_i`, `ζ_i = ζ_p + Ṡ_i q̇_i` and, after the bodies, every frame placement; at
+/// [`KinematicsLevel::Full`] also the 6×6 `I_i`.
+///
+/// Writes `q, body_placements, motion_subspaces, world_inertias`, from `Velocities` on also
+/// `v, body_velocities, subspace_rates, body_drift_accelerations, frame_placements`, at `Full`
+/// also `body_inertias`. Cost O(B) (+ O(F) from `Velocities` on). Errors:
+/// [`DynamicsError::NonFinite`] if `q` or the level's `q̇` has NaN/inf (nothing written).
+#[inline(always)]
+pub fn kinematics<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
+    model: &Model<T, N, B, F>,
+    data: &mut Data<T, N, B, F>,
+    q: &SVector<T, N>,
+    level: KinematicsLevel<'_, T, N>,
+) -> Result<(), DynamicsError> {
     check_finite(q, "q")?;
+    let (velocity, full) = match level {
+        KinematicsLevel::Placements => (None, false),
+        KinematicsLevel::Velocities(v) => (Some(v), false),
+        KinematicsLevel::Full(v) => (Some(v), true),
+    };
+    if let Some(v) = velocity {
+        check_finite(v, "v")?;
+        data.v = *v;
+    }
     data.q = *q;
     for (i, body) in model.bodies().iter().enumerate() {
-        let parent = body.parent.and_then(|p| data.body_placements.get(p.0));
-        let (placement, subspace) = joint_step(body, parent, q);
+        let parent = body.parent.map(|p| p.0);
+        let (placement, subspace) = joint_step(body, parent.and_then(|p| data.body_placements.get(p)), q);
         let world_inertia = WorldInertia::from_body(&body.inertia, &placement);
+        if let Some(v) = velocity {
+            let (parent_velocity, parent_drift) = match (
+                parent.and_then(|p| data.body_velocities.get(p)),
+                parent.and_then(|p| data.body_drift_accelerations.get(p)),
+            ) {
+                (Some(v), Some(z)) => (*v, *z),
+                _ => (Motion::zeros(), Motion::zeros()),
+            };
+            let rate = body.drive.evaluate(v, false);
+            let velocity = add_scaled6(&parent_velocity, &subspace, rate);
+            let subspace_rate = cross_motion(&velocity, &subspace);
+            let drift = add_scaled6(&parent_drift, &subspace_rate, rate);
+            let slots = (
+                data.subspace_rates.get_mut(i),
+                data.body_velocities.get_mut(i),
+                data.body_drift_accelerations.get_mut(i),
+            );
+            if let (Some(sd), Some(vel), Some(z)) = slots {
+                *sd = subspace_rate;
+                *vel = velocity;
+                *z = drift;
+            }
+        }
+        if full {
+            if let Some(inertia) = data.body_inertias.get_mut(i) {
+                *inertia = world_inertia.matrix();
+            }
+        }
         let slots = (data.body_placements.get_mut(i), data.motion_subspaces.get_mut(i), data.world_inertias.get_mut(i));
         if let (Some(x), Some(s), Some(wi)) = slots {
             *x = placement;
             *s = subspace;
             *wi = world_inertia;
+        }
+    }
+    if velocity.is_some() {
+        for (frame, slot) in model.frames().iter().zip(data.frame_placements.iter_mut()) {
+            *slot = match frame.parent.and_then(|p| data.body_placements.get(p.0)) {
+                Some(parent) => compose(parent, &frame.placement),
+                None => frame.placement,
+            };
         }
     }
     Ok(())

@@ -1,14 +1,16 @@
 //! Rigid-body dynamics of the kinematic tree (Sec. 2.1 of the thesis; Featherstone's
 //! algorithms), one algorithm per file.
 //!
-//! Call [`forward_kinematics`] once per state (or, when only positions are needed,
-//! [`placement_kinematics`] for CRBA, gravity and Jacobians, [`support_kinematics`] for the
-//! Jacobians of one body); the other algorithms read the kinematics it stored in
+//! Call [`forward_kinematics`] once per state (or [`kinematics`] at the [`KinematicsLevel`]
+//! the caller needs: [`placement_kinematics`] for CRBA, gravity and Jacobians, velocities
+//! without the 6×6 inertias for the controller; [`support_kinematics`] for the Jacobians of
+//! one body); the other algorithms read the kinematics it stored in
 //! [`crate::model::Data`] and write their own outputs there:
 //!
 //! | algorithm | computes | cost |
 //! | --- | --- | --- |
 //! | [`forward_kinematics`] | placements, motion subspaces, body velocities and drifts | O(B) |
+//! | [`kinematics`] | the same up to a [`KinematicsLevel`] (placements; velocities; all) | O(B) |
 //! | [`placement_kinematics`] | placements, motion subspaces, world inertias (for CRBA, gravity, Jacobians) | O(B) |
 //! | [`support_kinematics`] | placements and motion subspaces of one support path (for its Jacobians) | O(depth) |
 //! | [`frame_jacobian`], [`point_jacobian`] | 6×N Jacobian, world-aligned, linear rows first | O(depth) |
@@ -20,6 +22,7 @@
 //! | [`coriolis_matrix`] | `C(q, q̇)` with `Ṁ = C + Cᵀ` (2.7) | O(B·depth) |
 //! | [`composite_coriolis_operators`] | the 6×6 `B^c` of [`coriolis_matrix`] | O(B) |
 //! | [`coriolis_product`], [`coriolis_transpose_velocity`] | `C x`, `Cᵀ q̇` without forming `C` | O(B) |
+//! | [`coriolis_velocity_products`] | `C q̇` and `Cᵀ q̇` in one pass | O(B) |
 //! | [`mass_matrix_cholesky`], [`forward_dynamics`] | `M = L Lᵀ`, `q̈ = M⁻¹(τ − C q̇ − g)` | O(N³) |
 //! | [`TreeFactorization`] | `M = Lᵀ L` over the branch-induced sparsity, solves | O(Σ depth²) |
 //! | [`kinetic_energy`], [`potential_energy`] | `½ q̇ᵀ M q̇`, `−Σ m_i gᵀ c_i` | O(B) |
@@ -41,16 +44,19 @@ mod gravity;
 mod jacobian_derivative;
 mod kernels;
 mod rnea;
+mod tree_copy;
 mod tree_factorization;
 mod tree_kernels;
 
 pub use coriolis_matrix::{composite_coriolis_operators, coriolis_matrix};
-pub use coriolis_products::{coriolis_product, coriolis_transpose_velocity};
+pub use coriolis_products::{coriolis_product, coriolis_transpose_velocity, coriolis_velocity_products};
 pub use crba::{composite_inertia_matrices, crba};
 pub use energy::{kinetic_energy, potential_energy};
 pub use error::DynamicsError;
 pub use forward_dynamics::{forward_dynamics, mass_matrix_cholesky};
-pub use forward_kinematics::{forward_kinematics, placement_kinematics, support_kinematics};
+pub use forward_kinematics::{
+    forward_kinematics, kinematics, placement_kinematics, support_kinematics, KinematicsLevel,
+};
 pub use frame_drift::{frame_drift, point_drift};
 pub use frame_jacobian::{frame_jacobian, point_jacobian};
 pub use gravity::gravity;

@@ -21,9 +21,9 @@ mod reflected_mass;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TreeStructure<const N: usize> {
     /// `chains[k][d]`: the `d`-th ancestor of `k` (`chains[k][0] = k`) for `d ≤ depth[k]`.
-    chains: [[u16; N]; N],
+    pub(super) chains: [[u16; N]; N],
     /// Number of ancestors of `k`.
-    depth: [u16; N],
+    pub(super) depth: [u16; N],
 }
 
 impl<const N: usize> TreeStructure<N> {
@@ -114,10 +114,10 @@ impl<const N: usize> TreeStructure<N> {
 /// suffix of the chain of `k`, every update pairs two packed rows element by element.
 #[derive(Clone, Debug)]
 pub struct TreeFactorization<T: RealField, const N: usize> {
-    structure: TreeStructure<N>,
-    rows: SMatrix<T, N, N>,
+    pub(super) structure: TreeStructure<N>,
+    pub(super) rows: SMatrix<T, N, N>,
     /// `1 / L_kk` of every coordinate: the solves multiply by it.
-    reciprocal: [T; N],
+    pub(super) reciprocal: [T; N],
 }
 
 impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
@@ -392,6 +392,13 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
     /// `N³/2`.
     pub fn inverse(&self) -> SMatrix<T, N, N> {
         let mut w = SMatrix::<T, N, N>::zeros();
+        self.inverse_into(&mut w);
+        w
+    }
+
+    /// [`Self::inverse`] written into `w` (every entry is overwritten; no temporary, no
+    /// zero fill).
+    pub fn inverse_into(&self, w: &mut SMatrix<T, N, N>) {
         let columns: &mut [[T; N]; N] = &mut w.data.0;
         for ((i, packed), &inverse) in self.rows.data.0.iter().enumerate().zip(self.reciprocal.iter()) {
             let Some((before, rest)) = columns.split_at_mut_checked(i) else { break };
@@ -414,7 +421,6 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
                 }
             }
         }
-        w
     }
 
     /// Solves `M x = b` in place (`x` holds `b` on entry) with the last factor:

@@ -39,6 +39,30 @@ pub fn closed_loop_inertia<T: RealField + Copy, const N: usize>(
     admittance_mass: &Vector3<T>,
 ) -> SMatrix<T, N, N> {
     let mut m = *mass_matrix;
+    clear_platform(&mut m, mass_matrix, layout, admittance_mass);
+    m
+}
+
+/// [`closed_loop_inertia`] (5.17) written into `out` (one copy of `M(y)`, no temporary).
+pub fn closed_loop_inertia_into<T: RealField + Copy, const N: usize>(
+    mass_matrix: &SMatrix<T, N, N>,
+    layout: &PlatformLayout,
+    admittance_mass: &Vector3<T>,
+    out: &mut SMatrix<T, N, N>,
+) {
+    out.copy_from(mass_matrix);
+    clear_platform(out, mass_matrix, layout, admittance_mass);
+}
+
+/// Clears the rows and columns of the platform coordinates of `m` (a copy of `mass_matrix`)
+/// and sets their diagonal as [`closed_loop_inertia`] does.
+#[inline(always)]
+fn clear_platform<T: RealField + Copy, const N: usize>(
+    m: &mut SMatrix<T, N, N>,
+    mass_matrix: &SMatrix<T, N, N>,
+    layout: &PlatformLayout,
+    admittance_mass: &Vector3<T>,
+) {
     for (axis, adm) in layout.axes().iter().zip(admittance_mass.iter()) {
         let Some(c) = axis.coordinate() else { continue };
         let diagonal = if axis.is_admitted() { *adm } else { mass_matrix.get((c, c)).copied().unwrap_or_else(T::one) };
@@ -54,7 +78,6 @@ pub fn closed_loop_inertia<T: RealField + Copy, const N: usize>(
             *x = diagonal;
         }
     }
-    m
 }
 
 /// The storage function (5.21) split into its parts (J).
