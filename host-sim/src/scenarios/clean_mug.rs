@@ -131,7 +131,7 @@ const MUG_HALF_CORE_M: f64 = 0.035;
 
 /// The mug as the replay draws it (the simulator only has its two faces): a vertical capsule
 /// [`MUG_WIDTH_M`] wide, centred between the hands' start positions at the home configuration,
-/// so that its sides are the faces the hands press on ([`plan`]). Empty if the model fails.
+/// so that its sides are the faces the hands press on (the faces of `plan`). Empty if the model fails.
 pub fn mug() -> Vec<SweptSphere<f64>> {
     let Ok(model) = justin::model::<f64>() else { return Vec::new() };
     let mut data = Data::new(&model);

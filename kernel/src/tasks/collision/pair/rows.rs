@@ -23,7 +23,7 @@ use crate::tasks::{TaskError, TaskRow, TaskRows};
 /// field only its force law. Valid for one geometry: [`Self::clear`] it when the kinematics or
 /// the inertia factor change (every cycle). Holds up to `C` pairs; a pair that does not fit is
 /// computed again, never dropped. Also holds the selection of the first field that had to drop
-/// candidates ([`Selection`]), which decides every later field's selection with as many free
+/// candidates (its last selected distance and pair), which decides every later field's selection with as many free
 /// rows without a heap.
 #[derive(Clone, Debug)]
 pub struct PairRowCache<T: RealField, const N: usize, const P: usize, const C: usize> {
