@@ -14,7 +14,7 @@ use host_sim::scenarios::{Progress, RunOptions, DEFAULT_RECORD_EVERY};
 #[command(
     version,
     about,
-    after_help = "Environment variables:\n  SOAK_SECONDS  simulated seconds of the `soak` scenario (default 60)\n  SOAK_SEED     seed of the `soak` scenario's goals and pushes (decimal or 0x hexadecimal)\n  PIL_TIMEOUT_S seconds host-sim waits for the firmware under --pil (default 10)\n  PIL_PLUGIN    a build of the QEMU counting plugin (firmware/wcet/build_plugin.sh): --pil counts every step's instructions into summary.json"
+    after_help = "Environment variables:\n  SOAK_SECONDS  simulated seconds of the `soak` scenario (default 60)\n  SOAK_SEED     seed of the `soak` scenario's goals and pushes (decimal or 0x hexadecimal)\n  SOAK_RECORD_FROM  simulated second from which the `soak` scenario records its rows (default: the whole run)\n  PIL_TIMEOUT_S seconds host-sim waits for the firmware under --pil (default 10)\n  PIL_PLUGIN    a build of the QEMU counting plugin (firmware/wcet/build_plugin.sh): --pil counts every step's instructions into summary.json"
 )]
 struct Cli {
     #[command(subcommand)]
