@@ -227,14 +227,24 @@ pub struct PerCoordinate {
 pub struct Platform {
     /// Force below which the base does not move (N, N, Nm).
     pub force_deadband: [NonNegative; 3],
-    /// The coupling and gravity compensation (5.14) on.
-    pub compensation: bool,
+    /// The compensation (5.14).
+    pub compensation: Compensation,
     /// The admittance.
     pub admittance: Admittance,
     /// The ICR repulsion.
     pub icr_avoidance: IcrAvoidance,
     /// The leg admittance.
     pub legs: Legs,
+}
+
+/// `[platform.compensation]`: the terms of (5.14).
+#[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Compensation {
+    /// The couplings `M_qr r̈ + C_qr ṙ` (Sec. 5.1.4 "ON").
+    pub coupling: bool,
+    /// The gravity torque `g_q`.
+    pub gravity: bool,
 }
 
 /// `[platform.admittance]`.
