@@ -12,12 +12,22 @@ pub struct NonNegative(pub f64);
 
 impl<'de> Deserialize<'de> for NonNegative {
     fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-        let value = f64::deserialize(deserializer)?;
-        if value.is_finite() && value >= 0.0 {
-            Ok(Self(value))
-        } else {
-            Err(D::Error::custom(format!("{value} is not finite and non-negative")))
-        }
+        let accepted = |value: f64| value.is_finite() && value >= 0.0;
+        read_number(deserializer, accepted, "is not finite and non-negative").map(Self)
+    }
+}
+
+/// A number `accepted` keeps, or the error "`<number> <refusal>`".
+fn read_number<'de, D: Deserializer<'de>>(
+    deserializer: D,
+    accepted: impl Fn(f64) -> bool,
+    refusal: &str,
+) -> Result<f64, D::Error> {
+    let value = f64::deserialize(deserializer)?;
+    if accepted(value) {
+        Ok(value)
+    } else {
+        Err(D::Error::custom(format!("{value} {refusal}")))
     }
 }
 
@@ -28,12 +38,7 @@ pub struct ForceBound(pub f64);
 
 impl<'de> Deserialize<'de> for ForceBound {
     fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-        let value = f64::deserialize(deserializer)?;
-        if value.is_nan() {
-            Err(D::Error::custom("nan is not a force limit (inf or -inf for none)"))
-        } else {
-            Ok(Self(value))
-        }
+        read_number(deserializer, |value| !value.is_nan(), "is not a force limit (inf or -inf for none)").map(Self)
     }
 }
 

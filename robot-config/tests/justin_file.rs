@@ -1,6 +1,11 @@
 //! Justin's configuration file, and the one-line error of each kind of bad file (made from
 //! Justin's by one edit).
-#![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, reason = "tests: a failure is a test failure")]
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::indexing_slicing,
+    reason = "tests: a failure is a test failure"
+)]
 
 use kernel::controller::config::{Hand, TaskKind};
 use robot_config::parse;
@@ -101,7 +106,7 @@ fn negative_or_non_finite_stiffness_damping_and_limits_are_refused() {
     );
     assert_eq!(
         error_after("force_upper = [20.0, 20.0, 20.0]", "force_upper = [20.0, nan, 20.0]"),
-        format!("justin/config.toml:{}: service_tasks.clean_mug.force_upper[1]: nan is not a force limit (inf or -inf for none)", line_of("force_upper = [20.0, 20.0, 20.0]"))
+        format!("justin/config.toml:{}: service_tasks.clean_mug.force_upper[1]: NaN is not a force limit (inf or -inf for none)", line_of("force_upper = [20.0, 20.0, 20.0]"))
     );
 }
 
