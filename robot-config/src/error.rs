@@ -29,7 +29,7 @@ impl ConfigError {
             },
         };
         let key = match field {
-            Some(field) if !key.ends_with(field) => join_key(key, field),
+            Some(field) if key != field && !key.ends_with(&format!(".{field}")) => join_key(key, field),
             _ => key.to_string(),
         };
         Self { origin: origin.to_string(), line, key, problem }
