@@ -13,6 +13,11 @@ pub struct StackRow<T, const N: usize> {
     pub level: usize,
     /// The row.
     pub row: TaskRow<T, N>,
+    /// `j W⁻¹ jᵀ` with the step's inverse-inertia weighting ([`super::Weighting::InverseInertia`]),
+    /// when the row's task computed it over the same inertia factor (the collision rows on the
+    /// tree factor, [`TaskRows::metric_norm_squared`]); the projection uses it with that
+    /// weighting instead of forming the quadratic form. `None` for rows pushed one by one.
+    pub metric_norm_squared: Option<T>,
 }
 
 /// All rows of all tasks, capacity `R`, in insertion order. Levels need not be inserted in
@@ -53,23 +58,33 @@ impl<T: RealField + Copy, const N: usize, const R: usize> Stack<T, N, R> {
         if !finite(&row) {
             return Err(HierarchyError::NonFinite);
         }
-        self.push_finite(level, row)
+        self.push_finite(level, row, None)
     }
 
     /// Appends one row known to be finite (a row of a [`TaskRows`], possibly with its force and
-    /// activation scaled by a weight in `[0, 1]`).
-    pub(super) fn push_finite(&mut self, level: usize, row: TaskRow<T, N>) -> Result<(), HierarchyError> {
-        self.rows.push(StackRow { level, row }).map_err(|_| HierarchyError::Capacity { capacity: R })?;
+    /// activation scaled by a weight in `[0, 1]`) with its `j W⁻¹ jᵀ`, if known.
+    pub(super) fn push_finite(
+        &mut self,
+        level: usize,
+        row: TaskRow<T, N>,
+        metric_norm_squared: Option<T>,
+    ) -> Result<(), HierarchyError> {
+        self.rows
+            .push(StackRow { level, row, metric_norm_squared })
+            .map_err(|_| HierarchyError::Capacity { capacity: R })?;
         self.level_count = self.level_count.max(level.saturating_add(1));
         Ok(())
     }
 
-    /// Appends all rows of a task on `level`; all or nothing.
+    /// Appends all rows of a task on `level`, with the `j W⁻¹ jᵀ` they carry; all or nothing.
     pub fn push_rows<const Q: usize>(&mut self, level: usize, rows: &TaskRows<T, N, Q>) -> Result<(), HierarchyError> {
         if self.rows.len() + rows.len() > R {
             return Err(HierarchyError::Capacity { capacity: R });
         }
-        rows.rows().iter().try_for_each(|row| self.push_finite(level, *row))
+        rows.rows()
+            .iter()
+            .zip(rows.metric_norm_squared())
+            .try_for_each(|(row, &metric)| self.push_finite(level, *row, metric))
     }
 
     /// The rows in insertion order.

@@ -65,9 +65,14 @@ pub fn push_scaled<T: RealField + Copy, const N: usize, const R: usize, const Q:
         return Err(HierarchyError::Capacity { capacity: R });
     }
     let weight = weight.min(T::one());
-    for row in rows.rows() {
+    // The Jacobians are not scaled: their `j W⁻¹ jᵀ` carries over.
+    for (row, &metric) in rows.rows().iter().zip(rows.metric_norm_squared()) {
         // A finite row scaled by a weight in `(0, 1]` stays finite.
-        stack.push_finite(level, TaskRow { force: row.force * weight, activation: row.activation * weight, ..*row })?;
+        stack.push_finite(
+            level,
+            TaskRow { force: row.force * weight, activation: row.activation * weight, ..*row },
+            metric,
+        )?;
     }
     Ok(())
 }
