@@ -58,19 +58,13 @@ impl<T: RealField + Copy, const N: usize, const R: usize> Stack<T, N, R> {
         if !finite(&row) {
             return Err(HierarchyError::NonFinite);
         }
-        self.push_finite(level, row, None)
+        self.push_finite(level, row)
     }
 
-    /// Appends one row known to be finite (a row of a [`TaskRows`], possibly with its force and
-    /// activation scaled by a weight in `[0, 1]`) with its `j W⁻¹ jᵀ`, if known.
-    pub(super) fn push_finite(
-        &mut self,
-        level: usize,
-        row: TaskRow<T, N>,
-        metric_norm_squared: Option<T>,
-    ) -> Result<(), HierarchyError> {
+    /// Appends one row known to be finite.
+    fn push_finite(&mut self, level: usize, row: TaskRow<T, N>) -> Result<(), HierarchyError> {
         self.rows
-            .push(StackRow { level, row, metric_norm_squared })
+            .push(StackRow { level, row, metric_norm_squared: None })
             .map_err(|_| HierarchyError::Capacity { capacity: R })?;
         self.level_count = self.level_count.max(level.saturating_add(1));
         Ok(())
@@ -78,13 +72,36 @@ impl<T: RealField + Copy, const N: usize, const R: usize> Stack<T, N, R> {
 
     /// Appends all rows of a task on `level`, with the `j W⁻¹ jᵀ` they carry; all or nothing.
     pub fn push_rows<const Q: usize>(&mut self, level: usize, rows: &TaskRows<T, N, Q>) -> Result<(), HierarchyError> {
+        self.push_task(level, rows, None)
+    }
+
+    /// Appends all rows of a task on `level` (finite: the rows of a [`TaskRows`]) with force and
+    /// activation scaled by `weight ∈ (0, 1]` (`None`: unscaled), each with the `j W⁻¹ jᵀ` it
+    /// carries (the Jacobians are not scaled); all or nothing. One pass: the capacity is
+    /// checked once, the level count set once.
+    pub(super) fn push_task<const Q: usize>(
+        &mut self,
+        level: usize,
+        rows: &TaskRows<T, N, Q>,
+        weight: Option<T>,
+    ) -> Result<(), HierarchyError> {
         if self.rows.len() + rows.len() > R {
             return Err(HierarchyError::Capacity { capacity: R });
         }
-        rows.rows()
-            .iter()
-            .zip(rows.metric_norm_squared())
-            .try_for_each(|(row, &metric)| self.push_finite(level, *row, metric))
+        for (row, &metric_norm_squared) in rows.rows().iter().zip(rows.metric_norm_squared()) {
+            let row = match weight {
+                // A finite row scaled by a weight in `(0, 1]` stays finite.
+                Some(w) => TaskRow { force: row.force * w, activation: row.activation * w, ..*row },
+                None => *row,
+            };
+            if self.rows.push(StackRow { level, row, metric_norm_squared }).is_err() {
+                return Err(HierarchyError::Capacity { capacity: R });
+            }
+        }
+        if !rows.is_empty() {
+            self.level_count = self.level_count.max(level.saturating_add(1));
+        }
+        Ok(())
     }
 
     /// The rows in insertion order.
