@@ -18,7 +18,7 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
     /// passed to [`Self::inverse_reflected_masses`]. A zero last entry costs one more chain
     /// entry and changes nothing. Cost: depth²/2 multiply-adds and one pass over `head`.
     pub fn inverse_reflected_mass_of_head(&self, head: &[T]) -> T {
-        match self.substitute_head(head, |_, _| {}) {
+        match self.substitute_head(head, &mut [T::zero(); N], |_, _| {}) {
             Some(norm) => norm,
             None => self.inverse_reflected_mass_fallback(head),
         }
@@ -31,9 +31,11 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
     /// of `x` are zero). `x` is linear in the row, so for two rows `J₁`, `J₂` with solutions
     /// `x₁`, `x₂`, `(J₂ − J₁) M⁻¹ (J₂ − J₁)ᵀ = ‖x₂ − x₁‖²`. `None` (and `solution` possibly
     /// called for some entries) when the row's support is not that chain and those roots:
-    /// [`Self::inverse_reflected_mass_of_head`] then takes the general path.
+    /// [`Self::inverse_reflected_mass_of_head`] then takes the general path. `work` is the
+    /// substitution's buffer (its content on entry does not matter: one buffer serves several
+    /// calls).
     #[inline(always)]
-    pub fn substitute_head(&self, head: &[T], mut solution: impl FnMut(usize, T)) -> Option<T> {
+    pub fn substitute_head(&self, head: &[T], work: &mut [T; N], mut solution: impl FnMut(usize, T)) -> Option<T> {
         let Some(leaf) = head.len().checked_sub(1) else {
             return Some(T::zero());
         };
@@ -42,8 +44,7 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
         };
         let chain = chain.get(..=usize::from(*depth)).unwrap_or(&[]);
         let root = chain.last().map_or(0, |r| usize::from(*r));
-        let mut storage = [T::zero(); N];
-        let packed = storage.get_mut(..chain.len()).unwrap_or(&mut []);
+        let packed = work.get_mut(..chain.len()).unwrap_or(&mut []);
         let mut other = false;
         if root + chain.len() == head.len() {
             // The chain is `leaf, leaf − 1, …, root`.
@@ -54,10 +55,13 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
             let mut above = head.len();
             for (y, a) in packed.iter_mut().zip(chain.iter()) {
                 let a = usize::from(*a);
-                if let Some((value, gap)) = head.get(a..above).and_then(|s| s.split_first()) {
-                    *y = *value;
-                    other |= gap.iter().any(|x| !x.is_zero());
-                }
+                *y = match head.get(a..above).and_then(|s| s.split_first()) {
+                    Some((value, gap)) => {
+                        other |= gap.iter().any(|x| !x.is_zero());
+                        *value
+                    }
+                    None => T::zero(),
+                };
                 above = a;
             }
         }

@@ -242,13 +242,13 @@ pub(super) fn pair_kinematics<
         (false, true, PairFactor::Rows(rows)) => (inverse_reflected_masses(rows, [&jacobian_second])?[0], None),
         (true, true, PairFactor::Tree(tree)) => {
             // `j = J_j − J_i` is linear in the substitution: `j M⁻¹ jᵀ = ‖x_i − x_j‖²`.
-            let mut difference = [T::zero(); N];
-            let wi = tree.substitute_head(head_first, |k, x| {
+            let (mut difference, mut work) = ([T::zero(); N], [T::zero(); N]);
+            let wi = tree.substitute_head(head_first, &mut work, |k, x| {
                 if let Some(d) = difference.get_mut(k) {
                     *d = x;
                 }
             });
-            let wj = tree.substitute_head(head_second, |k, x| {
+            let wj = tree.substitute_head(head_second, &mut work, |k, x| {
                 if let Some(d) = difference.get_mut(k) {
                     *d -= x;
                 }

@@ -212,7 +212,9 @@ fn check_head_solutions<T: RealField + Copy>(seed: u64, tol: f64) {
             for row in [on_chain, with_roots, off_chain] {
                 let end = row.iter().rposition(|x| !x.is_zero()).map_or(0, |p| p + 1).max(leaf + 1);
                 let mut x = [0.0; N];
-                let norm = tree.substitute_head(&row[..end], |k, value| x[k] = to64(value));
+                // A work buffer with stale content: its content on entry does not matter.
+                let mut work = [nalgebra::convert::<f64, T>(7.5); N];
+                let norm = tree.substitute_head(&row[..end], &mut work, |k, value| x[k] = to64(value));
                 // The chain of the head's last coordinate and the roots below the chain's root.
                 let path = chain(&tree, end - 1);
                 let root = *path.last().unwrap();
