@@ -749,6 +749,133 @@ fn justin_tree_rows_match_the_reference_f32() {
     justin_tree_rows_match_reference::<f32>(5e-4, 0xFA57_0000_0000_1032);
 }
 
+/// The `j M̃⁻¹ jᵀ` the collision rows carry over the tree factor
+/// (`TaskRows::metric_norm_squared`: `‖x_j − x_i‖²` from both support substitutions) against
+/// the dense `j M̃⁻¹ jᵀ` of the same inertia (`M`, and the closed-loop `M̃` with its platform
+/// rows and columns cleared to their diagonal, the decoupled factor of the controller), on
+/// random Justin states with every pair inside the field: pairs with a world-fixed volume (the
+/// floor), pairs whose supports share joint coordinates (the torso: shared chains) and pairs
+/// that share only the platform's coordinates (the base against the upper body: their chains
+/// meet only at the platform, whose coordinates are roots after the decoupling). Then the projection of those rows with
+/// `Weighting::InverseInertia(M̃⁻¹)` (`inverse_into` of the same factor) with the carried values
+/// (`push_rows`) and without them (`Stack::push`, the quadratic form): the same torque, norm
+/// ratios and activations to rounding.
+fn justin_carried_metric_matches_the_quadratic_form<T: nalgebra::RealField + Copy>(
+    tolerance: f64,
+    projection_tolerance: f64,
+    seed: u64,
+) {
+    use kernel::hierarchy::{project, HierarchyConfig, HierarchyData, Recursion, Shaping, Stack, Weighting};
+    const CAPACITY: usize = 256;
+    let model = justin::model::<T>().unwrap();
+    let bounds = justin::model::<f64>().unwrap();
+    let collision = jc::collision_model(&model).unwrap();
+    let mut data = Data::new(&model);
+    let mut cd = CollisionData::new(&collision);
+    let c = |x: f64| nalgebra::convert::<f64, T>(x);
+    // Every pair closer than 10 m emits (the capacity frames' field).
+    let parameters = CollisionParameters::try_new(c(25.0), c(10.0), c(0.7), c(0.0), c(10.0)).unwrap();
+    let f = |x: T| nalgebra::try_convert::<T, f64>(x).unwrap();
+    let mut rng = Rng(seed);
+    let (mut world, mut shared, mut disjoint) = (0, 0, 0);
+    let mut projected = 0;
+    for round in 0..12 {
+        let q = random_state(&bounds, &mut rng);
+        let v = SVector::<f64, N>::from_fn(|_, _| rng.uniform(-1.0, 1.0));
+        forward_kinematics(&model, &mut data, &q.cast::<T>(), &v.cast::<T>()).unwrap();
+        crba(&model, &mut data);
+        let m = data.mass_matrix;
+        let mut tree = TreeFactorization::new(&model);
+        tree.factorize(&m).unwrap();
+        let decoupled = round % 2 == 1;
+        let mut inertia = m;
+        if decoupled {
+            let mut platform = [false; N];
+            for k in 0..justin::BASE_DOF {
+                platform[k] = true;
+                let diagonal = m[(k, k)] + c(10.0);
+                inertia.row_mut(k).fill(T::zero());
+                inertia.column_mut(k).fill(T::zero());
+                inertia[(k, k)] = diagonal;
+            }
+            tree.decouple(&platform, &inertia).unwrap();
+        }
+        let dense_inverse = inertia.map(f).try_inverse().unwrap();
+        let dense = nalgebra::Cholesky::new(inertia).unwrap();
+        let mut rows = TaskRows::<T, N, CAPACITY>::new();
+        self_collision_rows(&collision, &mut cd, &model, &data, &tree, &parameters, &mut rows).unwrap();
+        let emitted = emitting_pairs(&collision, &cd, &parameters);
+        assert_eq!(rows.len(), emitted.len());
+        assert_eq!(rows.metric_norm_squared().len(), rows.len());
+        for ((row, metric), &pair) in rows.rows().iter().zip(rows.metric_norm_squared()).zip(&emitted) {
+            let metric = f(metric.expect("every pair row over the tree factor carries its metric"));
+            let j = SVector::<f64, N>::from_fn(|k, _| f(row.jacobian[k]));
+            let reference = (j.transpose() * dense_inverse * j).x;
+            assert!(
+                (metric - reference).abs() <= tolerance * reference.abs(),
+                "pair {pair} decoupled {decoupled}: {metric} vs {reference}"
+            );
+            let e = evaluate_pair(&collision, &cd, &model, &data, &dense, &parameters, pair).unwrap();
+            let support = |x: &nalgebra::RowSVector<T, N>| -> Vec<bool> { x.iter().map(|v| !v.is_zero()).collect() };
+            let (a, b) = (support(&e.jacobian_first), support(&e.jacobian_second));
+            if !a.contains(&true) || !b.contains(&true) {
+                world += 1;
+            } else if a.iter().zip(&b).skip(justin::BASE_DOF).any(|(x, y)| *x && *y) {
+                shared += 1;
+            } else {
+                disjoint += 1;
+            }
+        }
+        // The projection with and without the carried values.
+        let mut inverse = nalgebra::SMatrix::<T, N, N>::zeros();
+        tree.inverse_into(&mut inverse);
+        let mut carried = Stack::<T, N, CAPACITY>::new();
+        carried.push_rows(0, &rows).unwrap();
+        let mut plain = Stack::<T, N, CAPACITY>::new();
+        for row in rows.rows() {
+            plain.push(0, *row).unwrap();
+        }
+        assert!(carried.rows().iter().all(|r| r.metric_norm_squared.is_some()));
+        assert!(plain.rows().iter().all(|r| r.metric_norm_squared.is_none()));
+        for recursion in [Recursion::Augmented, Recursion::Successive] {
+            let config = HierarchyConfig {
+                recursion,
+                weighting: Weighting::InverseInertia(&inverse),
+                shaping: Shaping::Continuous { singular_full: c(0.02), singular_start: c(0.05) },
+                diagnose_last_level: true,
+            };
+            let mut with = HierarchyData::<T, N, CAPACITY, 2>::default();
+            let mut without = HierarchyData::<T, N, CAPACITY, 2>::default();
+            let torque_with = *project(&config, &carried, &mut with).unwrap();
+            let torque_without = *project(&config, &plain, &mut without).unwrap();
+            let scale = 1.0 + f(torque_without.amax());
+            for (a, b) in torque_with.iter().zip(torque_without.iter()) {
+                assert!(
+                    f((*a - *b).abs()) <= projection_tolerance * scale,
+                    "{recursion:?}: {torque_with} vs {torque_without}"
+                );
+            }
+            for (a, b) in with.rows.iter().zip(&without.rows).take(rows.len()) {
+                assert!(f((a.projected_norm_ratio - b.projected_norm_ratio).abs()) <= projection_tolerance);
+                assert!(f((a.activation - b.activation).abs()) <= projection_tolerance);
+            }
+            projected += 1;
+        }
+    }
+    assert!(world > 20 && shared > 200 && disjoint > 20, "{world} world, {shared} shared, {disjoint} disjoint");
+    assert_eq!(projected, 24);
+}
+
+#[test]
+fn justin_carried_metric_matches_the_quadratic_form_f64() {
+    justin_carried_metric_matches_the_quadratic_form::<f64>(1e-10, 1e-9, 0xFA57_0000_0000_2064);
+}
+
+#[test]
+fn justin_carried_metric_matches_the_quadratic_form_f32() {
+    justin_carried_metric_matches_the_quadratic_form::<f32>(2e-3, 2e-2, 0xFA57_0000_0000_2032);
+}
+
 /// Fig. 3.5 / Table 3.1 on the one-dimensional collision-direction model (`sca_damping`).
 #[test]
 fn sca_damping_reproduces_fig_3_5() {

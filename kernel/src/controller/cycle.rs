@@ -136,6 +136,8 @@ impl<
         self.build_stack(mass, inertia)?;
 
         let dynamic = self.settings.config.consistency == Consistency::Dynamic;
+        // `M̃⁻¹` of the same tree factor the collision rows used: the `j M̃⁻¹ jᵀ` they carry
+        // (`StackRow::metric_norm_squared`) is this weighting's quadratic form.
         if dynamic {
             inertia.inverse_into(&mut self.work.inverse_inertia);
         }

@@ -13,6 +13,11 @@ pub struct StackRow<T, const N: usize> {
     pub level: usize,
     /// The row.
     pub row: TaskRow<T, N>,
+    /// `j W⁻¹ jᵀ` with the step's inverse-inertia weighting ([`super::Weighting::InverseInertia`]),
+    /// when the row's task computed it over the same inertia factor (the collision rows on the
+    /// tree factor, [`TaskRows::metric_norm_squared`]); the projection uses it with that
+    /// weighting instead of forming the quadratic form. `None` for rows pushed one by one.
+    pub metric_norm_squared: Option<T>,
 }
 
 /// All rows of all tasks, capacity `R`, in insertion order. Levels need not be inserted in
@@ -56,20 +61,47 @@ impl<T: RealField + Copy, const N: usize, const R: usize> Stack<T, N, R> {
         self.push_finite(level, row)
     }
 
-    /// Appends one row known to be finite (a row of a [`TaskRows`], possibly with its force and
-    /// activation scaled by a weight in `[0, 1]`).
-    pub(super) fn push_finite(&mut self, level: usize, row: TaskRow<T, N>) -> Result<(), HierarchyError> {
-        self.rows.push(StackRow { level, row }).map_err(|_| HierarchyError::Capacity { capacity: R })?;
+    /// Appends one row known to be finite.
+    fn push_finite(&mut self, level: usize, row: TaskRow<T, N>) -> Result<(), HierarchyError> {
+        self.rows
+            .push(StackRow { level, row, metric_norm_squared: None })
+            .map_err(|_| HierarchyError::Capacity { capacity: R })?;
         self.level_count = self.level_count.max(level.saturating_add(1));
         Ok(())
     }
 
-    /// Appends all rows of a task on `level`; all or nothing.
+    /// Appends all rows of a task on `level`, with the `j W⁻¹ jᵀ` they carry; all or nothing.
     pub fn push_rows<const Q: usize>(&mut self, level: usize, rows: &TaskRows<T, N, Q>) -> Result<(), HierarchyError> {
+        self.push_task(level, rows, None)
+    }
+
+    /// Appends all rows of a task on `level` (finite: the rows of a [`TaskRows`]) with force and
+    /// activation scaled by `weight ∈ (0, 1]` (`None`: unscaled), each with the `j W⁻¹ jᵀ` it
+    /// carries (the Jacobians are not scaled); all or nothing. One pass: the capacity is
+    /// checked once, the level count set once.
+    pub(super) fn push_task<const Q: usize>(
+        &mut self,
+        level: usize,
+        rows: &TaskRows<T, N, Q>,
+        weight: Option<T>,
+    ) -> Result<(), HierarchyError> {
         if self.rows.len() + rows.len() > R {
             return Err(HierarchyError::Capacity { capacity: R });
         }
-        rows.rows().iter().try_for_each(|row| self.push_finite(level, *row))
+        for (row, &metric_norm_squared) in rows.rows().iter().zip(rows.metric_norm_squared()) {
+            let row = match weight {
+                // A finite row scaled by a weight in `(0, 1]` stays finite.
+                Some(w) => TaskRow { force: row.force * w, activation: row.activation * w, ..*row },
+                None => *row,
+            };
+            if self.rows.push(StackRow { level, row, metric_norm_squared }).is_err() {
+                return Err(HierarchyError::Capacity { capacity: R });
+            }
+        }
+        if !rows.is_empty() {
+            self.level_count = self.level_count.max(level.saturating_add(1));
+        }
+        Ok(())
     }
 
     /// The rows in insertion order.

@@ -5,7 +5,7 @@ use nalgebra::RealField;
 use super::error::HierarchyError;
 use super::stack::Stack;
 use crate::math::switching::transition_activation;
-use crate::tasks::{TaskRow, TaskRows};
+use crate::tasks::TaskRows;
 
 /// Puts a task's rows on the stack while the task moves from level `from` to level `to`
 /// (Sec. 4.4, dynamic hierarchies). `progress ∈ [0, 1]` is the transition's progress (e.g.
@@ -61,13 +61,5 @@ pub fn push_scaled<T: RealField + Copy, const N: usize, const R: usize, const Q:
     if weight <= T::zero() {
         return Ok(());
     }
-    if stack.rows().len() + rows.len() > R {
-        return Err(HierarchyError::Capacity { capacity: R });
-    }
-    let weight = weight.min(T::one());
-    for row in rows.rows() {
-        // A finite row scaled by a weight in `(0, 1]` stays finite.
-        stack.push_finite(level, TaskRow { force: row.force * weight, activation: row.activation * weight, ..*row })?;
-    }
-    Ok(())
+    stack.push_task(level, rows, Some(weight.min(T::one())))
 }

@@ -46,9 +46,22 @@ impl<T: RealField + Copy, const N: usize> TaskRow<T, N> {
 }
 
 /// A fixed-capacity list of task rows (capacity `R`).
-#[derive(Clone, Debug, PartialEq)]
+///
+/// A row may carry its `j M⁻¹ jᵀ` over the inertia factor its task used (the collision rows on
+/// the tree factor: [`Self::metric_norm_squared`]), which the projection takes instead of forming it
+/// with the inverse-inertia weighting. Two lists are equal when their rows are (the carried
+/// values follow from the rows).
+#[derive(Clone, Debug)]
 pub struct TaskRows<T, const N: usize, const R: usize> {
     rows: Vec<TaskRow<T, N>, R>,
+    /// Per row: its `j M⁻¹ jᵀ`, when its task provided it.
+    metrics: Vec<Option<T>, R>,
+}
+
+impl<T: PartialEq, const N: usize, const R: usize> PartialEq for TaskRows<T, N, R> {
+    fn eq(&self, other: &Self) -> bool {
+        self.rows == other.rows
+    }
 }
 
 impl<T: RealField + Copy, const N: usize, const R: usize> Default for TaskRows<T, N, R> {
@@ -60,12 +73,13 @@ impl<T: RealField + Copy, const N: usize, const R: usize> Default for TaskRows<T
 impl<T: RealField + Copy, const N: usize, const R: usize> TaskRows<T, N, R> {
     /// An empty list.
     pub const fn new() -> Self {
-        Self { rows: Vec::new() }
+        Self { rows: Vec::new(), metrics: Vec::new() }
     }
 
     /// Removes every row.
     pub fn clear(&mut self) {
         self.rows.clear();
+        self.metrics.clear();
     }
 
     /// Appends a row; rejects non-finite rows and a full list (the list is unchanged then).
@@ -77,7 +91,8 @@ impl<T: RealField + Copy, const N: usize, const R: usize> TaskRows<T, N, R> {
         if !row.is_finite() {
             return Err(TaskError::NonFinite);
         }
-        self.rows.push(row).map_err(|_| TaskError::Capacity { capacity: R })
+        self.rows.push(row).map_err(|_| TaskError::Capacity { capacity: R })?;
+        self.metrics.push(None).map_err(|_| TaskError::Capacity { capacity: R })
     }
 
     /// Appends a row built in place: `fill` receives the new slot as a zero row (zero Jacobian,
@@ -86,14 +101,26 @@ impl<T: RealField + Copy, const N: usize, const R: usize> TaskRows<T, N, R> {
     /// unchanged then).
     #[inline]
     pub fn push_with(&mut self, fill: impl FnOnce(&mut TaskRow<T, N>)) -> Result<(), TaskError> {
+        self.push_with_metric(|row| {
+            fill(row);
+            None
+        })
+    }
+
+    /// [`Self::push_with`] for a task that also knows the row's `j M⁻¹ jᵀ` over the inertia
+    /// factor it used (the metric of the row's norm ratio with the inverse-inertia weighting,
+    /// the squared norm `σ₁²` of (4.70)): `fill` returns it, and it is kept with the row
+    /// ([`Self::metric_norm_squared`]) when finite.
+    #[inline]
+    pub fn push_with_metric(&mut self, fill: impl FnOnce(&mut TaskRow<T, N>) -> Option<T>) -> Result<(), TaskError> {
         let zero =
             TaskRow { jacobian: RowSVector::zeros(), force: T::zero(), potential: T::zero(), activation: T::zero() };
         self.rows.push(zero).map_err(|_| TaskError::Capacity { capacity: R })?;
         let Some(row) = self.rows.last_mut() else {
             return Err(TaskError::Capacity { capacity: R });
         };
-        fill(row);
-        if row.is_finite() {
+        let metric = fill(row).filter(|m| m.is_finite());
+        if row.is_finite() && self.metrics.push(metric).is_ok() {
             Ok(())
         } else {
             self.rows.pop();
@@ -104,11 +131,18 @@ impl<T: RealField + Copy, const N: usize, const R: usize> TaskRows<T, N, R> {
     /// Keeps the first `len` rows (all rows if there are fewer).
     pub fn truncate(&mut self, len: usize) {
         self.rows.truncate(len);
+        self.metrics.truncate(len);
     }
 
     /// The rows.
     pub fn rows(&self) -> &[TaskRow<T, N>] {
         &self.rows
+    }
+
+    /// Per row (same order and length as [`Self::rows`]): its `j M⁻¹ jᵀ` over the inertia
+    /// factor its task used, when the task provided it.
+    pub fn metric_norm_squared(&self) -> &[Option<T>] {
+        &self.metrics
     }
 
     /// Number of rows.

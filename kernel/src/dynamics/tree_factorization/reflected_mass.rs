@@ -18,16 +18,33 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
     /// passed to [`Self::inverse_reflected_masses`]. A zero last entry costs one more chain
     /// entry and changes nothing. Cost: depth²/2 multiply-adds and one pass over `head`.
     pub fn inverse_reflected_mass_of_head(&self, head: &[T]) -> T {
+        match self.substitute_head(head, &mut [T::zero(); N], |_, _| {}) {
+            Some(norm) => norm,
+            None => self.inverse_reflected_mass_fallback(head),
+        }
+    }
+
+    /// The chain substitution of [`Self::inverse_reflected_mass_of_head`] with its solution:
+    /// returns `‖x‖²`, `x = J L⁻¹` (the inverse reflected mass (3.20), the same bits), and
+    /// passes each entry of `x` that the substitution forms to `solution(coordinate, value)`
+    /// (the chain's coordinates and the roots below it with a nonzero entry; the other entries
+    /// of `x` are zero). `x` is linear in the row, so for two rows `J₁`, `J₂` with solutions
+    /// `x₁`, `x₂`, `(J₂ − J₁) M⁻¹ (J₂ − J₁)ᵀ = ‖x₂ − x₁‖²`. `None` (and `solution` possibly
+    /// called for some entries) when the row's support is not that chain and those roots:
+    /// [`Self::inverse_reflected_mass_of_head`] then takes the general path. `work` is the
+    /// substitution's buffer (its content on entry does not matter: one buffer serves several
+    /// calls).
+    #[inline(always)]
+    pub fn substitute_head(&self, head: &[T], work: &mut [T; N], mut solution: impl FnMut(usize, T)) -> Option<T> {
         let Some(leaf) = head.len().checked_sub(1) else {
-            return T::zero();
+            return Some(T::zero());
         };
         let (Some(depth), Some(chain)) = (self.structure.depth.get(leaf), self.structure.chains.get(leaf)) else {
-            return self.inverse_reflected_mass_fallback(head);
+            return None;
         };
         let chain = chain.get(..=usize::from(*depth)).unwrap_or(&[]);
         let root = chain.last().map_or(0, |r| usize::from(*r));
-        let mut storage = [T::zero(); N];
-        let packed = storage.get_mut(..chain.len()).unwrap_or(&mut []);
+        let packed = work.get_mut(..chain.len()).unwrap_or(&mut []);
         let mut other = false;
         if root + chain.len() == head.len() {
             // The chain is `leaf, leaf − 1, …, root`.
@@ -38,10 +55,13 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
             let mut above = head.len();
             for (y, a) in packed.iter_mut().zip(chain.iter()) {
                 let a = usize::from(*a);
-                if let Some((value, gap)) = head.get(a..above).and_then(|s| s.split_first()) {
-                    *y = *value;
-                    other |= gap.iter().any(|x| !x.is_zero());
-                }
+                *y = match head.get(a..above).and_then(|s| s.split_first()) {
+                    Some((value, gap)) => {
+                        other |= gap.iter().any(|x| !x.is_zero());
+                        *value
+                    }
+                    None => T::zero(),
+                };
                 above = a;
             }
         }
@@ -53,6 +73,7 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
             let (Some(l), Some(inverse)) = (self.rows.data.0.get(k), self.reciprocal.get(k)) else { break };
             let x = *y * *inverse;
             norm += x * x;
+            solution(k, x);
             // The chain of `k` is the rest of the leaf's chain: its packed row pairs entry by
             // entry (two exits instead of `zip`: the loops are short).
             let mut l = l.get(1..).unwrap_or(&[]).iter();
@@ -66,18 +87,16 @@ impl<T: RealField + Copy, const N: usize> TreeFactorization<T, N> {
         if let (Some(x), Some(d), Some(r)) =
             (head.get(..root), self.structure.depth.get(..root), self.reciprocal.get(..root))
         {
-            for ((x, d), inverse) in x.iter().zip(d).zip(r).rev() {
+            for (k, ((x, d), inverse)) in x.iter().zip(d).zip(r).enumerate().rev() {
                 if !x.is_zero() {
                     other |= *d != 0;
                     let y = *x * *inverse;
                     norm += y * y;
+                    solution(k, y);
                 }
             }
         }
-        if other {
-            return self.inverse_reflected_mass_fallback(head);
-        }
-        norm
+        (!other).then_some(norm)
     }
 
     /// [`Self::inverse_reflected_masses`] of `(head, 0, …, 0)` (the entries of `head` beyond

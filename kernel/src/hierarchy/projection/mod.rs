@@ -111,7 +111,10 @@ impl<T: RealField + Copy, const N: usize, const R: usize, const L: usize> Defaul
 /// joint row) adds its one product to the task torque and transmits the column norm
 /// `‖N_in e_b‖`; the `N` column norms are formed once per level. The rows of the last level
 /// without diagnostics only add their torque (no transmission). A given `W⁻¹`
-/// ([`Weighting::InverseInertia`]) is used in place.
+/// ([`Weighting::InverseInertia`]) is used in place, and a row that carries its `jW⁻¹jᵀ`
+/// ([`super::StackRow::metric_norm_squared`], computed by its task over the factor this
+/// `W⁻¹` inverts) skips the quadratic form; the caller guarantees that the carried value
+/// belongs to the given `W⁻¹`.
 ///
 /// A row's activation `a` is its task activation times the shaping of its norm ratio `ρ`
 /// ([`Shaping`]); with the continuous shaping, `a → 0` before `s → 0`, so `1/s` is only formed
@@ -217,6 +220,11 @@ pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS
                     Recursion::Successive => &mut *level_projector,
                     Recursion::Augmented | Recursion::Unprojected => &mut *projector,
                 };
+                // A carried `j W⁻¹ jᵀ` is one of the step's inverse inertia.
+                let carried = match config.weighting {
+                    Weighting::InverseInertia(_) => r.metric_norm_squared,
+                    _ => None,
+                };
                 let (activation, ratio, updated) = update_row(
                     config,
                     metric_inverse,
@@ -224,6 +232,7 @@ pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS
                     working_identity,
                     r.row.jacobian.as_slice(),
                     r.row.activation,
+                    carried,
                     &mut scratch,
                 );
                 working_identity &= !updated;
@@ -259,7 +268,10 @@ impl<T: RealField + Copy, const N: usize> Default for Scratch<T, N> {
 /// The rank-one update `N ← N − a (N j̄ᵀ) wᵀ / s` of one row (the remark after Table 4.3,
 /// (4.13) with (4.70)–(4.72)); returns its activation `a`, norm ratio `ρ` and whether the
 /// projector was updated. While `working` is exactly `I` (`identity`), `j̄ᵀ = N jᵀ = jᵀ`,
-/// `N j̄ᵀ = jᵀ`, `W⁻¹j̄ᵀ = W⁻¹jᵀ` and `s = jW⁻¹jᵀ` are taken without their mat-vecs.
+/// `N j̄ᵀ = jᵀ`, `W⁻¹j̄ᵀ = W⁻¹jᵀ` and `s = jW⁻¹jᵀ` are taken without their mat-vecs. Below
+/// that, a `carried` `jW⁻¹jᵀ` (the row's [`StackRow::metric_norm_squared`](super::StackRow)
+/// with the inverse-inertia weighting) replaces the quadratic form.
+#[allow(clippy::too_many_arguments, reason = "the row, its carried metric and the recursion's state")]
 fn update_row<T: RealField + Copy, const N: usize>(
     config: &HierarchyConfig<'_, T, N>,
     metric_inverse: Option<&SMatrix<T, N, N>>,
@@ -267,17 +279,19 @@ fn update_row<T: RealField + Copy, const N: usize>(
     identity: bool,
     row: &[T],
     task_activation: T,
+    carried: Option<T>,
     scratch: &mut Scratch<T, N>,
 ) -> (T, T, bool) {
     // jW⁻¹jᵀ (or |j|²); W⁻¹jᵀ skips the zero entries of the row and is kept only while the
     // working projector is `I` (then it is also `w`).
-    let reference = match metric_inverse {
-        Some(inverse) if identity => {
+    let reference = match (metric_inverse, carried) {
+        (Some(inverse), _) if identity => {
             mat_vec::<T, N>(inverse.as_slice(), row, scratch.w.as_mut_slice());
             dot(row, scratch.w.as_slice())
         }
-        Some(inverse) => quadratic_form::<T, N>(inverse.as_slice(), row),
-        None => norm_squared(row),
+        (Some(_), Some(carried)) => carried,
+        (Some(inverse), None) => quadratic_form::<T, N>(inverse.as_slice(), row),
+        (None, _) => norm_squared(row),
     };
     if !reference.is_finite() || reference <= T::zero() {
         return (T::zero(), T::zero(), false);

@@ -405,3 +405,104 @@ fn joint_rows_below_a_projecting_level_equal_the_reference() {
         assert!(joint.count() >= N, "case {case}: {worst64}");
     }
 }
+
+/// Rows that carry their `j W⁻¹ jᵀ` ([`StackRow::metric_norm_squared`](crate::hierarchy::StackRow),
+/// here the dense `j M⁻¹ jᵀ` of the test model's inertia formed outside the projection) give
+/// the projection with [`Weighting::InverseInertia`] of the projection without them (the
+/// quadratic form) to rounding, and both that of [`reference::project_reference`]: random
+/// stacks on two and three levels (a task of each level pushed with `push_rows`, one moving
+/// between levels with `push_transitioning`), both recursions, f64 and f32. Other weightings
+/// ignore the carried values (bit-identical results).
+#[test]
+fn carried_metrics_give_the_projection_of_the_quadratic_form() {
+    fn check<T: RealField + Copy>(seed: u64, tolerance: f64) -> usize {
+        let c = |x: f64| nalgebra::convert::<f64, T>(x);
+        let mut rng = reference::TestRng::new(7000 + seed);
+        let m_inv = mass_factor(seed + 3).inverse();
+        let inverse = m_inv.map(c);
+        let levels = 2 + seed as usize % 2;
+        let (mut carried, mut plain) = (Stack::<T, N, 16>::new(), Stack::<T, N, 16>::new());
+        for level in 0..levels {
+            let mut task = TaskRows::<T, N, 4>::new();
+            for k in 0..3 {
+                let jacobian =
+                    RowSVector::<f64, N>::from_fn(
+                        |_, _| {
+                            if k == 2 && rng.unit() < 0.5 {
+                                0.0
+                            } else {
+                                rng.symmetric()
+                            }
+                        },
+                    );
+                let metric = (jacobian * m_inv * jacobian.transpose()).x;
+                let (force, activation) = (10.0 * rng.symmetric(), 0.5 + 0.5 * rng.unit());
+                task.push_with_metric(|r| {
+                    *r = TaskRow {
+                        jacobian: jacobian.map(c),
+                        force: c(force),
+                        potential: T::zero(),
+                        activation: c(activation),
+                    };
+                    Some(c(metric))
+                })
+                .unwrap();
+            }
+            assert!(task.metric_norm_squared().iter().all(Option::is_some));
+            if level == 1 {
+                push_transitioning(&mut carried, &task, 0, 1, c(0.3)).unwrap();
+            } else {
+                carried.push_rows(level, &task).unwrap();
+            }
+            let mut without = TaskRows::<T, N, 4>::new();
+            for r in task.rows() {
+                without.push(*r).unwrap();
+            }
+            if level == 1 {
+                push_transitioning(&mut plain, &without, 0, 1, c(0.3)).unwrap();
+            } else {
+                plain.push_rows(level, &without).unwrap();
+            }
+        }
+        assert!(carried.rows().iter().all(|r| r.metric_norm_squared.is_some()));
+        assert!(plain.rows().iter().all(|r| r.metric_norm_squared.is_none()));
+        let f = |x: T| nalgebra::try_convert::<T, f64>(x).unwrap();
+        let mut compared = 0;
+        for recursion in [Recursion::Augmented, Recursion::Successive] {
+            let shaping = Shaping::Continuous { singular_full: c(0.05), singular_start: c(0.15) };
+            let config = HierarchyConfig {
+                recursion,
+                weighting: Weighting::InverseInertia(&inverse),
+                shaping,
+                diagnose_last_level: true,
+            };
+            let mut with = HierarchyData::<T, N, 16, 4>::default();
+            let mut without = HierarchyData::<T, N, 16, 4>::default();
+            let a = *project(&config, &carried, &mut with).unwrap();
+            let b = *project(&config, &plain, &mut without).unwrap();
+            let r = reference::project_reference::<T, N, 16, 16, 4>(&config, &plain).torque;
+            let scale = 1.0 + f(b.amax());
+            for ((a, b), r) in a.iter().zip(b.iter()).zip(r.iter()) {
+                assert!(f((*a - *b).abs()) <= tolerance * scale, "{recursion:?}: {a} vs {b}");
+                assert!(f((*a - *r).abs()) <= tolerance * scale, "{recursion:?}: {a} vs reference {r}");
+            }
+            for (x, y) in with.rows.iter().zip(&without.rows).take(carried.rows().len()) {
+                assert!(f((x.projected_norm_ratio - y.projected_norm_ratio).abs()) <= tolerance);
+                assert!(f((x.activation - y.activation).abs()) <= tolerance);
+            }
+            // Another weighting ignores the carried values.
+            let identity = HierarchyConfig { weighting: Weighting::Identity, ..config };
+            let a = *project(&identity, &carried, &mut with).unwrap();
+            let b = *project(&identity, &plain, &mut without).unwrap();
+            assert_eq!(a, b);
+            compared += 1;
+        }
+        compared
+    }
+    let mut compared = 0;
+    for seed in 0..30 {
+        compared += check::<f64>(seed, 1e-9);
+        compared += check::<f32>(seed, 2e-3);
+    }
+    assert_eq!(compared, 120);
+}

@@ -177,12 +177,26 @@ fn projected_jacobian_into<T: RealField + Copy, const N: usize, const B: usize, 
     Ok(())
 }
 
+/// The scalars of a pair row's kinematics ([`pair_kinematics`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct PairKinematics<T> {
+    /// `m_i⁻¹ + m_j⁻¹` (3.20), 1/kg.
+    pub(super) inverse_mass_sum: T,
+    /// `j M⁻¹ jᵀ` of the row `j = J_j − J_i` over the same factor (the metric of its norm ratio
+    /// in the projection with the inverse-inertia weighting: the squared norm `σ₁²` of (4.70) in
+    /// the `M⁻¹` metric); `None` on dense factor
+    /// rows or when a support is not a chain of the tree factor.
+    pub(super) metric: Option<T>,
+}
+
 /// The configuration-dependent part of pair `pair`'s row: the two projected Jacobians written in
 /// place ([`projected_jacobian_into`]), their difference written into `jacobian`, and the sum of
 /// both inverse reflected masses (3.20), returned: one forward substitution over the factor for
 /// both ([`inverse_reflected_masses`] on dense rows) or one substitution along each support
-/// path ([`TreeFactorization::inverse_reflected_mass_of_head`] on the tree factor, the head's
-/// length from `table`); none for a world-fixed volume, whose mass is infinite. The proximity
+/// path ([`TreeFactorization::substitute_head`] on the tree factor, the
+/// head's length from `table`); none for a world-fixed volume, whose mass is infinite. On the
+/// tree factor it also returns the row's `j M⁻¹ jᵀ = ‖x_j − x_i‖²` from the two substitutions'
+/// solutions `x = J L⁻¹` (the two supports share only their common ancestors). The proximity
 /// must have a direction.
 #[allow(clippy::too_many_arguments, reason = "the pair, the model with its table, the state and the factor")]
 pub(super) fn pair_kinematics<
@@ -201,7 +215,7 @@ pub(super) fn pair_kinematics<
     factor: &PairFactor<'_, T, N>,
     pair: usize,
     jacobian: &mut RowSVector<T, N>,
-) -> Result<T, TaskError> {
+) -> Result<PairKinematics<T>, TaskError> {
     let invalid = TaskError::InvalidParameter { name: "pair" };
     let &CollisionPair { first, second } = collision_model.pairs().get(pair).ok_or(invalid)?;
     let (Some(a), Some(b)) = (collision_model.volume(first), collision_model.volume(second)) else {
@@ -219,19 +233,45 @@ pub(super) fn pair_kinematics<
     let end = |body: Option<BodyId>| body.and_then(|b| table.head.get(b.0)).copied().unwrap_or(N);
     let head_first = jacobian_first.get(..end(a.body)).unwrap_or(&jacobian_first);
     let head_second = jacobian_second.get(..end(b.body)).unwrap_or(&jacobian_second);
-    let inverse_mass_sum = match (a.body.is_some(), b.body.is_some(), factor) {
+    let (inverse_mass_sum, metric) = match (a.body.is_some(), b.body.is_some(), factor) {
         (true, true, PairFactor::Rows(rows)) => {
             let [wi, wj] = inverse_reflected_masses(rows, [&jacobian_first, &jacobian_second])?;
-            wi + wj
+            (wi + wj, None)
         }
-        (true, false, PairFactor::Rows(rows)) => inverse_reflected_masses(rows, [&jacobian_first])?[0],
-        (false, true, PairFactor::Rows(rows)) => inverse_reflected_masses(rows, [&jacobian_second])?[0],
+        (true, false, PairFactor::Rows(rows)) => (inverse_reflected_masses(rows, [&jacobian_first])?[0], None),
+        (false, true, PairFactor::Rows(rows)) => (inverse_reflected_masses(rows, [&jacobian_second])?[0], None),
         (true, true, PairFactor::Tree(tree)) => {
-            tree.inverse_reflected_mass_of_head(head_first) + tree.inverse_reflected_mass_of_head(head_second)
+            // `j = J_j − J_i` is linear in the substitution: `j M⁻¹ jᵀ = ‖x_i − x_j‖²`.
+            let (mut difference, mut work) = ([T::zero(); N], [T::zero(); N]);
+            let wi = tree.substitute_head(head_first, &mut work, |k, x| {
+                if let Some(d) = difference.get_mut(k) {
+                    *d = x;
+                }
+            });
+            let wj = tree.substitute_head(head_second, &mut work, |k, x| {
+                if let Some(d) = difference.get_mut(k) {
+                    *d -= x;
+                }
+            });
+            match (wi, wj) {
+                (Some(wi), Some(wj)) => (wi + wj, Some(difference.iter().fold(T::zero(), |sum, &d| sum + d * d))),
+                _ => (
+                    tree.inverse_reflected_mass_of_head(head_first) + tree.inverse_reflected_mass_of_head(head_second),
+                    None,
+                ),
+            }
         }
-        (true, false, PairFactor::Tree(tree)) => tree.inverse_reflected_mass_of_head(head_first),
-        (false, true, PairFactor::Tree(tree)) => tree.inverse_reflected_mass_of_head(head_second),
-        (false, false, _) => T::zero(),
+        // One body: `j = ∓J` and `j M⁻¹ jᵀ` is that body's inverse reflected mass.
+        (true, false, PairFactor::Tree(tree)) => {
+            let w = tree.inverse_reflected_mass_of_head(head_first);
+            (w, Some(w))
+        }
+        (false, true, PairFactor::Tree(tree)) => {
+            let w = tree.inverse_reflected_mass_of_head(head_second);
+            (w, Some(w))
+        }
+        (false, false, PairFactor::Tree(_)) => (T::zero(), Some(T::zero())),
+        (false, false, PairFactor::Rows(_)) => (T::zero(), None),
     };
     // The difference and its finiteness in one pass (no early exit: a branch-free flag).
     let mut finite = inverse_mass_sum.is_finite();
@@ -243,5 +283,5 @@ pub(super) fn pair_kinematics<
     if !finite {
         return Err(TaskError::NonFinite);
     }
-    Ok(inverse_mass_sum)
+    Ok(PairKinematics { inverse_mass_sum, metric: metric.filter(|m| m.is_finite()) })
 }

@@ -163,3 +163,100 @@ fn head_reflected_masses_match_the_reference() {
         check_head_masses::<f32>(seed, 1e-3);
     }
 }
+
+/// `substitute_head` (the chain substitution with its solution `x = J L⁻¹`): the same bits as
+/// `inverse_reflected_mass_of_head` where it succeeds, `None` exactly for the heads with
+/// entries off the chain and its roots; and for every two solved heads `J₁`, `J₂` the
+/// difference of their solutions gives the dense `(J₂ − J₁) M⁻¹ (J₂ − J₁)ᵀ` (the metric of a
+/// pair row): heads on the same chain, on chains with shared ancestors and on disjoint ones
+/// (decoupled roots), with and without roots, on the plain and on decoupled factors.
+fn check_head_solutions<T: RealField + Copy>(seed: u64, tol: f64) {
+    let model = branched::<T>();
+    let mut data = Data::new(&model);
+    let q = state(seed, 2.0).map(|e| nalgebra::convert::<f64, T>(e));
+    forward_kinematics(&model, &mut data, &q, &SVector::zeros()).unwrap();
+    let m = *crba(&model, &mut data);
+    let mut plain = TreeFactorization::new(&model);
+    plain.factorize(&m).unwrap();
+    let to64 = |x: T| nalgebra::try_convert::<T, f64>(x).unwrap();
+    let (mut solved_pairs, mut disjoint_pairs, mut refused) = (0, 0, 0);
+    for set in [&[][..], &[0_usize][..], &[0, 1]] {
+        let mut tree = plain.clone();
+        let mut cleared = m;
+        let mut decoupled = [false; N];
+        for &c in set {
+            decoupled[c] = true;
+            let diagonal = cleared[(c, c)];
+            cleared.row_mut(c).fill(T::zero());
+            cleared.column_mut(c).fill(T::zero());
+            cleared[(c, c)] = diagonal;
+        }
+        tree.decouple(&decoupled, &cleared).unwrap();
+        let dense_inverse = cleared.map(to64).try_inverse().unwrap();
+        // (head, solution) of every solved head.
+        let mut solved: std::vec::Vec<([T; N], usize, [f64; N])> = std::vec::Vec::new();
+        for leaf in 0..N {
+            let values = state(seed ^ (leaf as u64 + 307), 1.0);
+            let mut on_chain = [T::zero(); N];
+            for &a in &chain(&tree, leaf) {
+                on_chain[a] = nalgebra::convert(values[a]);
+            }
+            let mut with_roots = on_chain;
+            for &c in set {
+                with_roots[c] = nalgebra::convert(0.5 + values[c]);
+            }
+            let mut off_chain = on_chain;
+            for c in 0..=leaf {
+                off_chain[c] = nalgebra::convert(0.25 + values[c]);
+            }
+            for row in [on_chain, with_roots, off_chain] {
+                let end = row.iter().rposition(|x| !x.is_zero()).map_or(0, |p| p + 1).max(leaf + 1);
+                let mut x = [0.0; N];
+                // A work buffer with stale content: its content on entry does not matter.
+                let mut work = [nalgebra::convert::<f64, T>(7.5); N];
+                let norm = tree.substitute_head(&row[..end], &mut work, |k, value| x[k] = to64(value));
+                // The chain of the head's last coordinate and the roots below the chain's root.
+                let path = chain(&tree, end - 1);
+                let root = *path.last().unwrap();
+                let on_support =
+                    (0..N).all(|c| row[c].is_zero() || path.contains(&c) || tree.parents()[c].is_none() && c < root);
+                match norm {
+                    Some(norm) => {
+                        assert!(on_support, "set {set:?} leaf {leaf}: solved a head off its chain");
+                        assert_eq!(norm, tree.inverse_reflected_mass_of_head(&row[..end]));
+                        let squared: f64 = x.iter().map(|v| v * v).sum();
+                        assert!((squared - to64(norm)).abs() <= tol * (1.0 + squared));
+                        solved.push((row, end, x));
+                    }
+                    None => {
+                        assert!(!on_support, "set {set:?} leaf {leaf}: refused a head on its chain");
+                        refused += 1;
+                    }
+                }
+            }
+        }
+        for (first, end_first, x_first) in &solved {
+            for (second, end_second, x_second) in &solved {
+                let j = SVector::<f64, N>::from_fn(|c, _| to64(second[c]) - to64(first[c]));
+                let dense = (j.transpose() * dense_inverse * j).x;
+                let metric: f64 = x_first.iter().zip(x_second).map(|(a, b)| (b - a) * (b - a)).sum();
+                let scale = 1.0
+                    + to64(tree.inverse_reflected_mass_of_head(&first[..*end_first]))
+                    + to64(tree.inverse_reflected_mass_of_head(&second[..*end_second]));
+                assert!((metric - dense).abs() <= tol * scale, "set {set:?}: {metric} vs {dense}");
+                solved_pairs += 1;
+                let overlap = (0..N).any(|c| !first[c].is_zero() && !second[c].is_zero());
+                disjoint_pairs += usize::from(!overlap);
+            }
+        }
+    }
+    assert!(solved_pairs > 500 && disjoint_pairs > 50 && refused > 5, "{solved_pairs} {disjoint_pairs} {refused}");
+}
+
+#[test]
+fn head_solutions_give_the_pair_metric() {
+    for seed in 0..10 {
+        check_head_solutions::<f64>(seed, 1e-10);
+        check_head_solutions::<f32>(seed, 1e-3);
+    }
+}

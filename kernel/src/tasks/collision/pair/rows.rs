@@ -6,7 +6,7 @@
 use heapless::Vec;
 use nalgebra::{convert, RealField, RowSVector};
 
-use super::kinematics::{factor_rows, pair_kinematics, PairFactor, SupportTable};
+use super::kinematics::{factor_rows, pair_kinematics, PairFactor, PairKinematics, SupportTable};
 use super::parameters::CollisionParameters;
 use super::selection::{heapify, sift};
 use crate::dynamics::InertiaFactor;
@@ -52,7 +52,7 @@ pub(super) struct Selection<T> {
 #[derive(Clone, Copy, Debug)]
 struct CachedPairRow<T: RealField, const N: usize> {
     jacobian: RowSVector<T, N>,
-    inverse_mass_sum: T,
+    kinematics: PairKinematics<T>,
 }
 
 impl<T: RealField + Copy, const N: usize, const P: usize, const C: usize> Default for PairRowCache<T, N, P, C> {
@@ -89,7 +89,8 @@ impl<T: RealField + Copy, const N: usize, const P: usize, const C: usize> PairRo
 /// masses from `cache`, or from [`pair_kinematics`] (then cached), the force law (3.10) of
 /// `parameters` and the damping constant of (3.23) in the closed form
 /// `c = 2 ξ √(k / (m_i⁻¹ + m_j⁻¹))` (see [`pair_damping`](super::pair_damping)). The proximity must have a
-/// direction. On error `row` is unspecified.
+/// direction. Returns the row's `j M⁻¹ jᵀ` over the factor when the kinematics gave it
+/// ([`pair_kinematics`]). On error `row` is unspecified.
 #[allow(clippy::too_many_arguments, reason = "the inputs of pair_kinematics, the force law and the cache")]
 fn pair_row_into<
     T: RealField + Copy,
@@ -110,14 +111,14 @@ fn pair_row_into<
     pair: usize,
     cache: &mut PairRowCache<T, N, P, C>,
     row: &mut TaskRow<T, N>,
-) -> Result<(), TaskError> {
+) -> Result<Option<T>, TaskError> {
     let invalid = TaskError::InvalidParameter { name: "pair" };
     let proximity: &Proximity<T> = collision.proximities.get(pair).ok_or(invalid)?;
     let d = proximity.distance;
-    let inverse_mass_sum = match cache.get(pair) {
+    let kinematics = match cache.get(pair) {
         Some(entry) => {
             row.jacobian = entry.jacobian;
-            entry.inverse_mass_sum
+            entry.kinematics
         }
         None => {
             let built;
@@ -128,11 +129,13 @@ fn pair_row_into<
                     &built
                 }
             };
-            let sum = pair_kinematics(collision_model, proximity, model, table, data, factor, pair, &mut row.jacobian)?;
-            cache.insert(pair, CachedPairRow { jacobian: row.jacobian, inverse_mass_sum: sum });
-            sum
+            let kinematics =
+                pair_kinematics(collision_model, proximity, model, table, data, factor, pair, &mut row.jacobian)?;
+            cache.insert(pair, CachedPairRow { jacobian: row.jacobian, kinematics });
+            kinematics
         }
     };
+    let inverse_mass_sum = kinematics.inverse_mass_sum;
     let stiffness = parameters.stiffness(d);
     let c = if stiffness > T::zero() && inverse_mass_sum > T::zero() {
         convert::<f64, T>(2.0) * parameters.damping_ratio() * sqrt(stiffness / inverse_mass_sum)
@@ -146,7 +149,7 @@ fn pair_row_into<
     if !(row.force.is_finite() && row.potential.is_finite() && row.activation.is_finite()) {
         return Err(TaskError::NonFinite);
     }
-    Ok(())
+    Ok(kinematics.metric)
 }
 
 /// [`pair_row_into`] returning the row.
@@ -406,8 +409,8 @@ pub fn collision_rows_shared<
             }
             let table = built.as_ref();
             let mut result = Ok(());
-            let pushed = rows.push_with(|row| {
-                result = pair_row_into(
+            let pushed = rows.push_with_metric(|row| {
+                let row = pair_row_into(
                     collision_model,
                     collision,
                     model,
@@ -419,6 +422,10 @@ pub fn collision_rows_shared<
                     cache,
                     row,
                 );
+                row.unwrap_or_else(|e| {
+                    result = Err(e);
+                    None
+                })
             });
             if let Err(e) = result.and(pushed) {
                 rows.truncate(start);
