@@ -168,11 +168,10 @@ impl<T: RealField + Copy, const V: usize, const P: usize> CollisionModel<T, V, P
     /// pair can be culled, and the per-pair tests are skipped.
     pub fn compute_distances(&self, collision: &mut CollisionData<T, V, P>) {
         let CollisionData { world_volumes, bounding_spheres, proximities, exact_within, triangle_frames } = collision;
-        // Each triangle's frame once per call, shared by all its pairs.
+        // Each triangle's frame and each segment's direction once per call, shared by all its
+        // pairs.
         for (frame, volume) in triangle_frames.iter_mut().zip(world_volumes.iter()) {
-            if let Core::Triangle(_) = volume.core {
-                *frame = volume.core.triangle_frame();
-            }
+            volume.core.update_frame(frame);
         }
         // No pair is culled when all bounding centres lie within `limit` of each other.
         let cull_beyond = exact_within.filter(|&limit| !centres_within(bounding_spheres, limit));
@@ -259,8 +258,9 @@ pub struct CollisionData<T: RealField, const V: usize, const P: usize> {
     /// distance ([`CollisionModel::compute_distances`]); `None` (the default) computes every
     /// pair exactly.
     pub exact_within: Option<T>,
-    /// The triangle frame of each world volume with a triangle core (edges, normal, edge
-    /// normals), written by [`CollisionModel::compute_distances`] for its pairs.
+    /// The frame of each world volume with a triangle core (edges, normal, edge normals) or a
+    /// segment core (start, direction), written by [`CollisionModel::compute_distances`] for
+    /// its pairs.
     triangle_frames: [TriangleFrame<T>; V],
 }
 

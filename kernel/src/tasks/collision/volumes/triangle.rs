@@ -52,6 +52,28 @@ impl<T: RealField + Copy> TriangleFrame<T> {
         }
     }
 
+    /// The frame of the segment `[p, q]`: its start and first edge (`p`, `q − p`, `‖q − p‖²`,
+    /// read by [`Self::first_edge`]); the rest as in `self` (unread for a segment core).
+    #[inline]
+    pub(in crate::tasks::collision) fn set_segment(&mut self, p: &Vector3<T>, q: &Vector3<T>) {
+        let d = q - p;
+        if let (Some(v), Some(e), Some(l)) =
+            (self.vertices.first_mut(), self.edges.first_mut(), self.edge_length2.first_mut())
+        {
+            (*v, *e, *l) = (*p, d, d.norm_squared());
+        }
+    }
+
+    /// The first vertex, the first edge `v₁ − v₀` and its squared length: of a segment core's
+    /// frame ([`Self::set_segment`]), the segment's start, direction and squared length.
+    #[inline]
+    pub(super) fn first_edge(&self) -> (&Vector3<T>, &Vector3<T>, T) {
+        let [v, ..] = &self.vertices;
+        let [e, ..] = &self.edges;
+        let [l, ..] = self.edge_length2;
+        (v, e, l)
+    }
+
     pub(super) fn new(t: &[Vector3<T>; 3]) -> Self {
         let [a, b, c] = t;
         let edges = [b - a, c - b, a - c];
@@ -250,13 +272,17 @@ pub(super) fn closest_segment_triangle<T: RealField + Copy>(
     q: &Vector3<T>,
     t: &[Vector3<T>; 3],
 ) -> (Vector3<T>, Vector3<T>) {
-    closest_segment_framed(p, q, &TriangleFrame::new(t))
+    let d = q - p;
+    closest_segment_framed(p, q, &d, d.norm_squared(), &TriangleFrame::new(t))
 }
 
-/// [`closest_segment_triangle`] against the triangle of `frame`.
+/// [`closest_segment_triangle`] against the triangle of `frame`, with the segment's direction
+/// `d = q − p` and `a = ‖d‖²` given by the caller (computed once per segment).
 pub(super) fn closest_segment_framed<T: RealField + Copy>(
     p: &Vector3<T>,
     q: &Vector3<T>,
+    d: &Vector3<T>,
+    a: T,
     frame: &TriangleFrame<T>,
 ) -> (Vector3<T>, Vector3<T>) {
     let (hp, hq) = (frame.height(p), frame.height(q));
@@ -274,14 +300,12 @@ pub(super) fn closest_segment_framed<T: RealField + Copy>(
     if nearest.excludes(frame.clearance(hp, hq)) {
         return nearest.pair;
     }
-    let d = q - p;
-    let a = d.norm_squared();
     // Bit k: both ends lie on the inner side of edge k (then edge k is skipped).
     let inner = sp & sq;
     let mut bit = 1;
     for ((v, e), &length2) in frame.vertices.iter().zip(&frame.edges).zip(&frame.edge_length2) {
         if inner & bit == 0 {
-            let (x, y) = closest_edge_edge(p, &d, a, v, e, length2);
+            let (x, y) = closest_edge_edge(p, d, a, v, e, length2);
             nearest.offer(&x, &y);
         }
         bit <<= 1;
