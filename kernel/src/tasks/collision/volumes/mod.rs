@@ -38,7 +38,7 @@ mod triangle;
 
 #[cfg(test)]
 use segment::closest_segment_segment;
-use segment::{closest_edge_edge, closest_on_edge, closest_on_segment};
+use segment::{closest_edge_edge_inline, closest_on_edge, closest_on_segment};
 pub(super) use triangle::TriangleFrame;
 use triangle::{closest_on_triangle, closest_segment_framed, closest_triangles_framed};
 #[cfg(test)]
@@ -254,7 +254,7 @@ fn closest_points_framed<T: RealField + Copy>(
         (Core::Triangle(_), Core::Point(p)) => (fa.closest_point(p, fa.height(p)), *p),
         (Core::Segment(_), Core::Segment(_)) => {
             let ((p1, d1, a1), (p2, d2, a2)) = (fa.first_edge(), fb.first_edge());
-            closest_edge_edge(p1, d1, a1, p2, d2, a2)
+            closest_edge_edge_inline(p1, d1, a1, p2, d2, a2)
         }
         (Core::Segment([p, q]), Core::Triangle(_)) => {
             let (_, d, a) = fa.first_edge();

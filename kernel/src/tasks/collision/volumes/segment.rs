@@ -85,6 +85,20 @@ pub(super) fn closest_edge_edge<T: RealField + Copy>(
     d2: &Vector3<T>,
     e: T,
 ) -> (Vector3<T>, Vector3<T>) {
+    closest_edge_edge_inline(p1, d1, a, p2, d2, e)
+}
+
+/// [`closest_edge_edge`] inlined into its caller (the segment–segment pairs, which call nothing
+/// else).
+#[inline(always)]
+pub(super) fn closest_edge_edge_inline<T: RealField + Copy>(
+    p1: &Vector3<T>,
+    d1: &Vector3<T>,
+    a: T,
+    p2: &Vector3<T>,
+    d2: &Vector3<T>,
+    e: T,
+) -> (Vector3<T>, Vector3<T>) {
     let r = p1 - p2;
     let f = d2.dot(&r);
     let eps = T::default_epsilon();
