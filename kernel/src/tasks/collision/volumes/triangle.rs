@@ -277,7 +277,9 @@ pub(super) fn closest_segment_triangle<T: RealField + Copy>(
 }
 
 /// [`closest_segment_triangle`] against the triangle of `frame`, with the segment's direction
-/// `d = q − p` and `a = ‖d‖²` given by the caller (computed once per segment).
+/// `d = q − p` and `a = ‖d‖²` given by the caller (computed once per segment). Inlined into
+/// the pair loop.
+#[inline(always)]
 pub(super) fn closest_segment_framed<T: RealField + Copy>(
     p: &Vector3<T>,
     q: &Vector3<T>,
