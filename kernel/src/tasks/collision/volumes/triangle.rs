@@ -376,23 +376,26 @@ pub(super) fn closest_triangles_framed<T: RealField + Copy>(
     let ([sa, sb, sc], [sd, se, sf]) = (ss, st);
     let inner_s = [sa & sb, sb & sc, sc & sa];
     let inner_t = [sd & se, se & sf, sf & sd];
-    let clear_s = [ft.clearance(ha, hb), ft.clearance(hb, hc), ft.clearance(hc, ha)];
-    let clear_t = [fs.clearance(hd, he), fs.clearance(he, hf), fs.clearance(hf, hd)];
-    let edges_s = s.iter().zip(&fs.edges).zip(&fs.edge_length2).zip(inner_s).zip(clear_s);
-    let mut bit_j = 1;
-    for ((((p, edge), &length2), inner_j), bound_s) in edges_s {
-        if !nearest.excludes(bound_s) {
-            let edges_t = t.iter().zip(&ft.edges).zip(&ft.edge_length2).zip(&inner_t).zip(&clear_t);
-            let mut bit_k = 1;
-            for ((((v, e), &e2), &inner_k), &bound_t) in edges_t {
-                if (inner_j & bit_k == 0 || inner_k & bit_j == 0) && !nearest.excludes(bound_t) {
-                    let (x, y) = closest_edge_edge(p, edge, length2, v, e, e2);
-                    nearest.offer(&x, &y);
-                }
-                bit_k <<= 1;
+    let ([is0, is1, is2], [it0, it1, it2]) = (inner_s, inner_t);
+    let ([cs0, cs1, cs2], [ct0, ct1, ct2]) = (
+        [ft.clearance(ha, hb), ft.clearance(hb, hc), ft.clearance(hc, ha)],
+        [fs.clearance(hd, he), fs.clearance(he, hf), fs.clearance(hf, hd)],
+    );
+    let ([es0, es1, es2], [ls0, ls1, ls2]) = (&fs.edges, fs.edge_length2);
+    let ([et0, et1, et2], [lt0, lt1, lt2]) = (&ft.edges, ft.edge_length2);
+    // Each edge with its start, squared length, inner mask, clearance and bit.
+    let edges_s = [(a, es0, ls0, is0, cs0, 1u8), (b, es1, ls1, is1, cs1, 2), (c, es2, ls2, is2, cs2, 4)];
+    let edges_t = [(d, et0, lt0, it0, ct0, 1u8), (e, et1, lt1, it1, ct1, 2), (f, et2, lt2, it2, ct2, 4)];
+    for &(p, edge, length2, inner_j, bound_s, bit_j) in &edges_s {
+        if nearest.excludes(bound_s) {
+            continue;
+        }
+        for &(v, other, other2, inner_k, bound_t, bit_k) in &edges_t {
+            if (inner_j & bit_k == 0 || inner_k & bit_j == 0) && !nearest.excludes(bound_t) {
+                let (x, y) = closest_edge_edge(p, edge, length2, v, other, other2);
+                nearest.offer(&x, &y);
             }
         }
-        bit_j <<= 1;
     }
     nearest.pair
 }
