@@ -21,7 +21,8 @@ fn triangle_normal<T: RealField + Copy>([a, b, c]: &[Vector3<T>; 3]) -> Option<V
 /// ([`triangle_normal`]), `‖n‖²`, the plane offset `n · v₀`, the in-plane edge normals
 /// `m_k = n × e_k` that point into the triangle and their offsets `m_k · v_k` (zeros and one for
 /// a degenerate triangle, which has no plane). A height or side test against the triangle is
-/// then one dot product and a subtraction.
+/// then one dot product and a subtraction. The frame of a segment core holds only its start,
+/// direction and squared length, as the first vertex and edge ([`Self::set_segment`]).
 #[derive(Clone, Copy, Debug)]
 pub(in crate::tasks::collision) struct TriangleFrame<T: RealField> {
     vertices: [Vector3<T>; 3],
