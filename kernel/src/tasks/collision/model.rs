@@ -164,8 +164,8 @@ impl<T: RealField + Copy, const V: usize, const P: usize> CollisionModel<T, V, P
     /// a lower bound of the true distance, larger than `d` — with the sphere centres as "closest
     /// points" and no direction, without the exact narrow-phase computation. Every pair closer than `d` is exact. A task that emits
     /// rows below `d` ([`super::CollisionParameters::emit_distance`]) gets the same rows.
-    /// When every two bounding centres lie within `d` of each other ([`centres_within`]) no
-    /// pair can be culled, and the per-pair tests are skipped.
+    /// When every two bounding centres lie within `d` of each other (checked once, on the box
+    /// of the centres) no pair can be culled, and the per-pair tests are skipped.
     pub fn compute_distances(&self, collision: &mut CollisionData<T, V, P>) {
         let CollisionData { world_volumes, bounding_spheres, proximities, exact_within, triangle_frames } = collision;
         // Each triangle's frame and each segment's direction once per call, shared by all its
