@@ -277,9 +277,9 @@ pub(super) fn closest_segment_triangle<T: RealField + Copy>(
     closest_segment_framed(p, q, &d, d.norm_squared(), &TriangleFrame::new(t))
 }
 
-/// [`closest_segment_triangle`] against the triangle of `frame`, with the segment's direction
-/// `d = q − p` and `a = ‖d‖²` given by the caller (computed once per segment). Inlined into
-/// the pair loop.
+/// `closest_segment_triangle` (its test entry point, which documents the method) against the
+/// triangle of `frame`, with the segment's direction `d = q − p` and `a = ‖d‖²` given by the
+/// caller (computed once per segment). Inlined into the pair loop.
 #[inline(always)]
 pub(super) fn closest_segment_framed<T: RealField + Copy>(
     p: &Vector3<T>,
@@ -330,8 +330,9 @@ pub(super) fn closest_triangle_triangle<T: RealField + Copy>(
     closest_triangles_framed(&TriangleFrame::new(s), &TriangleFrame::new(t))
 }
 
-/// [`closest_triangle_triangle`] of the triangles of the frames `fs` and `ft`. Out of line: the
-/// longest of the pair tests, kept out of the per-pair loop that calls it.
+/// `closest_triangle_triangle` (its test entry point, which documents the method) of the
+/// triangles of the frames `fs` and `ft`. Out of line: the longest of the pair tests, kept out
+/// of the per-pair loop that calls it.
 #[inline(never)]
 pub(super) fn closest_triangles_framed<T: RealField + Copy>(
     fs: &TriangleFrame<T>,
