@@ -164,14 +164,17 @@ impl<T: RealField + Copy, const V: usize, const P: usize> CollisionModel<T, V, P
     /// a lower bound of the true distance, larger than `d` — with the sphere centres as "closest
     /// points" and no direction, without the exact narrow-phase computation. Every pair closer than `d` is exact. A task that emits
     /// rows below `d` ([`super::CollisionParameters::emit_distance`]) gets the same rows.
+    /// When every two bounding centres lie within `d` of each other (checked once, on the box
+    /// of the centres) no pair can be culled, and the per-pair tests are skipped.
     pub fn compute_distances(&self, collision: &mut CollisionData<T, V, P>) {
         let CollisionData { world_volumes, bounding_spheres, proximities, exact_within, triangle_frames } = collision;
-        // Each triangle's frame once per call, shared by all its pairs.
+        // Each triangle's frame and each segment's direction once per call, shared by all its
+        // pairs.
         for (frame, volume) in triangle_frames.iter_mut().zip(world_volumes.iter()) {
-            if let Core::Triangle(_) = volume.core {
-                *frame = volume.core.triangle_frame();
-            }
+            volume.core.update_frame(frame);
         }
+        // No pair is culled when all bounding centres lie within `limit` of each other.
+        let cull_beyond = exact_within.filter(|&limit| !centres_within(bounding_spheres, limit));
         for (pair, slot) in self.pairs.iter().zip(proximities.iter_mut()) {
             let (Some(a), Some(b)) = (world_volumes.get(pair.first.0), world_volumes.get(pair.second.0)) else {
                 continue;
@@ -180,7 +183,7 @@ impl<T: RealField + Copy, const V: usize, const P: usize> CollisionModel<T, V, P
                 continue;
             };
             if let (Some(limit), Some((ca, ra)), Some((cb, rb))) =
-                (*exact_within, bounding_spheres.get(pair.first.0), bounding_spheres.get(pair.second.0))
+                (cull_beyond, bounding_spheres.get(pair.first.0), bounding_spheres.get(pair.second.0))
             {
                 // Squared comparison first: the square root only for the pairs that may be far.
                 let (separation2, reach) = ((ca - cb).norm_squared(), limit + *ra + *rb);
@@ -214,6 +217,33 @@ impl<T: RealField + Copy, const V: usize, const P: usize> CollisionModel<T, V, P
     }
 }
 
+/// `true` if `limit > 0` and the box of the sphere centres has a diagonal of at most `limit`
+/// (squared, rounded as the broad phase rounds), so no two centres are more than `limit`
+/// apart. Then the broad phase of [`CollisionModel::compute_distances`] culls no pair: each
+/// component of `cₐ − c_b` is at most the box's extent in magnitude, and rounding is monotone,
+/// so the computed `‖cₐ − c_b‖²` is at most the computed diagonal², at most `limit²`, at most
+/// every `(limit + rₐ + r_b)²` and `(limit + r + r_ball)²` the sphere and slab tests compare
+/// it with (radii `≥ 0`). Cost O(V), once per call instead of the per-pair tests.
+fn centres_within<T: RealField + Copy>(spheres: &[(Vector3<T>, T)], limit: T) -> bool {
+    let Some(((first, _), rest)) = spheres.split_first() else {
+        return false;
+    };
+    let (mut lo, mut hi) = (*first, *first);
+    for (center, _) in rest {
+        for ((l, h), &x) in lo.iter_mut().zip(hi.iter_mut()).zip(center.iter()) {
+            // A NaN centre leaves the box as it is: its pairs are exact either way (every
+            // comparison with a NaN separation fails).
+            if x < *l {
+                *l = x;
+            }
+            if x > *h {
+                *h = x;
+            }
+        }
+    }
+    limit > T::zero() && (hi - lo).norm_squared() <= limit * limit
+}
+
 /// Preallocated workspace of a [`CollisionModel`].
 #[derive(Clone, Debug)]
 pub struct CollisionData<T: RealField, const V: usize, const P: usize> {
@@ -228,8 +258,9 @@ pub struct CollisionData<T: RealField, const V: usize, const P: usize> {
     /// distance ([`CollisionModel::compute_distances`]); `None` (the default) computes every
     /// pair exactly.
     pub exact_within: Option<T>,
-    /// The triangle frame of each world volume with a triangle core (edges, normal, edge
-    /// normals), written by [`CollisionModel::compute_distances`] for its pairs.
+    /// The frame of each world volume with a triangle core (edges, normal, edge normals) or a
+    /// segment core (start, direction), written by [`CollisionModel::compute_distances`] for
+    /// its pairs.
     triangle_frames: [TriangleFrame<T>; V],
 }
 
@@ -462,6 +493,65 @@ mod tests {
             }
         }
         assert!(exact > 5000 && culled > 5000 && touching > 500, "{exact} exact, {culled} culled, {touching} touching");
+    }
+
+    /// The broad phase without its per-pair tests ([`centres_within`]) equals the plain
+    /// per-pair evaluation bit for bit at cull distances around the largest centre separation:
+    /// at random states, `d` at the computed box diagonal `D` and one, two and 64 ulps-ish
+    /// steps (`D (1 ± k ε)`) on either side, and at the largest pair separation itself; the
+    /// shortcut is taken and not taken, and the box never claims a pair farther apart than
+    /// `d` (every pair's squared separation is at most `d²` when it is taken).
+    fn shortcut_matches_the_plain_evaluation_at_its_threshold<T: RealField + Copy>() {
+        let robot = branched::<T>();
+        let cm = model(&robot);
+        let mut cd = CollisionData::new(&cm);
+        let mut data = Data::new(&robot);
+        let (mut taken, mut not_taken) = (0, 0);
+        for seed in 0..200 {
+            forward_kinematics(&robot, &mut data, &state(seed, 1.5).cast::<T>(), &SVector::zeros()).unwrap();
+            cd.exact_within = None;
+            cm.update(&data, &mut cd);
+            let centres = cd.bounding_spheres;
+            let mut widest = T::zero();
+            for (a, _) in &centres {
+                for (b, _) in &centres {
+                    widest = widest.max((a - b).norm_squared());
+                }
+            }
+            let (lo, hi) = centres.iter().fold((centres[0].0, centres[0].0), |(lo, hi), (c, _)| (lo.inf(c), hi.sup(c)));
+            let diagonal = sqrt((hi - lo).norm_squared());
+            let eps = T::default_epsilon();
+            let mut limits = std::vec![sqrt(widest)];
+            for k in [0.0, 1.0, 2.0, 64.0, -1.0, -2.0, -64.0] {
+                limits.push(diagonal * (T::one() + convert::<f64, T>(k) * eps));
+            }
+            for limit in limits {
+                let within = centres_within(&centres, limit);
+                if within {
+                    taken += 1;
+                    assert!(widest <= limit * limit, "seed {seed}: {widest} beyond {limit}");
+                } else {
+                    not_taken += 1;
+                }
+                cd.exact_within = Some(limit);
+                cm.compute_distances(&mut cd);
+                let plain = reference(&cm, &cd);
+                for (fast, plain) in cd.proximities.iter().zip(&plain) {
+                    assert_eq!(fast, plain, "seed {seed}, limit {limit}");
+                }
+            }
+        }
+        assert!(taken > 400 && not_taken > 400, "{taken} taken, {not_taken} not");
+    }
+
+    #[test]
+    fn shortcut_matches_the_plain_evaluation_at_its_threshold_f64() {
+        shortcut_matches_the_plain_evaluation_at_its_threshold::<f64>();
+    }
+
+    #[test]
+    fn shortcut_matches_the_plain_evaluation_at_its_threshold_f32() {
+        shortcut_matches_the_plain_evaluation_at_its_threshold::<f32>();
     }
 
     #[test]

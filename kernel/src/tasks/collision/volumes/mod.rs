@@ -36,7 +36,9 @@ use crate::math::sqrt;
 mod segment;
 mod triangle;
 
-use segment::{closest_on_segment, closest_segment_segment};
+#[cfg(test)]
+use segment::closest_segment_segment;
+use segment::{closest_edge_edge_inline, closest_on_edge, closest_on_segment};
 pub(super) use triangle::TriangleFrame;
 use triangle::{closest_on_triangle, closest_segment_framed, closest_triangles_framed};
 #[cfg(test)]
@@ -54,13 +56,27 @@ pub enum Core<T: RealField> {
 }
 
 impl<T: RealField + Copy> Core<T> {
-    /// The frame of the core if it is a triangle, else [`TriangleFrame::placeholder`] (never
-    /// read: only a triangle core's frame is).
+    /// The frame of the core: a triangle's [`TriangleFrame`], a segment's start and direction
+    /// ([`TriangleFrame::set_segment`] on the placeholder), a point's
+    /// [`TriangleFrame::placeholder`] (never read).
     #[inline]
     pub(in crate::tasks::collision) fn triangle_frame(&self) -> TriangleFrame<T> {
-        match self {
-            Self::Triangle(t) => TriangleFrame::new(t),
+        let mut frame = match self {
+            Self::Triangle(t) => return TriangleFrame::new(t),
             _ => TriangleFrame::placeholder(),
+        };
+        self.update_frame(&mut frame);
+        frame
+    }
+
+    /// Writes the core's part of `frame` ([`Self::triangle_frame`]): all of it for a triangle,
+    /// the start and direction for a segment, nothing for a point.
+    #[inline]
+    pub(in crate::tasks::collision) fn update_frame(&self, frame: &mut TriangleFrame<T>) {
+        match self {
+            Self::Triangle(t) => *frame = TriangleFrame::new(t),
+            Self::Segment([p, q]) => frame.set_segment(p, q),
+            Self::Point(_) => {}
         }
     }
 
@@ -221,8 +237,8 @@ pub fn closest_points<T: RealField + Copy>(a: &Core<T>, b: &Core<T>) -> (Vector3
     closest_points_framed(a, &a.triangle_frame(), b, &b.triangle_frame())
 }
 
-/// [`closest_points`] with the cores' triangle frames `fa`, `fb` ([`Core::triangle_frame`]; read
-/// only for a triangle core).
+/// [`closest_points`] with the cores' frames `fa`, `fb` ([`Core::triangle_frame`]; read for a
+/// triangle or a segment core): the same operations as from the cores alone.
 fn closest_points_framed<T: RealField + Copy>(
     a: &Core<T>,
     fa: &TriangleFrame<T>,
@@ -232,15 +248,31 @@ fn closest_points_framed<T: RealField + Copy>(
     let swap = |(x, y): (Vector3<T>, Vector3<T>)| (y, x);
     match (a, b) {
         (Core::Point(p), Core::Point(q)) => (*p, *q),
-        (Core::Point(p), Core::Segment([x, y])) => (*p, closest_on_segment(p, x, y)),
-        (Core::Segment([x, y]), Core::Point(p)) => (closest_on_segment(p, x, y), *p),
+        (Core::Point(p), Core::Segment(_)) => (*p, on_segment(p, fb)),
+        (Core::Segment(_), Core::Point(p)) => (on_segment(p, fa), *p),
         (Core::Point(p), Core::Triangle(_)) => (*p, fb.closest_point(p, fb.height(p))),
         (Core::Triangle(_), Core::Point(p)) => (fa.closest_point(p, fa.height(p)), *p),
-        (Core::Segment([p1, q1]), Core::Segment([p2, q2])) => closest_segment_segment(p1, q1, p2, q2),
-        (Core::Segment([p, q]), Core::Triangle(_)) => closest_segment_framed(p, q, fb),
-        (Core::Triangle(_), Core::Segment([p, q])) => swap(closest_segment_framed(p, q, fa)),
+        (Core::Segment(_), Core::Segment(_)) => {
+            let ((p1, d1, a1), (p2, d2, a2)) = (fa.first_edge(), fb.first_edge());
+            closest_edge_edge_inline(p1, d1, a1, p2, d2, a2)
+        }
+        (Core::Segment([p, q]), Core::Triangle(_)) => {
+            let (_, d, a) = fa.first_edge();
+            closest_segment_framed(p, q, d, a, fb)
+        }
+        (Core::Triangle(_), Core::Segment([p, q])) => {
+            let (_, d, a) = fb.first_edge();
+            swap(closest_segment_framed(p, q, d, a, fa))
+        }
         (Core::Triangle(_), Core::Triangle(_)) => closest_triangles_framed(fa, fb),
     }
+}
+
+/// Closest point to `p` on the segment of the frame `f` ([`TriangleFrame::set_segment`]).
+#[inline]
+fn on_segment<T: RealField + Copy>(p: &Vector3<T>, f: &TriangleFrame<T>) -> Vector3<T> {
+    let (a, d, length2) = f.first_edge();
+    closest_on_edge(p, a, d, length2)
 }
 
 #[cfg(test)]

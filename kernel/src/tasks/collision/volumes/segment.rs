@@ -56,12 +56,9 @@ pub(super) fn closest_on_edge<T: RealField + Copy>(
     a + d * clamped_ratio((p - a).dot(d), length2)
 }
 
-/// Closest points of the segments `[p1, q1]` and `[p2, q2]`.
-///
-/// Minimises `f(s, t) = ‖p1 + s d1 − p2 − t d2‖²` over `[0, 1]²`: the infinite lines' solution
-/// for `s`, clamped; the best `t` for it, clamped; the best `s` for that `t`, clamped (exact for
-/// this convex quadratic). Parallel segments (`a e − b² ≤ ε a e`) take the midpoint of the
-/// overlap of the projections (or the nearest end), zero-length ones the point.
+/// Closest points of the segments `[p1, q1]` and `[p2, q2]`: [`closest_edge_edge`] of their
+/// directions (the volume tests take the directions from the segments' frames).
+#[cfg(test)]
 pub(super) fn closest_segment_segment<T: RealField + Copy>(
     p1: &Vector3<T>,
     q1: &Vector3<T>,
@@ -73,9 +70,28 @@ pub(super) fn closest_segment_segment<T: RealField + Copy>(
     closest_edge_edge(p1, &d1, a, p2, &d2, e)
 }
 
-/// [`closest_segment_segment`] of the segments from `p1` along `d1` and from `p2` along `d2`,
-/// with `a = ‖d1‖²` and `e = ‖d2‖²` given by the caller (computed once per edge).
+/// Closest points of the segments from `p1` along `d1` and from `p2` along `d2`, with
+/// `a = ‖d1‖²` and `e = ‖d2‖²` given by the caller (computed once per edge or segment).
+///
+/// Minimises `f(s, t) = ‖p1 + s d1 − p2 − t d2‖²` over `[0, 1]²`: the infinite lines' solution
+/// for `s`, clamped; the best `t` for it, clamped; the best `s` for that `t`, clamped (exact for
+/// this convex quadratic). Parallel segments (`a e − b² ≤ ε a e`) take the midpoint of the
+/// overlap of the projections (or the nearest end), zero-length ones the point.
 pub(super) fn closest_edge_edge<T: RealField + Copy>(
+    p1: &Vector3<T>,
+    d1: &Vector3<T>,
+    a: T,
+    p2: &Vector3<T>,
+    d2: &Vector3<T>,
+    e: T,
+) -> (Vector3<T>, Vector3<T>) {
+    closest_edge_edge_inline(p1, d1, a, p2, d2, e)
+}
+
+/// [`closest_edge_edge`] inlined into its caller (the segment–segment pairs, which call nothing
+/// else).
+#[inline(always)]
+pub(super) fn closest_edge_edge_inline<T: RealField + Copy>(
     p1: &Vector3<T>,
     d1: &Vector3<T>,
     a: T,

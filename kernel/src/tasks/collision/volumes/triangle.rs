@@ -21,7 +21,8 @@ fn triangle_normal<T: RealField + Copy>([a, b, c]: &[Vector3<T>; 3]) -> Option<V
 /// ([`triangle_normal`]), `‖n‖²`, the plane offset `n · v₀`, the in-plane edge normals
 /// `m_k = n × e_k` that point into the triangle and their offsets `m_k · v_k` (zeros and one for
 /// a degenerate triangle, which has no plane). A height or side test against the triangle is
-/// then one dot product and a subtraction.
+/// then one dot product and a subtraction. The frame of a segment core holds only its start,
+/// direction and squared length, as the first vertex and edge ([`Self::set_segment`]).
 #[derive(Clone, Copy, Debug)]
 pub(in crate::tasks::collision) struct TriangleFrame<T: RealField> {
     vertices: [Vector3<T>; 3],
@@ -50,6 +51,28 @@ impl<T: RealField + Copy> TriangleFrame<T> {
             edge_normals: [zero; 3],
             edge_offsets: [T::zero(); 3],
         }
+    }
+
+    /// The frame of the segment `[p, q]`: its start and first edge (`p`, `q − p`, `‖q − p‖²`,
+    /// read by [`Self::first_edge`]); the rest as in `self` (unread for a segment core).
+    #[inline]
+    pub(in crate::tasks::collision) fn set_segment(&mut self, p: &Vector3<T>, q: &Vector3<T>) {
+        let d = q - p;
+        if let (Some(v), Some(e), Some(l)) =
+            (self.vertices.first_mut(), self.edges.first_mut(), self.edge_length2.first_mut())
+        {
+            (*v, *e, *l) = (*p, d, d.norm_squared());
+        }
+    }
+
+    /// The first vertex, the first edge `v₁ − v₀` and its squared length: of a segment core's
+    /// frame ([`Self::set_segment`]), the segment's start, direction and squared length.
+    #[inline]
+    pub(super) fn first_edge(&self) -> (&Vector3<T>, &Vector3<T>, T) {
+        let [v, ..] = &self.vertices;
+        let [e, ..] = &self.edges;
+        let [l, ..] = self.edge_length2;
+        (v, e, l)
     }
 
     pub(super) fn new(t: &[Vector3<T>; 3]) -> Self {
@@ -250,13 +273,19 @@ pub(super) fn closest_segment_triangle<T: RealField + Copy>(
     q: &Vector3<T>,
     t: &[Vector3<T>; 3],
 ) -> (Vector3<T>, Vector3<T>) {
-    closest_segment_framed(p, q, &TriangleFrame::new(t))
+    let d = q - p;
+    closest_segment_framed(p, q, &d, d.norm_squared(), &TriangleFrame::new(t))
 }
 
-/// [`closest_segment_triangle`] against the triangle of `frame`.
+/// `closest_segment_triangle` (its test entry point, which documents the method) against the
+/// triangle of `frame`, with the segment's direction `d = q − p` and `a = ‖d‖²` given by the
+/// caller (computed once per segment). Inlined into the pair loop.
+#[inline(always)]
 pub(super) fn closest_segment_framed<T: RealField + Copy>(
     p: &Vector3<T>,
     q: &Vector3<T>,
+    d: &Vector3<T>,
+    a: T,
     frame: &TriangleFrame<T>,
 ) -> (Vector3<T>, Vector3<T>) {
     let (hp, hq) = (frame.height(p), frame.height(q));
@@ -274,14 +303,12 @@ pub(super) fn closest_segment_framed<T: RealField + Copy>(
     if nearest.excludes(frame.clearance(hp, hq)) {
         return nearest.pair;
     }
-    let d = q - p;
-    let a = d.norm_squared();
     // Bit k: both ends lie on the inner side of edge k (then edge k is skipped).
     let inner = sp & sq;
     let mut bit = 1;
     for ((v, e), &length2) in frame.vertices.iter().zip(&frame.edges).zip(&frame.edge_length2) {
         if inner & bit == 0 {
-            let (x, y) = closest_edge_edge(p, &d, a, v, e, length2);
+            let (x, y) = closest_edge_edge(p, d, a, v, e, length2);
             nearest.offer(&x, &y);
         }
         bit <<= 1;
@@ -303,8 +330,9 @@ pub(super) fn closest_triangle_triangle<T: RealField + Copy>(
     closest_triangles_framed(&TriangleFrame::new(s), &TriangleFrame::new(t))
 }
 
-/// [`closest_triangle_triangle`] of the triangles of the frames `fs` and `ft`. Out of line: the
-/// longest of the pair tests, kept out of the per-pair loop that calls it.
+/// `closest_triangle_triangle` (its test entry point, which documents the method) of the
+/// triangles of the frames `fs` and `ft`. Out of line: the longest of the pair tests, kept out
+/// of the per-pair loop that calls it.
 #[inline(never)]
 pub(super) fn closest_triangles_framed<T: RealField + Copy>(
     fs: &TriangleFrame<T>,
@@ -350,23 +378,26 @@ pub(super) fn closest_triangles_framed<T: RealField + Copy>(
     let ([sa, sb, sc], [sd, se, sf]) = (ss, st);
     let inner_s = [sa & sb, sb & sc, sc & sa];
     let inner_t = [sd & se, se & sf, sf & sd];
-    let clear_s = [ft.clearance(ha, hb), ft.clearance(hb, hc), ft.clearance(hc, ha)];
-    let clear_t = [fs.clearance(hd, he), fs.clearance(he, hf), fs.clearance(hf, hd)];
-    let edges_s = s.iter().zip(&fs.edges).zip(&fs.edge_length2).zip(inner_s).zip(clear_s);
-    let mut bit_j = 1;
-    for ((((p, edge), &length2), inner_j), bound_s) in edges_s {
-        if !nearest.excludes(bound_s) {
-            let edges_t = t.iter().zip(&ft.edges).zip(&ft.edge_length2).zip(&inner_t).zip(&clear_t);
-            let mut bit_k = 1;
-            for ((((v, e), &e2), &inner_k), &bound_t) in edges_t {
-                if (inner_j & bit_k == 0 || inner_k & bit_j == 0) && !nearest.excludes(bound_t) {
-                    let (x, y) = closest_edge_edge(p, edge, length2, v, e, e2);
-                    nearest.offer(&x, &y);
-                }
-                bit_k <<= 1;
+    let ([is0, is1, is2], [it0, it1, it2]) = (inner_s, inner_t);
+    let ([cs0, cs1, cs2], [ct0, ct1, ct2]) = (
+        [ft.clearance(ha, hb), ft.clearance(hb, hc), ft.clearance(hc, ha)],
+        [fs.clearance(hd, he), fs.clearance(he, hf), fs.clearance(hf, hd)],
+    );
+    let ([es0, es1, es2], [ls0, ls1, ls2]) = (&fs.edges, fs.edge_length2);
+    let ([et0, et1, et2], [lt0, lt1, lt2]) = (&ft.edges, ft.edge_length2);
+    // Each edge with its start, squared length, inner mask, clearance and bit.
+    let edges_s = [(a, es0, ls0, is0, cs0, 1u8), (b, es1, ls1, is1, cs1, 2), (c, es2, ls2, is2, cs2, 4)];
+    let edges_t = [(d, et0, lt0, it0, ct0, 1u8), (e, et1, lt1, it1, ct1, 2), (f, et2, lt2, it2, ct2, 4)];
+    for &(p, edge, length2, inner_j, bound_s, bit_j) in &edges_s {
+        if nearest.excludes(bound_s) {
+            continue;
+        }
+        for &(v, other, other2, inner_k, bound_t, bit_k) in &edges_t {
+            if (inner_j & bit_k == 0 || inner_k & bit_j == 0) && !nearest.excludes(bound_t) {
+                let (x, y) = closest_edge_edge(p, edge, length2, v, other, other2);
+                nearest.offer(&x, &y);
             }
         }
-        bit_j <<= 1;
     }
     nearest.pair
 }
