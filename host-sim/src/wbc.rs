@@ -415,3 +415,56 @@ impl Physics for Rig {
         self.sim.step()
     }
 }
+
+/// The realistic plant's joint friction in the normal force of one contact (N).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FrictionShare {
+    /// The friction's share: the force the friction torque `τ_f` alone gives the contact,
+    /// positive when it presses the TCP into it.
+    pub share_n: f64,
+    /// The largest share friction of the plant's magnitudes can give it at the current
+    /// velocities: `Σ_j |W_ij| (τ_c,j + d_j |q̇_j|)` for the row `i` of the map `W` below.
+    pub bound_n: f64,
+}
+
+/// The realistic plant's joint friction in the normal forces of the touched contacts, each
+/// given by its TCP frame, the unit direction it presses along (world) and whether it is
+/// touched. A joint torque `τ` gives rigid contacts along these directions the forces
+/// `W τ = (J M_u⁻¹ Jᵀ)⁻¹ J M_u⁻¹ τ` (dynamically consistent), `J` the touched contacts' rows
+/// `directionᵀ J_v` on the upper-body columns, `M_u` the upper-body block of `M` at the
+/// simulator's state (the base is velocity controlled: joint torques do not move it). The
+/// share is `W τ_f` of the friction torque ([`JustinSim::friction_torque`]), the bound the
+/// largest over every sign of the friction magnitudes ([`JustinSim::friction_torque_bound`]).
+/// Zero for an untouched contact and on the ideal plant. Errors: an unknown frame, a
+/// non-finite state, a singular `J M_u⁻¹ Jᵀ`.
+pub fn friction_contact_shares(
+    sim: &JustinSim,
+    contacts: &[(kernel::model::FrameId, nalgebra::Vector3<f64>, bool)],
+) -> Result<Vec<FrictionShare>, String> {
+    use kernel::dynamics::{crba, forward_kinematics, frame_jacobian};
+    const U: usize = justin::UPPER_DOF;
+    let (friction, magnitude) = (sim.friction_torque(), sim.friction_torque_bound());
+    let touched: Vec<_> = contacts.iter().filter(|c| c.2).collect();
+    if touched.is_empty() || magnitude.iter().all(|t| *t == 0.0) {
+        return Ok(vec![FrictionShare::default(); contacts.len()]);
+    }
+    let model = sim.model();
+    let mut data = kernel::model::Data::new(model);
+    forward_kinematics(model, &mut data, sim.q(), sim.v()).map_err(|e| e.to_string())?;
+    let base = justin::N - U;
+    let mut rows = nalgebra::DMatrix::<f64>::zeros(touched.len(), U);
+    for (mut row, (frame, direction, _)) in rows.row_iter_mut().zip(touched.iter()) {
+        let mut jacobian = nalgebra::SMatrix::<f64, 6, { justin::N }>::zeros();
+        frame_jacobian(model, &data, *frame, &mut jacobian).map_err(|e| e.to_string())?;
+        row.copy_from(&(direction.transpose() * jacobian.fixed_view::<3, U>(0, base)));
+    }
+    let mass = crba(model, &mut data).fixed_view::<U, U>(base, base).into_owned();
+    let factor = mass.cholesky().ok_or("the upper-body inertia is not positive definite")?;
+    let mobility = factor.solve(&rows.transpose()); // M_u⁻¹ Jᵀ
+    let reflected = (&rows * &mobility).cholesky().ok_or("J M⁻¹ Jᵀ is singular")?;
+    let map = reflected.solve(&mobility.transpose()); // W
+    let mut next = map
+        .row_iter()
+        .map(|w| FrictionShare { share_n: w.transpose().dot(&friction), bound_n: w.abs().transpose().dot(&magnitude) });
+    Ok(contacts.iter().map(|c| if c.2 { next.next().unwrap_or_default() } else { FrictionShare::default() }).collect())
+}

@@ -174,7 +174,7 @@ pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
         .metric("brush_range_z_m", circle_z)
         .metric("base_travel_m", travel)
         .value("faulty_cycles", run.faulty_cycles);
-    force_claims(&mut summary, &all, limit);
+    force_claims(&mut summary, &all, limit, options.plant);
     summary.claim(
         &format!("contact kept while scrubbing: both faces touched in ≥ {:.1} % of the cycles", share * 100.0),
         share > 0.95,

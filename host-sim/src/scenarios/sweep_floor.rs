@@ -165,7 +165,7 @@ pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
         .metric("base_travel_m", travel)
         .metric("min_self_collision_distance_m", run.min_distance_m)
         .value("faulty_cycles", run.faulty_cycles);
-    force_claims(&mut summary, &all, limit);
+    force_claims(&mut summary, &all, limit, options.plant);
     summary.claim(
         &format!("contact kept while sweeping: both ends touched in ≥ {:.1} % of the cycles", share * 100.0),
         share > 0.95,
