@@ -22,7 +22,7 @@ use nalgebra::{RealField, SVector};
 use crate::output::{Summary, TimeSeries};
 use crate::pil::Firmware;
 use crate::scalar::{F32Controller, Scalar};
-use crate::scenarios::RunOptions;
+use crate::scenarios::{RunOptions, PLANT_SEED};
 use crate::sim::{
     run_loop, CycleInfo, JointStops, Physics, SimConfig, SimError, Simulator, StepReport, CONTROL_PERIOD_S,
 };
@@ -164,13 +164,22 @@ pub fn whole_body_controller<T: RealField + Copy>(
     changes: ConfigChanges,
     hierarchy: &[TaskSpec],
 ) -> Result<justin::whole_body::WholeBodyController<T, VOLUMES, PAIRS>, String> {
+    controller_with_config(environment, changes.config()?, hierarchy)
+}
+
+/// [`whole_body_controller`] with the configuration `config`.
+fn controller_with_config<T: RealField + Copy>(
+    environment: &[SweptSphere<T>],
+    config: ControllerConfig<T, { justin::N }>,
+    hierarchy: &[TaskSpec],
+) -> Result<justin::whole_body::WholeBodyController<T, VOLUMES, PAIRS>, String> {
     if environment.len() > MAX_ENVIRONMENT {
         return Err(format!("at most {MAX_ENVIRONMENT} environment volumes"));
     }
     let model = justin::model::<T>().map_err(|e| format!("model: {e}"))?;
     let collision_model = collision::collision_model_with_environment::<T, VOLUMES, PAIRS>(&model, environment)
         .map_err(|e| format!("collision model: {e}"))?;
-    justin::whole_body::WholeBodyController::try_new(model, collision_model, changes.config()?, hierarchy)
+    justin::whole_body::WholeBodyController::try_new(model, collision_model, config, hierarchy)
         .map_err(|e| format!("controller: {e}"))
 }
 
@@ -183,8 +192,9 @@ pub fn rig(
     hierarchy: &[TaskSpec],
     options: &RunOptions,
 ) -> Result<Rig, String> {
-    let controller = whole_body_controller::<f64>(environment, changes, hierarchy)?;
     let model = justin::model::<f64>().map_err(|e| format!("model: {e}"))?;
+    let config = above_sensor_noise(changes.config()?, &model, q0, options.plant_model(PLANT_SEED))?;
+    let controller = controller_with_config(environment, config, hierarchy)?;
     let mut sim: JustinSim = options
         .simulator(model, SimConfig { base_lag_s: BASE_LAG_S, ..SimConfig::default() })
         .map_err(|e| format!("simulator: {e}"))?;
@@ -193,6 +203,33 @@ pub fn rig(
     let driver = Driver::for_options(options, environment, changes, hierarchy)?;
     let output = *controller.output();
     Ok(Rig { sim, controller, driver, faulty_cycles: 0, min_distance_m: f64::INFINITY, torque_difference: 0.0, output })
+}
+
+/// `config` with the observer's contact threshold raised by the noise floor of the sensors of
+/// `plant` at `q0` ([`kernel::controller::observer::noise_floor`]: the velocity noise through
+/// `K_O M q̇` and the torque-sensor offsets), unchanged on the ideal plant (`None`). On the
+/// realistic plant ([`crate::plant::PlantModel::justin`]) the floor at Justin's home pose is
+/// about 15 Nm (README `--plant`).
+fn above_sensor_noise(
+    mut config: ControllerConfig<f64, { justin::N }>,
+    model: &kernel::model::Model<f64, { justin::N }, { justin::BODIES }, { justin::FRAMES }>,
+    q0: &SVector<f64, { justin::N }>,
+    plant: Option<crate::plant::PlantModel>,
+) -> Result<ControllerConfig<f64, { justin::N }>, String> {
+    let Some(plant) = plant else { return Ok(config) };
+    let mut data = kernel::model::Data::new(model);
+    kernel::dynamics::forward_kinematics(model, &mut data, q0, &SVector::zeros()).map_err(|e| e.to_string())?;
+    let mass = kernel::dynamics::crba(model, &mut data);
+    let observed = config.layout.coordinates(kernel::controller::config::JointGroup::UpperBody);
+    let observer = &mut config.observer;
+    observer.contact_threshold += kernel::controller::observer::noise_floor(
+        mass,
+        &observed,
+        observer.gain,
+        plant.velocity_noise_rad_s,
+        plant.torque_offset_nm,
+    );
+    Ok(config)
 }
 
 /// Starts the firmware and configures its controller for the rig ([`crate::pil::rig_setup`]).
