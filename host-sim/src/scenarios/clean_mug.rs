@@ -27,7 +27,8 @@
 //!
 //! Claims ([`super::wipe_window::force_claims`]): the contact forces never exceed 20 N over the
 //! whole run, and the static and mean forces stay within it; contact kept during the scrubbing;
-//! the brush circles are executed; the base does not move; no fault.
+//! the brush circles are executed; the base does not move; no fault. On the realistic plant the
+//! force bounds widen by the joint friction's bound (`force_claims`).
 
 use fixtures::justin;
 use fixtures::justin::whole_body::CLEAN_MUG;

@@ -29,7 +29,8 @@
 //! ([`force_claims`]); the force limit is active while wiping; the contact is kept during the
 //! strokes; the strokes are executed in the window plane; no fault; no self-collision. What
 //! keeps the force under the limit while the TCP moves is the controller's contact-force
-//! limiter ([`kernel::controller::force_limit`]).
+//! limiter ([`kernel::controller::force_limit`]). On the realistic plant the run-peak and
+//! static bounds widen by the joint friction's bound of each cycle ([`force_claims`]).
 //!
 //! The module also holds the machinery the three Table 7.1 scenarios share ([`run_tool`]).
 
