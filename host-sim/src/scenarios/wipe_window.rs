@@ -870,6 +870,51 @@ mod tests {
         assert!((tool.matrix().column(0) - Vector3::x()).norm() < 1e-12);
     }
 
+    /// Samples of one contact at `t = 0, 0.1, …` with the normal forces `forces` and the
+    /// friction bounds `bounds`.
+    fn samples(forces: &[f64], bounds: &[f64]) -> Vec<ToolSample> {
+        forces
+            .iter()
+            .zip(bounds.iter())
+            .enumerate()
+            .map(|(k, (f, b))| ToolSample {
+                t: 0.1 * k as f64,
+                normal_n: vec![*f],
+                depth_m: vec![0.0],
+                friction: vec![wbc::FrictionShare { share_n: 0.5 * b, bound_n: *b }],
+                reference: Vec::new(),
+                measured: Vec::new(),
+                limited: Vec::new(),
+                estimate: Vec::new(),
+                correction: Vec::new(),
+                base: [0.0; 3],
+            })
+            .collect()
+    }
+
+    /// On the realistic plant a force above the limit passes where the friction bound of its
+    /// own cycle covers the excess, and fails where it does not (a larger bound in another
+    /// cycle does not count); the static force is checked against its widened band.
+    #[test]
+    fn realistic_force_claims_subtract_the_friction_bound_of_each_cycle() {
+        let claims = |forces: &[f64], bounds: &[f64]| {
+            let m = contact_metrics(&samples(forces, bounds), 0, (0.45, 0.6));
+            let mut summary = Summary::new("test");
+            force_claims(&mut summary, &[m], 10.0, PlantKind::Realistic);
+            (m, summary.failed_claims().len())
+        };
+        // Static part [0.15, 0.45): 6 N with bounds 3 N → band [5, 13] N.
+        let (m, failed) = claims(&[0.0, 2.0, 6.0, 6.0, 6.0, 9.0, 13.0], &[0.0, 1.0, 3.0, 3.0, 3.0, 1.0, 4.0]);
+        assert_eq!((m.peak_beyond_friction_n, m.friction_at_peak.bound_n, m.static_friction_bound_n), (9.0, 4.0, 3.0));
+        assert_eq!(failed, 0);
+        // The 13 N peak with a 2 N bound: 11 N beyond it; the 4 N bound elsewhere does not help.
+        let (m, failed) = claims(&[0.0, 2.0, 6.0, 6.0, 6.0, 9.0, 13.0], &[0.0, 4.0, 3.0, 3.0, 3.0, 1.0, 2.0]);
+        assert_eq!((m.peak_beyond_friction_n, failed), (11.0, 1));
+        // Static 4 N below 8 − 3 N.
+        let (_, failed) = claims(&[0.0, 2.0, 4.0, 4.0, 4.0, 9.0, 9.0], &[0.0, 1.0, 3.0, 3.0, 3.0, 1.0, 1.0]);
+        assert_eq!(failed, 1);
+    }
+
     #[test]
     fn wipe_window_claims_hold() {
         let outcome = simulate(&RunOptions::default()).unwrap();
