@@ -174,6 +174,13 @@ impl<const U: usize> RealisticJoints<U> {
         v.zip_zip_map(&self.coulomb, &self.viscous, |v, c, d| -(c * (v / v_s).tanh() + d * v))
     }
 
+    /// The largest friction torque magnitude at joint velocities `v`, `τ_c + d |q̇|`: what
+    /// the friction can hold against at any velocity (the full Coulomb level, the smoothing
+    /// aside).
+    pub(crate) fn friction_bound(&self, v: &SVector<f64, U>) -> SVector<f64, U> {
+        v.zip_zip_map(&self.coulomb, &self.viscous, |v, c, d| c + d * v.abs())
+    }
+
     /// A new torque command (already clamped): the set point now, or at the next cycle.
     pub(crate) fn command(&mut self, torque: &SVector<f64, U>) {
         if self.model.delay_cycles == 0 {

@@ -447,6 +447,18 @@ impl<const N: usize, const B: usize, const F: usize, const U: usize> Simulator<N
         &self.torque
     }
 
+    /// The realistic plant's joint friction torque `τ_f` at the current upper-body velocities
+    /// (Nm or N, [`crate::plant`]); zero on the ideal plant.
+    pub fn friction_torque(&self) -> SVector<f64, U> {
+        self.realistic.as_ref().map_or_else(SVector::zeros, |plant| plant.friction(&self.upper_v()))
+    }
+
+    /// The realistic plant's largest friction torque magnitudes at the current upper-body
+    /// velocities, `τ_c + d |q̇|` per joint ([`crate::plant`]); zero on the ideal plant.
+    pub fn friction_torque_bound(&self) -> SVector<f64, U> {
+        self.realistic.as_ref().map_or_else(SVector::zeros, |plant| plant.friction_bound(&self.upper_v()))
+    }
+
     /// `true` if the last torque command was clamped at an effort limit.
     pub fn torque_saturated(&self) -> bool {
         self.torque_saturated

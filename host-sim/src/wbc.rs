@@ -22,7 +22,7 @@ use nalgebra::{RealField, SVector};
 use crate::output::{Summary, TimeSeries};
 use crate::pil::Firmware;
 use crate::scalar::{F32Controller, Scalar};
-use crate::scenarios::RunOptions;
+use crate::scenarios::{RunOptions, PLANT_SEED};
 use crate::sim::{
     run_loop, CycleInfo, JointStops, Physics, SimConfig, SimError, Simulator, StepReport, CONTROL_PERIOD_S,
 };
@@ -164,13 +164,22 @@ pub fn whole_body_controller<T: RealField + Copy>(
     changes: ConfigChanges,
     hierarchy: &[TaskSpec],
 ) -> Result<justin::whole_body::WholeBodyController<T, VOLUMES, PAIRS>, String> {
+    controller_with_config(environment, changes.config()?, hierarchy)
+}
+
+/// [`whole_body_controller`] with the configuration `config`.
+fn controller_with_config<T: RealField + Copy>(
+    environment: &[SweptSphere<T>],
+    config: ControllerConfig<T, { justin::N }>,
+    hierarchy: &[TaskSpec],
+) -> Result<justin::whole_body::WholeBodyController<T, VOLUMES, PAIRS>, String> {
     if environment.len() > MAX_ENVIRONMENT {
         return Err(format!("at most {MAX_ENVIRONMENT} environment volumes"));
     }
     let model = justin::model::<T>().map_err(|e| format!("model: {e}"))?;
     let collision_model = collision::collision_model_with_environment::<T, VOLUMES, PAIRS>(&model, environment)
         .map_err(|e| format!("collision model: {e}"))?;
-    justin::whole_body::WholeBodyController::try_new(model, collision_model, changes.config()?, hierarchy)
+    justin::whole_body::WholeBodyController::try_new(model, collision_model, config, hierarchy)
         .map_err(|e| format!("controller: {e}"))
 }
 
@@ -183,8 +192,9 @@ pub fn rig(
     hierarchy: &[TaskSpec],
     options: &RunOptions,
 ) -> Result<Rig, String> {
-    let controller = whole_body_controller::<f64>(environment, changes, hierarchy)?;
     let model = justin::model::<f64>().map_err(|e| format!("model: {e}"))?;
+    let config = above_sensor_noise(changes.config()?, &model, q0, options.plant_model(PLANT_SEED))?;
+    let controller = controller_with_config(environment, config, hierarchy)?;
     let mut sim: JustinSim = options
         .simulator(model, SimConfig { base_lag_s: BASE_LAG_S, ..SimConfig::default() })
         .map_err(|e| format!("simulator: {e}"))?;
@@ -193,6 +203,33 @@ pub fn rig(
     let driver = Driver::for_options(options, environment, changes, hierarchy)?;
     let output = *controller.output();
     Ok(Rig { sim, controller, driver, faulty_cycles: 0, min_distance_m: f64::INFINITY, torque_difference: 0.0, output })
+}
+
+/// `config` with the observer's contact threshold raised by the noise floor of the sensors of
+/// `plant` at `q0` ([`kernel::controller::observer::noise_floor`]: the velocity noise through
+/// `K_O M q̇` and the torque-sensor offsets), unchanged on the ideal plant (`None`). On the
+/// realistic plant ([`crate::plant::PlantModel::justin`]) the floor at Justin's home pose is
+/// about 15 Nm (README `--plant`).
+fn above_sensor_noise(
+    mut config: ControllerConfig<f64, { justin::N }>,
+    model: &kernel::model::Model<f64, { justin::N }, { justin::BODIES }, { justin::FRAMES }>,
+    q0: &SVector<f64, { justin::N }>,
+    plant: Option<crate::plant::PlantModel>,
+) -> Result<ControllerConfig<f64, { justin::N }>, String> {
+    let Some(plant) = plant else { return Ok(config) };
+    let mut data = kernel::model::Data::new(model);
+    kernel::dynamics::forward_kinematics(model, &mut data, q0, &SVector::zeros()).map_err(|e| e.to_string())?;
+    let mass = kernel::dynamics::crba(model, &mut data);
+    let observed = config.layout.coordinates(kernel::controller::config::JointGroup::UpperBody);
+    let observer = &mut config.observer;
+    observer.contact_threshold += kernel::controller::observer::noise_floor(
+        mass,
+        &observed,
+        observer.gain,
+        plant.velocity_noise_rad_s,
+        plant.torque_offset_nm,
+    );
+    Ok(config)
 }
 
 /// Starts the firmware and configures its controller for the rig ([`crate::pil::rig_setup`]).
@@ -414,4 +451,57 @@ impl Physics for Rig {
     fn step_physics(&mut self) -> Result<StepReport, SimError> {
         self.sim.step()
     }
+}
+
+/// The realistic plant's joint friction in the normal force of one contact (N).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FrictionShare {
+    /// The friction's share: the force the friction torque `τ_f` alone gives the contact,
+    /// positive when it presses the TCP into it.
+    pub share_n: f64,
+    /// The largest share friction of the plant's magnitudes can give it at the current
+    /// velocities: `Σ_j |W_ij| (τ_c,j + d_j |q̇_j|)` for the row `i` of the map `W` below.
+    pub bound_n: f64,
+}
+
+/// The realistic plant's joint friction in the normal forces of the touched contacts, each
+/// given by its TCP frame, the unit direction it presses along (world) and whether it is
+/// touched. A joint torque `τ` gives rigid contacts along these directions the forces
+/// `W τ = (J M_u⁻¹ Jᵀ)⁻¹ J M_u⁻¹ τ` (dynamically consistent), `J` the touched contacts' rows
+/// `directionᵀ J_v` on the upper-body columns, `M_u` the upper-body block of `M` at the
+/// simulator's state (the base is velocity controlled: joint torques do not move it). The
+/// share is `W τ_f` of the friction torque ([`JustinSim::friction_torque`]), the bound the
+/// largest over every sign of the friction magnitudes ([`JustinSim::friction_torque_bound`]).
+/// Zero for an untouched contact and on the ideal plant. Errors: an unknown frame, a
+/// non-finite state, a singular `J M_u⁻¹ Jᵀ`.
+pub fn friction_contact_shares(
+    sim: &JustinSim,
+    contacts: &[(kernel::model::FrameId, nalgebra::Vector3<f64>, bool)],
+) -> Result<Vec<FrictionShare>, String> {
+    use kernel::dynamics::{crba, forward_kinematics, frame_jacobian};
+    const U: usize = justin::UPPER_DOF;
+    let (friction, magnitude) = (sim.friction_torque(), sim.friction_torque_bound());
+    let touched: Vec<_> = contacts.iter().filter(|c| c.2).collect();
+    if touched.is_empty() || magnitude.iter().all(|t| *t == 0.0) {
+        return Ok(vec![FrictionShare::default(); contacts.len()]);
+    }
+    let model = sim.model();
+    let mut data = kernel::model::Data::new(model);
+    forward_kinematics(model, &mut data, sim.q(), sim.v()).map_err(|e| e.to_string())?;
+    let base = justin::N - U;
+    let mut rows = nalgebra::DMatrix::<f64>::zeros(touched.len(), U);
+    for (mut row, (frame, direction, _)) in rows.row_iter_mut().zip(touched.iter()) {
+        let mut jacobian = nalgebra::SMatrix::<f64, 6, { justin::N }>::zeros();
+        frame_jacobian(model, &data, *frame, &mut jacobian).map_err(|e| e.to_string())?;
+        row.copy_from(&(direction.transpose() * jacobian.fixed_view::<3, U>(0, base)));
+    }
+    let mass = crba(model, &mut data).fixed_view::<U, U>(base, base).into_owned();
+    let factor = mass.cholesky().ok_or("the upper-body inertia is not positive definite")?;
+    let mobility = factor.solve(&rows.transpose()); // M_u⁻¹ Jᵀ
+    let reflected = (&rows * &mobility).cholesky().ok_or("J M⁻¹ Jᵀ is singular")?;
+    let map = reflected.solve(&mobility.transpose()); // W
+    let mut next = map
+        .row_iter()
+        .map(|w| FrictionShare { share_n: w.transpose().dot(&friction), bound_n: w.abs().transpose().dot(&magnitude) });
+    Ok(contacts.iter().map(|c| if c.2 { next.next().unwrap_or_default() } else { FrictionShare::default() }).collect())
 }

@@ -27,7 +27,8 @@
 //!
 //! Claims ([`super::wipe_window::force_claims`]): the contact forces never exceed 20 N over the
 //! whole run, and the static and mean forces stay within it; contact kept during the scrubbing;
-//! the brush circles are executed; the base does not move; no fault.
+//! the brush circles are executed; the base does not move; no fault. On the realistic plant the
+//! force bounds widen by the joint friction's bound (`force_claims`).
 
 use fixtures::justin;
 use fixtures::justin::whole_body::CLEAN_MUG;
@@ -174,7 +175,7 @@ pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
         .metric("brush_range_z_m", circle_z)
         .metric("base_travel_m", travel)
         .value("faulty_cycles", run.faulty_cycles);
-    force_claims(&mut summary, &all, limit);
+    force_claims(&mut summary, &all, limit, options.plant);
     summary.claim(
         &format!("contact kept while scrubbing: both faces touched in ≥ {:.1} % of the cycles", share * 100.0),
         share > 0.95,

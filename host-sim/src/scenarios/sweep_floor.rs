@@ -26,7 +26,9 @@
 //! Claims ([`super::wipe_window::force_claims`]): the contact force never exceeds the −10 N
 //! limit over the whole run, and the static and mean contact forces stay within it; the contact
 //! is kept while sweeping; the sweeping motion is executed; the base moves; no fault; no
-//! self-collision.
+//! self-collision. On the realistic plant the force bounds widen by the joint friction's bound
+//! (`force_claims`); there the static force and the contact share still fail: friction holds
+//! the brooms above the floor until 6.45 s (README `--plant`).
 
 use fixtures::justin;
 use fixtures::justin::whole_body::SWEEP_FLOOR;
@@ -165,7 +167,7 @@ pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
         .metric("base_travel_m", travel)
         .metric("min_self_collision_distance_m", run.min_distance_m)
         .value("faulty_cycles", run.faulty_cycles);
-    force_claims(&mut summary, &all, limit);
+    force_claims(&mut summary, &all, limit, options.plant);
     summary.claim(
         &format!("contact kept while sweeping: both ends touched in ≥ {:.1} % of the cycles", share * 100.0),
         share > 0.95,

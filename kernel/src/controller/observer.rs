@@ -7,8 +7,18 @@
 //! low-pass estimate of the external torque that needs no acceleration. It is evaluated on the
 //! torque-controlled coordinates only; the platform coordinates are velocity controlled (their
 //! rows of (2.1) carry the unknown wheel forces), so their entries are zero.
+//!
+//! ## Contact threshold and sensor noise
+//! The residual feeds the measured velocity through at once: noise `δq̇` on it gives
+//! `K_O M δq̇` on `r`, unfiltered, and a torque-sensor offset `δτ` gives a constant `−δτ`.
+//! With independent velocity noise of standard deviation `σ_v` per observed joint, the
+//! noise part of `r` has the root-mean-square norm `K_O σ_v ‖M_o‖_F` (`M_o` the observed rows
+//! and columns of `M`, Frobenius norm). A threshold chosen for exact sensors (model error,
+//! the contacts to tell apart) keeps its meaning on noisy ones when the noise floor
+//! [`noise_floor`] — three of these standard deviations plus the largest offset bias
+//! `δτ √n_o` — is added to it; with exact sensors the floor is zero.
 
-use nalgebra::{RealField, SVector};
+use nalgebra::{RealField, SMatrix, SVector};
 
 use crate::model::Data;
 
@@ -96,6 +106,34 @@ impl<T: RealField + Copy, const N: usize> MomentumObserver<T, N> {
     }
 }
 
+/// The level the residual's sensor noise stays below at rest (module docs, "Contact threshold
+/// and sensor noise"): `3 K_O σ_v ‖M_o‖_F + δτ √n_o` for the gain `K_O` (1/s), the velocity
+/// noise's standard deviation `σ_v` (rad/s), the largest torque-sensor offset `δτ` (Nm) and the
+/// inertia `mass_matrix` at the working configuration, over the `observed` coordinates (`n_o`
+/// of them). Zero for exact sensors. For the configuration, not the control cycle: O(N²).
+pub fn noise_floor<T: RealField + Copy, const N: usize>(
+    mass_matrix: &SMatrix<T, N, N>,
+    observed: &[bool; N],
+    gain: T,
+    velocity_noise: T,
+    torque_offset: T,
+) -> T {
+    let mut frobenius = T::zero();
+    let mut count = T::zero();
+    for (column, observed_j) in mass_matrix.column_iter().zip(observed.iter()) {
+        if *observed_j {
+            count += T::one();
+            for (m, observed_i) in column.iter().zip(observed.iter()) {
+                if *observed_i {
+                    frobenius += *m * *m;
+                }
+            }
+        }
+    }
+    let three: T = nalgebra::convert(3.0);
+    three * gain * velocity_noise * frobenius.sqrt() + torque_offset * count.sqrt()
+}
+
 #[cfg(test)]
 mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
@@ -154,6 +192,18 @@ mod tests {
         }
         assert!(plain.residual.amax() > T::zero(), "the residual moved");
         eprintln!("observer fast vs reference: {worst:e}");
+    }
+
+    /// The floor of a diagonal 3 × 3 inertia, first coordinate not observed:
+    /// `3 · 50 · 0.01 · √(2² + 3²) + 0.2 √2`; zero for exact sensors.
+    #[test]
+    fn noise_floor_from_the_observed_block() {
+        let mass = nalgebra::Matrix3::from_diagonal(&nalgebra::Vector3::new(100.0, 2.0, 3.0));
+        let observed = [false, true, true];
+        let floor = noise_floor(&mass, &observed, 50.0, 0.01, 0.2);
+        let expected = 1.5 * 13.0_f64.sqrt() + 0.2 * 2.0_f64.sqrt();
+        assert!((floor - expected).abs() < 1e-12, "{floor} vs {expected}");
+        assert_eq!(noise_floor(&mass, &observed, 50.0, 0.0, 0.0), 0.0);
     }
 
     #[test]

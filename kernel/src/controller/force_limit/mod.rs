@@ -27,9 +27,10 @@
 //!
 //! one 12 × 12 Cholesky solve (`μ > 0` keeps it positive definite, also with one hand's rows
 //! zero). Both hands are always estimated together, so that a contact of one hand seen through
-//! the torso is not attributed to the other. It is an *estimate*: contacts away from the TCPs
-//! and model errors end up in it, and it lags the true force by the observer's time constant
-//! `1/K_O`. The force the hand applies on the environment is `a = −F̂_ext`.
+//! the torso is not attributed to the other. It is an *estimate*: contacts away from the TCPs,
+//! model errors and joint friction the torque sensors do not see (link-side friction, taken
+//! for an external torque) end up in it, and it lags the true force by the observer's time
+//! constant `1/K_O`. The force the hand applies on the environment is `a = −F̂_ext`.
 //!
 //! ## Command-side limit: the contact force the commanded torque produces
 //! What a commanded torque `τ = Σ_i N_i τ_i` (4.7) presses with is the force of a rigid contact
