@@ -54,7 +54,7 @@ use hal::{JointTorqueInterface, PlatformCommand, PlatformVelocityInterface, LEGS
 use kernel::model::{Inertia, JointDrive, JointKind, Model, ModelBuilder, Placement};
 use kernel::platform::avoidance::{AvoidanceConfig, AvoidanceOutput, PlatformAvoidance, PlatformReference};
 use kernel::platform::icr::{instantaneous_center, BaseTwist, IcrRepulsionConfig};
-use kernel::platform::legs::{LegAdmittanceConfig, ReturnGains};
+use kernel::platform::legs::{LegAdmittanceConfig, ReturnGains, SteeringLimit};
 use nalgebra::{Matrix3, Vector2, Vector3};
 use plotters::prelude::*;
 
@@ -108,6 +108,12 @@ pub const LEG_CUBIC_STIFFNESS_N_M3: f64 = whole_body::LEG_CUBIC_STIFFNESS_N_M3;
 pub const RETURN_POLE_RAD_S: f64 = whole_body::RETURN_POLE_RAD_S;
 /// Width over which the return gains fade in outside a field (m). Invented.
 pub const RETURN_BLEND_M: f64 = whole_body::RETURN_BLEND_M;
+/// The leg motion's limit by the steering it needs ([`SteeringLimit`]). Chosen: a leg
+/// acceleration may turn its wheel at up to 2 rad/s, a third of the steering drives' limit
+/// ([`crate::wheels::STEERING_RATE_LIMIT_RAD_S`]), leaving the rest for the platform motion;
+/// a leg moves at most half as fast as the platform motion moves its wheel, so the wheel's
+/// velocity pole stays within half the ICR distance.
+pub const LEG_STEERING_LIMIT: SteeringLimit<f64> = SteeringLimit { steering_rate: 2.0, speed_ratio: 0.5 };
 /// Time window of the tangential pass of wheel 2, the manoeuvre of Fig. 3.13 (s).
 pub const LEG_WINDOW_S: (f64, f64) = (13.5, 17.0);
 /// Thesis bound on the translational position error (m), Sec. 3.2.6.
@@ -439,6 +445,9 @@ pub fn run_with(
         SimConfig { physics_step_s: CONTROL_PERIOD_S, initial_leg_length_m: NOMINAL_LEG_M, ..SimConfig::default() };
     let mut sim: Simulator<4, 4, 1, 1> = options.simulator(platform_model()?, config)?;
     let mut avoidance = PlatformAvoidance::try_new(avoidance).map_err(|e| e.to_string())?;
+    if mode == Mode::Legs {
+        avoidance = avoidance.with_steering_limit(LEG_STEERING_LIMIT).map_err(|e| e.to_string())?;
+    }
     avoidance.reset(&Vector3::zeros(), &[NOMINAL_LEG_M; LEGS]).map_err(|e| e.to_string())?;
     let mut wheels = Wheels::new(WheelConfig::default());
     let mut samples = Vec::new();

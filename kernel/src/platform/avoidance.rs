@@ -13,6 +13,8 @@
 //!    `r̈_c = r̈_ref + r̈_sap + σ (k₁ e + k₂ ė)`;
 //! 3. with leg motion, the nearest wheel's leg follows the nonlinear admittance (3.40), the
 //!    other legs relax to their nominal length with the same admittance, plus the return loop;
+//!    with a [`SteeringLimit`] ([`PlatformAvoidance::with_steering_limit`]) every leg's
+//!    acceleration is then limited by the steering its wheel needs to follow it;
 //! 4. `ṙ_c` and the leg lengths are integrated over the period; the outputs are `ṙ_des = ṙ_c`
 //!    and the leg rates for the velocity interface (`r̈_sap = [ẍ ÿ θ̈ λ̈₁ … λ̈₄]_sap`, Sec. 3.2.5).
 //!
@@ -22,7 +24,7 @@
 use nalgebra::{RealField, Vector2, Vector3};
 
 use super::icr::{to_world, BaseTwist, IcrRepulsion, IcrRepulsionConfig, Repulsion};
-use super::legs::{leg_acceleration, leg_force, LegAdmittance, LegAdmittanceConfig, ReturnGains};
+use super::legs::{leg_acceleration, leg_force, LegAdmittance, LegAdmittanceConfig, ReturnGains, SteeringLimit};
 use super::{PlatformError, LEGS};
 
 /// Parameters of the avoidance loop.
@@ -104,6 +106,7 @@ pub struct PlatformAvoidance<T> {
     repulsion: IcrRepulsion<T>,
     legs: LegAdmittance<T>,
     velocity: Vector3<T>,
+    steering_limit: Option<SteeringLimit<T>>,
 }
 
 impl<T: RealField + Copy> PlatformAvoidance<T> {
@@ -112,7 +115,14 @@ impl<T: RealField + Copy> PlatformAvoidance<T> {
         let repulsion = IcrRepulsion::try_new(config.repulsion)?;
         let legs = LegAdmittance::try_new(config.legs)?;
         config.return_gains.validate()?;
-        Ok(Self { config, repulsion, legs, velocity: Vector3::zeros() })
+        Ok(Self { config, repulsion, legs, velocity: Vector3::zeros(), steering_limit: None })
+    }
+
+    /// The same loop with the leg motion limited by the steering it needs ([`SteeringLimit`]);
+    /// without it the legs follow (3.40) and the return loop alone. Errors: invalid limits.
+    pub fn with_steering_limit(self, limit: SteeringLimit<T>) -> Result<Self, PlatformError> {
+        limit.validate()?;
+        Ok(Self { steering_limit: Some(limit), ..self })
     }
 
     /// The validated parameters.
@@ -186,6 +196,16 @@ impl<T: RealField + Copy> PlatformAvoidance<T> {
                 let deviation = *length - legs.nominal_length;
                 *a = leg_acceleration(legs, deviation, *rate, f)
                     - (deviation * gains.stiffness + *rate * gains.damping) * sigma;
+            }
+            if let Some(limit) = &self.steering_limit {
+                let wheels = self.repulsion.wheel_positions(&lengths);
+                let directions = self.repulsion.leg_directions();
+                for (((a, rate), position), direction) in
+                    leg_accelerations.iter_mut().zip(rates.iter()).zip(wheels.iter()).zip(directions.iter())
+                {
+                    let base_contact_velocity = wheel_velocity(&twist, position, direction, T::zero());
+                    *a = limit.limit(*a, *rate, &base_contact_velocity, direction, dt);
+                }
             }
         }
         let next_velocity = self.velocity + acceleration * dt;

@@ -18,10 +18,11 @@
 //! `k_j(d_sap) = k_j σ(d_sap)` with the C¹ ramp `σ` from 0 at the field border `d₀` to 1 at
 //! `d₀ + blend` ([`ReturnGains::gain`]), so the commanded acceleration stays continuous.
 
-use nalgebra::RealField;
+use nalgebra::{RealField, Vector2};
 
 use super::icr::{NearestWheel, Repulsion};
 use super::{PlatformError, LEGS};
+use crate::math::sqrt;
 use crate::math::switching::transition_activation;
 
 /// Parameters of the leg admittance (3.37)–(3.38); none is given by the thesis.
@@ -153,6 +154,77 @@ impl<T: RealField + Copy> LegAdmittance<T> {
             *length = next.max(lo).min(hi);
         }
         Ok(self.rates)
+    }
+}
+
+/// Limits of the leg motion by the steering it needs. "The legs of Rollin' Justin are passive
+/// prismatic joints moved by steering and driving the wheels": a leg rate `λ̇` adds `λ̇ l` to the
+/// velocity of its wheel, `v = v_b + λ̇ l` with `v_b = θ̇ J (p − p_icr)` the velocity the
+/// platform motion gives the contact point (`J` the quarter turn, `‖v_b‖ = |θ̇| d_sap`). Two
+/// effects make a fast leg motion near the ICR demand more steering than the ICR avoidance
+/// saves:
+/// - the leg acceleration turns the wheel at `(v × l) λ̈ / ‖v‖²`, at most `|λ̈| / ‖v‖`, and
+///   `‖v‖` is small exactly when the ICR is near the wheel;
+/// - the leg rate moves the point whose velocity vanishes (where the steering is singular):
+///   `v = θ̇ J (p − (λ̇/θ̇) J l − p_icr)`, i.e. `|λ̇/θ̇|` across the leg away from the contact point,
+///   where the repulsion does not see it.
+///
+/// [`SteeringLimit::limit`] therefore bounds `|λ̈| ≤ steering_rate · ‖v‖` and
+/// `|λ̇| ≤ speed_ratio · ‖v_b‖`: the leg's own steering demand stays below `steering_rate`, and
+/// the singular point stays within `speed_ratio · d_sap` of the wheel, so `‖v‖ ≥ (1 −
+/// speed_ratio) |θ̇| d_sap`. Far from the ICR (`‖v_b‖` large) the legs move freely.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SteeringLimit<T> {
+    /// Steering rate (rad/s) a leg acceleration may demand of its wheel, `> 0`.
+    pub steering_rate: T,
+    /// Largest leg rate per contact speed of the platform motion, `0 < ratio < 1`.
+    pub speed_ratio: T,
+}
+
+impl<T: RealField + Copy> SteeringLimit<T> {
+    /// Validates the limits. Errors: [`PlatformError::InvalidParameter`].
+    pub fn validate(&self) -> Result<(), PlatformError> {
+        let rate_ok = self.steering_rate.is_finite() && self.steering_rate > T::zero();
+        let ratio_ok = self.speed_ratio > T::zero() && self.speed_ratio < T::one();
+        if rate_ok && ratio_ok {
+            Ok(())
+        } else {
+            Err(PlatformError::InvalidParameter { name: "steering limit" })
+        }
+    }
+
+    /// The leg acceleration (m/s²) nearest to `acceleration` within the limits, for the leg
+    /// rate `rate` (m/s), the contact velocity `base_contact_velocity` of the platform motion
+    /// alone (`v_b`, m/s), the unit leg direction and the period `dt` (s): first
+    /// `|λ̈| ≤ steering_rate · ‖v_b + λ̇ l‖`, then the rate after `dt` clamped to
+    /// `± speed_ratio · ‖v_b‖` (which may brake harder than the first bound: a leg that is too
+    /// fast for the approaching ICR must slow down).
+    ///
+    /// ```
+    /// use kernel::platform::legs::SteeringLimit;
+    /// use nalgebra::Vector2;
+    /// let limit = SteeringLimit { steering_rate: 2.0_f64, speed_ratio: 0.5 };
+    /// let across = Vector2::new(0.0, 0.05); // 5 cm/s across the leg (x)
+    /// // |λ̈| ≤ 2 rad/s · 0.05 m/s = 0.1 m/s².
+    /// assert!((limit.limit(1.0, 0.0, &across, &Vector2::x(), 1e-3) - 0.1).abs() < 1e-12);
+    /// // Already at 0.025 m/s = 0.5 · 0.05 m/s: no faster.
+    /// assert!(limit.limit(1.0, 0.025, &across, &Vector2::x(), 1e-3).abs() < 1e-12);
+    /// ```
+    pub fn limit(
+        &self,
+        acceleration: T,
+        rate: T,
+        base_contact_velocity: &Vector2<T>,
+        leg_direction: &Vector2<T>,
+        dt: T,
+    ) -> T {
+        let contact_speed = sqrt((base_contact_velocity + leg_direction * rate).norm_squared());
+        let bound = self.steering_rate * contact_speed;
+        let steered = acceleration.max(-bound).min(bound);
+        let rate_bound = self.speed_ratio * sqrt(base_contact_velocity.norm_squared());
+        let next = (rate + steered * dt).max(-rate_bound).min(rate_bound);
+        (next - rate) / dt
     }
 }
 
