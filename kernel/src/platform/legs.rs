@@ -329,6 +329,46 @@ mod tests {
         settles_at_the_cubic_equilibrium::<f32>(1e-4);
     }
 
+    /// The steering limit bounds `|λ̈|` by the steering rate it causes and `|λ̇|` by the
+    /// platform's contact speed; far from the ICR it lets the admittance through.
+    fn steering_limit_bounds_the_leg_motion<T: RealField + Copy>(tolerance: f64) {
+        let c = |x: f64| nalgebra::convert::<f64, T>(x);
+        let f = |x: T| -> f64 { nalgebra::try_convert(x).unwrap() };
+        let limit = SteeringLimit { steering_rate: c(2.0), speed_ratio: c(0.5) };
+        let leg = Vector2::new(T::one(), T::zero());
+        let dt = c(1e-3);
+        // ICR near the wheel: 5 cm/s across the leg.
+        let slow = Vector2::new(T::zero(), c(0.05));
+        assert!((f(limit.limit(c(1.0), T::zero(), &slow, &leg, dt)) - 0.1).abs() < tolerance);
+        assert!((f(limit.limit(c(-1.0), T::zero(), &slow, &leg, dt)) + 0.1).abs() < tolerance);
+        // At the rate bound 0.5 · 0.05 m/s no faster; above it braked back to it within dt.
+        assert!(f(limit.limit(c(1.0), c(0.025), &slow, &leg, dt)).abs() < tolerance);
+        assert!((f(limit.limit(T::zero(), c(0.04), &slow, &leg, dt)) + 15.0).abs() < 1e3 * tolerance);
+        // The wheel direction turns at most at the steering rate during a limited step.
+        let rate = c(0.01);
+        let a = limit.limit(c(5.0), rate, &slow, &leg, dt);
+        let before = slow + leg * rate;
+        let after = slow + leg * (rate + a * dt);
+        let turn = f(after.y.atan2(after.x) - before.y.atan2(before.x)).abs() / f(dt);
+        assert!(turn <= 2.0 * (1.0 + 1e-2) && turn > 1.9, "steering rate {turn}");
+        // Far from the ICR (1 m/s): the admittance's 1 m/s² passes unchanged.
+        let fast = Vector2::new(T::zero(), T::one());
+        assert!((f(limit.limit(c(1.0), c(0.1), &fast, &leg, dt)) - 1.0).abs() < 1e3 * tolerance);
+        assert!(limit.validate().is_ok());
+        assert!(SteeringLimit { speed_ratio: T::one(), ..limit }.validate().is_err());
+        assert!(SteeringLimit { steering_rate: T::zero(), ..limit }.validate().is_err());
+    }
+
+    #[test]
+    fn steering_limit_bounds_the_leg_motion_f64() {
+        steering_limit_bounds_the_leg_motion::<f64>(1e-9);
+    }
+
+    #[test]
+    fn steering_limit_bounds_the_leg_motion_f32() {
+        steering_limit_bounds_the_leg_motion::<f32>(1e-4);
+    }
+
     #[test]
     fn end_stops_and_return_gain() {
         let config = legs::<f64>();
