@@ -30,9 +30,11 @@
 //! 2.9°. The peaks came from the legs, not from the ICR (which stayed 5.2 cm from the axes, as
 //! with the legs fixed):
 //! - wheel 3, `t = 8.95–9.05 s`: leg 3 starts extending (to 4 cm/s within 0.15 s,
-//!   `λ̈ ≈ 0.5 m/s²`) while the ICR is 6 cm from the wheel, where the platform motion moves the
-//!   contact point at only `θ̇ d_sap ≈ 0.7 · 0.06 = 0.04 m/s`: the required steering rate is
-//!   about `|λ̈| / ‖v‖`, 11–12.5 rad/s (0.6 rad misalignment);
+//!   `λ̈ ≈ 0.3 m/s²`) while the ICR is 6 cm from the wheel, where the platform motion moves the
+//!   contact point at only `θ̇ d_sap ≈ 0.7 · 0.06 = 0.04 m/s`: the leg's `λ̇ l`, as large as
+//!   that, turns the wheel's direction by tens of degrees within 0.15 s (the leg acceleration's
+//!   share of the steering rate is up to `|λ̈| / ‖v‖ ≈ 8 rad/s`): 11–12.5 rad/s, 0.6 rad
+//!   misalignment;
 //! - wheel 3, `t = 10.0–10.05 s`: the ICR has left the field, the return loop pulls leg 3 back
 //!   at 9 cm/s; a leg rate `λ̇` moves the point where the wheel's velocity vanishes by `λ̇/θ̇`
 //!   (here 13 cm, more than the 12 cm field) across the leg, where the repulsion does not look:
