@@ -240,6 +240,11 @@ fn icr_avoidance_reduces_the_steering_rates_and_legs_reduce_the_deviation() {
     assert!(metric(&outcome, "steering_rate_ratio_on_off") < 1.0 / 3.0);
     assert!(metric(&outcome, "on_max_translation_error_m") <= 0.07);
     assert!(metric(&outcome, "on_max_rotation_error_deg") <= 15.0);
+    // The leg-motion run holds the same statements itself.
+    assert!(metric(&outcome, "steering_rate_ratio_legs_off") < 1.0 / 3.0);
+    assert!(metric(&outcome, "legs_peak_misalignment_rad") < 0.05);
+    assert!(metric(&outcome, "legs_max_translation_error_m") <= 0.07);
+    assert!(metric(&outcome, "legs_max_rotation_error_deg") <= 15.0);
     assert!(metric(&outcome, "legs_translation_error_reduction") > 0.0);
     assert!(metric(&outcome, "legs_rotation_error_reduction") > 0.0);
     // With leg motion the repulsion needed is smaller (Fig. 3.13 bottom).

@@ -13,6 +13,8 @@
 //!    `r̈_c = r̈_ref + r̈_sap + σ (k₁ e + k₂ ė)`;
 //! 3. with leg motion, the nearest wheel's leg follows the nonlinear admittance (3.40), the
 //!    other legs relax to their nominal length with the same admittance, plus the return loop;
+//!    with a [`SteeringLimit`] ([`PlatformAvoidance::with_steering_limit`]) every leg's
+//!    acceleration is then limited by the steering its wheel needs to follow it;
 //! 4. `ṙ_c` and the leg lengths are integrated over the period; the outputs are `ṙ_des = ṙ_c`
 //!    and the leg rates for the velocity interface (`r̈_sap = [ẍ ÿ θ̈ λ̈₁ … λ̈₄]_sap`, Sec. 3.2.5).
 //!
@@ -22,7 +24,7 @@
 use nalgebra::{RealField, Vector2, Vector3};
 
 use super::icr::{to_world, BaseTwist, IcrRepulsion, IcrRepulsionConfig, Repulsion};
-use super::legs::{leg_acceleration, leg_force, LegAdmittance, LegAdmittanceConfig, ReturnGains};
+use super::legs::{leg_acceleration, leg_force, LegAdmittance, LegAdmittanceConfig, ReturnGains, SteeringLimit};
 use super::{PlatformError, LEGS};
 
 /// Parameters of the avoidance loop.
@@ -104,6 +106,7 @@ pub struct PlatformAvoidance<T> {
     repulsion: IcrRepulsion<T>,
     legs: LegAdmittance<T>,
     velocity: Vector3<T>,
+    steering_limit: Option<SteeringLimit<T>>,
 }
 
 impl<T: RealField + Copy> PlatformAvoidance<T> {
@@ -112,7 +115,14 @@ impl<T: RealField + Copy> PlatformAvoidance<T> {
         let repulsion = IcrRepulsion::try_new(config.repulsion)?;
         let legs = LegAdmittance::try_new(config.legs)?;
         config.return_gains.validate()?;
-        Ok(Self { config, repulsion, legs, velocity: Vector3::zeros() })
+        Ok(Self { config, repulsion, legs, velocity: Vector3::zeros(), steering_limit: None })
+    }
+
+    /// The same loop with the leg motion limited by the steering it needs ([`SteeringLimit`]);
+    /// without it the legs follow (3.40) and the return loop alone. Errors: invalid limits.
+    pub fn with_steering_limit(self, limit: SteeringLimit<T>) -> Result<Self, PlatformError> {
+        limit.validate()?;
+        Ok(Self { steering_limit: Some(limit), ..self })
     }
 
     /// The validated parameters.
@@ -173,21 +183,11 @@ impl<T: RealField + Copy> PlatformAvoidance<T> {
             ((reference.pose - pose) * gains.stiffness + (reference.velocity - velocity) * gains.damping) * sigma;
         let acceleration = reference.acceleration + avoidance_acceleration + feedback;
 
-        let mut leg_accelerations = [T::zero(); LEGS];
-        if active && self.config.leg_motion {
-            let force = leg_force(&repulsion);
-            let nearest = repulsion.nearest.map(|w| w.index);
-            let rates = self.legs.rates();
-            let legs = &self.config.legs;
-            for (i, ((a, length), rate)) in
-                leg_accelerations.iter_mut().zip(lengths.iter()).zip(rates.iter()).enumerate()
-            {
-                let f = if nearest == Some(i) { force } else { T::zero() };
-                let deviation = *length - legs.nominal_length;
-                *a = leg_acceleration(legs, deviation, *rate, f)
-                    - (deviation * gains.stiffness + *rate * gains.damping) * sigma;
-            }
-        }
+        let leg_accelerations = if active && self.config.leg_motion {
+            self.leg_accelerations(&repulsion, &twist, sigma, dt)
+        } else {
+            [T::zero(); LEGS]
+        };
         let next_velocity = self.velocity + acceleration * dt;
         if !crate::math::all_finite(&next_velocity) {
             return Err(PlatformError::NonFinite { input: "commanded velocity" });
@@ -208,6 +208,38 @@ impl<T: RealField + Copy> PlatformAvoidance<T> {
             return_gain: sigma,
             repelling,
         })
+    }
+}
+
+impl<T: RealField + Copy> PlatformAvoidance<T> {
+    /// The leg accelerations: (3.40) for the nearest wheel's leg (the others relax with the
+    /// same admittance), plus the return loop with share `sigma`, limited by the steering
+    /// limit if one is set, for the commanded body twist `twist` and the period `dt`.
+    fn leg_accelerations(&self, repulsion: &Repulsion<T>, twist: &BaseTwist<T>, sigma: T, dt: T) -> [T; LEGS] {
+        let force = leg_force(repulsion);
+        let nearest = repulsion.nearest.map(|w| w.index);
+        let (lengths, rates) = (self.legs.lengths(), self.legs.rates());
+        let (legs, gains) = (&self.config.legs, &self.config.return_gains);
+        let wheels = self.repulsion.wheel_positions(&lengths);
+        let mut accelerations = [T::zero(); LEGS];
+        for (i, ((((a, length), rate), position), direction)) in accelerations
+            .iter_mut()
+            .zip(lengths.iter())
+            .zip(rates.iter())
+            .zip(wheels.iter())
+            .zip(self.repulsion.leg_directions().iter())
+            .enumerate()
+        {
+            let f = if nearest == Some(i) { force } else { T::zero() };
+            let deviation = *length - legs.nominal_length;
+            *a = leg_acceleration(legs, deviation, *rate, f)
+                - (deviation * gains.stiffness + *rate * gains.damping) * sigma;
+            if let Some(limit) = &self.steering_limit {
+                let base_contact_velocity = wheel_velocity(twist, position, direction, T::zero());
+                *a = limit.limit(*a, *rate, &base_contact_velocity, direction, dt);
+            }
+        }
+        accelerations
     }
 }
 
@@ -258,9 +290,19 @@ mod tests {
     /// A reference whose ICR sweeps radially through wheel 3 (index 2): with the avoidance the
     /// ICR never gets closer than a fraction of the field, without it it passes within 1 cm.
     /// The kinematic platform follows the command exactly.
-    fn closest_approach<T: RealField + Copy>(icr_avoidance: bool, leg_motion: bool) -> (f64, f64) {
+    /// Returns the closest ICR–wheel distance, the largest deviation and the largest leg rate per
+    /// contact speed of the platform motion at the leg's wheel.
+    fn closest_approach<T: RealField + Copy>(
+        icr_avoidance: bool,
+        leg_motion: bool,
+        steering: Option<SteeringLimit<T>>,
+    ) -> (f64, f64, f64) {
         let c = |x: f64| nalgebra::convert::<f64, T>(x);
         let mut avoidance = PlatformAvoidance::try_new(config::<T>(icr_avoidance, leg_motion)).unwrap();
+        if let Some(limit) = steering {
+            avoidance = avoidance.with_steering_limit(limit).unwrap();
+        }
+        let mut leg_speed_ratio = 0.0_f64;
         let direction = Vector2::new(c(-FRAC_PI_4.cos()), c(-FRAC_PI_4.sin()));
         let normal = Vector2::new(-direction.y, direction.x);
         let omega = c(0.7);
@@ -290,7 +332,14 @@ mod tests {
                 avoidance.reset(&velocity, &[c(0.53); LEGS]).unwrap();
             }
             let measured_velocity = avoidance.velocity;
+            let twist = BaseTwist::from_world(&measured_velocity, pose.z);
             let out = avoidance.step(&reference, &pose, &measured_velocity, dt).unwrap();
+            let wheels = avoidance.repulsion().wheel_positions(&out.leg_lengths);
+            for ((p, l), rate) in wheels.iter().zip(avoidance.repulsion().leg_directions()).zip(out.leg_rates) {
+                let contact: f64 = nalgebra::try_convert(wheel_velocity(&twist, p, l, T::zero()).norm()).unwrap();
+                let rate: f64 = nalgebra::try_convert(rate.abs()).unwrap();
+                leg_speed_ratio = leg_speed_ratio.max(rate / contact.max(1e-9));
+            }
             pose += out.velocity * dt;
             reference_pose += velocity * dt;
             let wheel = avoidance.repulsion().wheel_positions(&out.leg_lengths)[2];
@@ -305,14 +354,14 @@ mod tests {
             deviation = deviation.max(e);
             assert!(out.velocity.iter().chain(out.leg_rates.iter()).all(|x| x.is_finite()));
         }
-        (closest, deviation)
+        (closest, deviation, leg_speed_ratio)
     }
 
     #[test]
     fn avoidance_keeps_the_icr_away_from_the_wheel_f64() {
-        let (off, _) = closest_approach::<f64>(false, false);
-        let (on, deviation_on) = closest_approach::<f64>(true, false);
-        let (legs, deviation_legs) = closest_approach::<f64>(true, true);
+        let (off, ..) = closest_approach::<f64>(false, false, None);
+        let (on, deviation_on, _) = closest_approach::<f64>(true, false, None);
+        let (legs, deviation_legs, _) = closest_approach::<f64>(true, true, None);
         eprintln!("closest ICR–wheel distance: off {off:.4} m, on {on:.4} m, on+legs {legs:.4} m; deviation {deviation_on:.4} m vs {deviation_legs:.4} m with legs");
         assert!(off < 0.01, "without avoidance the ICR passes the wheel: {off}");
         assert!(on > 0.05, "with avoidance it stays away: {on}");
@@ -322,8 +371,37 @@ mod tests {
 
     #[test]
     fn avoidance_keeps_the_icr_away_from_the_wheel_f32() {
-        let (on, _) = closest_approach::<f32>(true, true);
+        let (on, ..) = closest_approach::<f32>(true, true, None);
         assert!(on > 0.05, "{on}");
+    }
+
+    /// With the steering limit every leg moves at most `speed_ratio` times as fast as the
+    /// platform motion moves its wheel (one period's lag of the contact speed allowed); without
+    /// it the leg near the ICR is faster than that. The ICR is still kept away.
+    fn steering_limit_keeps_the_legs_slower_than_their_wheels<T: RealField + Copy>() {
+        let c = |x: f64| nalgebra::convert::<f64, T>(x);
+        let limit = SteeringLimit { steering_rate: c(1.5), speed_ratio: c(0.2) };
+        let (_, _, free) = closest_approach::<T>(true, true, None);
+        let (closest, _, limited) = closest_approach::<T>(true, true, Some(limit));
+        assert!(free > 0.3, "without the limit: {free}");
+        assert!(limited <= 0.2 * 1.02 && limited > 0.15, "with the limit: {limited}");
+        assert!(closest > 0.05, "{closest}");
+        let bad = SteeringLimit { speed_ratio: c(1.5), ..limit };
+        let avoidance = PlatformAvoidance::try_new(config::<T>(true, true)).unwrap();
+        assert_eq!(
+            avoidance.with_steering_limit(bad).err(),
+            Some(PlatformError::InvalidParameter { name: "steering limit" })
+        );
+    }
+
+    #[test]
+    fn steering_limit_keeps_the_legs_slower_than_their_wheels_f64() {
+        steering_limit_keeps_the_legs_slower_than_their_wheels::<f64>();
+    }
+
+    #[test]
+    fn steering_limit_keeps_the_legs_slower_than_their_wheels_f32() {
+        steering_limit_keeps_the_legs_slower_than_their_wheels::<f32>();
     }
 
     #[test]

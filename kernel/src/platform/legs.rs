@@ -18,10 +18,11 @@
 //! `k_j(d_sap) = k_j σ(d_sap)` with the C¹ ramp `σ` from 0 at the field border `d₀` to 1 at
 //! `d₀ + blend` ([`ReturnGains::gain`]), so the commanded acceleration stays continuous.
 
-use nalgebra::RealField;
+use nalgebra::{RealField, Vector2};
 
 use super::icr::{NearestWheel, Repulsion};
 use super::{PlatformError, LEGS};
+use crate::math::sqrt;
 use crate::math::switching::transition_activation;
 
 /// Parameters of the leg admittance (3.37)–(3.38); none is given by the thesis.
@@ -156,6 +157,77 @@ impl<T: RealField + Copy> LegAdmittance<T> {
     }
 }
 
+/// Limits of the leg motion by the steering it needs. "The legs of Rollin' Justin are passive
+/// prismatic joints moved by steering and driving the wheels": a leg rate `λ̇` adds `λ̇ l` to the
+/// velocity of its wheel, `v = v_b + λ̇ l` with `v_b = θ̇ J (p − p_icr)` the velocity the
+/// platform motion gives the contact point (`J` the quarter turn, `‖v_b‖ = |θ̇| d_sap`). Two
+/// effects make a fast leg motion near the ICR demand more steering than the ICR avoidance
+/// saves:
+/// - the leg acceleration turns the wheel at `(v × l) λ̈ / ‖v‖²`, at most `|λ̈| / ‖v‖`, and
+///   `‖v‖` is small exactly when the ICR is near the wheel;
+/// - the leg rate moves the point whose velocity vanishes (where the steering is singular):
+///   `v = θ̇ J (p − (λ̇/θ̇) J l − p_icr)`, i.e. `|λ̇/θ̇|` across the leg away from the contact point,
+///   where the repulsion does not see it.
+///
+/// [`SteeringLimit::limit`] therefore bounds `|λ̈| ≤ steering_rate · ‖v‖` and
+/// `|λ̇| ≤ speed_ratio · ‖v_b‖`: the leg's own steering demand stays below `steering_rate`, and
+/// the singular point stays within `speed_ratio · d_sap` of the wheel, so `‖v‖ ≥ (1 −
+/// speed_ratio) |θ̇| d_sap`. Far from the ICR (`‖v_b‖` large) the legs move freely.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SteeringLimit<T> {
+    /// Steering rate (rad/s) a leg acceleration may demand of its wheel, `> 0`.
+    pub steering_rate: T,
+    /// Largest leg rate per contact speed of the platform motion, `0 < ratio < 1`.
+    pub speed_ratio: T,
+}
+
+impl<T: RealField + Copy> SteeringLimit<T> {
+    /// Validates the limits. Errors: [`PlatformError::InvalidParameter`].
+    pub fn validate(&self) -> Result<(), PlatformError> {
+        let rate_ok = self.steering_rate.is_finite() && self.steering_rate > T::zero();
+        let ratio_ok = self.speed_ratio > T::zero() && self.speed_ratio < T::one();
+        if rate_ok && ratio_ok {
+            Ok(())
+        } else {
+            Err(PlatformError::InvalidParameter { name: "steering limit" })
+        }
+    }
+
+    /// The leg acceleration (m/s²) nearest to `acceleration` within the limits, for the leg
+    /// rate `rate` (m/s), the contact velocity `base_contact_velocity` of the platform motion
+    /// alone (`v_b`, m/s), the unit leg direction and the period `dt` (s): first
+    /// `|λ̈| ≤ steering_rate · ‖v_b + λ̇ l‖`, then the rate after `dt` clamped to
+    /// `± speed_ratio · ‖v_b‖` (which may brake harder than the first bound: a leg that is too
+    /// fast for the approaching ICR must slow down).
+    ///
+    /// ```
+    /// use kernel::platform::legs::SteeringLimit;
+    /// use nalgebra::Vector2;
+    /// let limit = SteeringLimit { steering_rate: 2.0_f64, speed_ratio: 0.5 };
+    /// let across = Vector2::new(0.0, 0.05); // 5 cm/s across the leg (x)
+    /// // |λ̈| ≤ 2 rad/s · 0.05 m/s = 0.1 m/s².
+    /// assert!((limit.limit(1.0, 0.0, &across, &Vector2::x(), 1e-3) - 0.1).abs() < 1e-12);
+    /// // Already at 0.025 m/s = 0.5 · 0.05 m/s: no faster.
+    /// assert!(limit.limit(1.0, 0.025, &across, &Vector2::x(), 1e-3).abs() < 1e-12);
+    /// ```
+    pub fn limit(
+        &self,
+        acceleration: T,
+        rate: T,
+        base_contact_velocity: &Vector2<T>,
+        leg_direction: &Vector2<T>,
+        dt: T,
+    ) -> T {
+        let contact_speed = sqrt((base_contact_velocity + leg_direction * rate).norm_squared());
+        let bound = self.steering_rate * contact_speed;
+        let steered = acceleration.max(-bound).min(bound);
+        let rate_bound = self.speed_ratio * sqrt(base_contact_velocity.norm_squared());
+        let next = (rate + steered * dt).max(-rate_bound).min(rate_bound);
+        (next - rate) / dt
+    }
+}
+
 /// PD gains of the return-to-nominal loop (Fig. 3.10); none is given by the thesis ("Their
 /// values are dependent on the desired closed-loop poles of the second-order system").
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -255,6 +327,46 @@ mod tests {
     #[test]
     fn leg_settles_at_the_cubic_equilibrium_f32() {
         settles_at_the_cubic_equilibrium::<f32>(1e-4);
+    }
+
+    /// The steering limit bounds `|λ̈|` by the steering rate it causes and `|λ̇|` by the
+    /// platform's contact speed; far from the ICR it lets the admittance through.
+    fn steering_limit_bounds_the_leg_motion<T: RealField + Copy>(tolerance: f64) {
+        let c = |x: f64| nalgebra::convert::<f64, T>(x);
+        let f = |x: T| -> f64 { nalgebra::try_convert(x).unwrap() };
+        let limit = SteeringLimit { steering_rate: c(2.0), speed_ratio: c(0.5) };
+        let leg = Vector2::new(T::one(), T::zero());
+        let dt = c(1e-3);
+        // ICR near the wheel: 5 cm/s across the leg.
+        let slow = Vector2::new(T::zero(), c(0.05));
+        assert!((f(limit.limit(c(1.0), T::zero(), &slow, &leg, dt)) - 0.1).abs() < tolerance);
+        assert!((f(limit.limit(c(-1.0), T::zero(), &slow, &leg, dt)) + 0.1).abs() < tolerance);
+        // At the rate bound 0.5 · 0.05 m/s no faster; above it braked back to it within dt.
+        assert!(f(limit.limit(c(1.0), c(0.025), &slow, &leg, dt)).abs() < tolerance);
+        assert!((f(limit.limit(T::zero(), c(0.04), &slow, &leg, dt)) + 15.0).abs() < 1e3 * tolerance);
+        // The wheel direction turns at most at the steering rate during a limited step.
+        let rate = c(0.01);
+        let a = limit.limit(c(5.0), rate, &slow, &leg, dt);
+        let before = slow + leg * rate;
+        let after = slow + leg * (rate + a * dt);
+        let turn = f(after.y.atan2(after.x) - before.y.atan2(before.x)).abs() / f(dt);
+        assert!(turn <= 2.0 * (1.0 + 1e-2) && turn > 1.9, "steering rate {turn}");
+        // Far from the ICR (1 m/s): the admittance's 1 m/s² passes unchanged.
+        let fast = Vector2::new(T::zero(), T::one());
+        assert!((f(limit.limit(c(1.0), c(0.1), &fast, &leg, dt)) - 1.0).abs() < 1e3 * tolerance);
+        assert!(limit.validate().is_ok());
+        assert!(SteeringLimit { speed_ratio: T::one(), ..limit }.validate().is_err());
+        assert!(SteeringLimit { steering_rate: T::zero(), ..limit }.validate().is_err());
+    }
+
+    #[test]
+    fn steering_limit_bounds_the_leg_motion_f64() {
+        steering_limit_bounds_the_leg_motion::<f64>(1e-9);
+    }
+
+    #[test]
+    fn steering_limit_bounds_the_leg_motion_f32() {
+        steering_limit_bounds_the_leg_motion::<f32>(1e-4);
     }
 
     #[test]
