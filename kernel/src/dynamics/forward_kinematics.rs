@@ -202,7 +202,11 @@ fn joint_step<T: RealField + Copy, const N: usize>(
     };
     let r = columns(&joint_frame);
     let [t0, t1, t2] = joint_frame.translation.vector.data.0[0];
-    let value = body.drive.evaluate(q, true);
+    // One drive term (every joint but a coupled one): `offset + g q_c` without the term loop.
+    let value = match body.drive.terms() {
+        [t] => body.drive.offset() + t.coefficient * q.get(t.coordinate).copied().unwrap_or_else(T::zero),
+        _ => body.drive.evaluate(q, true),
+    };
     let a = body.joint.axis().into_inner();
     match body.joint {
         JointKind::Revolute { .. } => {
