@@ -2,18 +2,21 @@
 
 use nalgebra::{RealField, SMatrix, Vector6};
 
-use super::kernels::{add_coupled, add_entry, dot6, scale6, walk_drives};
+use super::kernels::{add_coupled, dot6, scale6, walk_drives};
 use crate::math::spatial::SpatialMatrix;
-use crate::model::{Data, Model, WorldInertia};
+use crate::model::{Body, Data, Model, WorldInertia};
 
 /// Joint-space inertia matrix `M(q)` ((2.1)) by the composite rigid-body algorithm.
 ///
-/// Backward pass: composite inertias `I^c_p += I^c_i` (ten-parameter form). Then for every
-/// body `i` the force `F = I^c_i S_i` gives `M_tree[j][i] = S_jᵀ F` for each `j` on the path
+/// One backward pass over the bodies (children before parents): the composite inertia
+/// `I^c_i` (ten-parameter form) is complete when body `i` is reached, is added to its parent's,
+/// and gives the force `F = I^c_i S_i`; then `M_tree[j][i] = S_jᵀ F` for each `j` on the path
 /// from `i` to the root (world coordinates need no transforms), mapped to coordinates as
-/// `Gᵀ M_tree G`. Entries of bodies on different branches are never visited (branch-induced
-/// sparsity: they are zero). Both triangles are filled; `M` is symmetric positive definite for a
-/// valid model.
+/// `Gᵀ M_tree G`. A joint driven by one coordinate `c` with coefficient `g` walks the scaled
+/// subspaces `g_j S_j` of its ancestors with the scaled force `g_i F` (one product per entry);
+/// entries through a joint coupled to several coordinates go through its drive row. Entries of
+/// bodies on different branches are never visited (branch-induced sparsity: they are zero).
+/// Both triangles are filled; `M` is symmetric positive definite for a valid model.
 ///
 /// Precondition: [`super::forward_kinematics`] or [`super::placement_kinematics`] at `q`. Writes
 /// `composite_world_inertias` (ten-parameter form; [`composite_inertia_matrices`] forms the 6×6
@@ -22,53 +25,111 @@ pub fn crba<'d, T: RealField + Copy, const N: usize, const B: usize, const F: us
     model: &Model<T, N, B, F>,
     data: &'d mut Data<T, N, B, F>,
 ) -> &'d SMatrix<T, N, N> {
-    accumulate_world_composites(model, &data.world_inertias, &mut data.composite_world_inertias);
-    data.mass_matrix.as_mut_slice().fill(T::zero());
     let bodies = model.bodies();
-    let drives = walk_drives(model);
-    // `g_a S_a`: a walk step is one product with the body's scaled force.
-    let mut scaled = [Vector6::zeros(); B];
-    for ((x, s), d) in scaled.iter_mut().zip(data.motion_subspaces.iter()).zip(drives.iter()) {
-        *x = scale6(s, d.coefficient);
-    }
-    let m: &mut [[T; N]; N] = &mut data.mass_matrix.data.0;
-    for (((body, composite), s_i), own) in
-        bodies.iter().zip(data.composite_world_inertias.iter()).zip(data.motion_subspaces.iter()).zip(drives.iter())
-    {
+    let walk = walk_table(model, &data.motion_subspaces);
+    let composites = &mut data.composite_world_inertias;
+    *composites = data.world_inertias;
+    let m = data.mass_matrix.as_mut_slice();
+    m.fill(T::zero());
+    for (i, (s_i, own)) in data.motion_subspaces.iter().zip(walk.iter()).enumerate().rev() {
+        // Every child has a larger index: the composite of body `i` is complete.
+        let Some(composite) = composites.get(i).copied() else { continue };
+        if let Some(parent) = composites.get_mut(own.parent) {
+            parent.add(&composite);
+        }
         let force = composite.apply(s_i);
-        let terms = body.drive.terms();
         if own.coordinate >= N {
-            // A coupled joint: every entry through both drive rows.
-            add_coupled::<T, N>(m.as_flattened_mut(), terms, terms, dot6(s_i, &force));
-            let mut a = own.parent;
-            while let (Some(ancestor), Some(s_a), Some(d)) =
-                (bodies.get(a), data.motion_subspaces.get(a), drives.get(a))
-            {
-                let value = dot6(s_a, &force);
-                add_coupled::<T, N>(m.as_flattened_mut(), ancestor.drive.terms(), terms, value);
-                add_coupled::<T, N>(m.as_flattened_mut(), terms, ancestor.drive.terms(), value);
-                a = d.parent;
-            }
+            coupled_column::<T, N, B>(m, bodies, &walk, &data.motion_subspaces, i, &force);
             continue;
         }
         let c = own.coordinate;
-        let scaled_force = scale6(&force, own.coefficient);
-        add_entry(m, c, c, dot6(s_i, &scaled_force) * own.coefficient);
+        let column = c * N;
+        // `g_i F`: with the scaled subspaces `g_j S_j` every entry is one product.
+        let f = scale6(&force, own.coefficient);
+        if let Some(x) = m.get_mut(column + c) {
+            *x += dot6(&own.scaled, &f);
+        }
         let mut a = own.parent;
-        while let (Some(d), Some(s_a)) = (drives.get(a), scaled.get(a)) {
-            if d.coordinate < N {
-                let value = dot6(s_a, &scaled_force);
-                add_entry(m, d.coordinate, c, value);
-                add_entry(m, c, d.coordinate, value);
-            } else if let (Some(ancestor), Some(raw)) = (bodies.get(a), data.motion_subspaces.get(a)) {
-                let value = dot6(raw, &force);
-                add_coupled::<T, N>(m.as_flattened_mut(), ancestor.drive.terms(), terms, value);
-                add_coupled::<T, N>(m.as_flattened_mut(), terms, ancestor.drive.terms(), value);
+        while let Some(ancestor) = walk.get(a) {
+            let value = dot6(&ancestor.scaled, &f);
+            if ancestor.coordinate < N {
+                let r = ancestor.coordinate;
+                if let Some(x) = m.get_mut(column + r) {
+                    *x += value;
+                }
+                if let Some(x) = m.get_mut(r * N + c) {
+                    *x += value;
+                }
+            } else if let Some(b) = bodies.get(a) {
+                // A coupled ancestor (its scaled subspace is the raw one): through its drive row.
+                for t in b.drive.terms() {
+                    let v = t.coefficient * value;
+                    if let Some(x) = m.get_mut(column + t.coordinate) {
+                        *x += v;
+                    }
+                    if let Some(x) = m.get_mut(t.coordinate * N + c) {
+                        *x += v;
+                    }
+                }
             }
-            a = d.parent;
+            a = ancestor.parent;
         }
     }
     &data.mass_matrix
+}
+
+/// One body as the walk of [`crba`] reads it: its parent (`B` for none), its coordinate and
+/// coefficient (`N` and one for a joint coupled to several coordinates) and the scaled motion
+/// subspace `g S` (the raw `S` for a coupled joint).
+#[derive(Clone, Copy)]
+struct WalkBody<T> {
+    scaled: Vector6<T>,
+    parent: usize,
+    coordinate: usize,
+    coefficient: T,
+}
+
+/// The [`WalkBody`] of every body, from [`walk_drives`] and the motion subspaces.
+#[inline(always)]
+fn walk_table<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
+    model: &Model<T, N, B, F>,
+    subspaces: &[Vector6<T>; B],
+) -> [WalkBody<T>; B] {
+    let drives = walk_drives(model);
+    let mut out = [WalkBody { scaled: Vector6::zeros(), parent: B, coordinate: N, coefficient: T::one() }; B];
+    for ((slot, s), d) in out.iter_mut().zip(subspaces.iter()).zip(drives.iter()) {
+        *slot = WalkBody {
+            scaled: scale6(s, d.coefficient),
+            parent: d.parent,
+            coordinate: d.coordinate,
+            coefficient: d.coefficient,
+        };
+    }
+    out
+}
+
+/// The entries of body `i`, whose joint is coupled to several coordinates (force
+/// `F = I^c_i S_i`): its own `S_iᵀ F` and `S_jᵀ F` of every ancestor `j`, each through both
+/// drive rows.
+#[inline(never)]
+fn coupled_column<T: RealField + Copy, const N: usize, const B: usize>(
+    m: &mut [T],
+    bodies: &[Body<T>],
+    walk: &[WalkBody<T>; B],
+    subspaces: &[Vector6<T>; B],
+    i: usize,
+    force: &Vector6<T>,
+) {
+    let (Some(body), Some(s_i), Some(own)) = (bodies.get(i), subspaces.get(i), walk.get(i)) else { return };
+    let terms = body.drive.terms();
+    add_coupled::<T, N>(m, terms, terms, dot6(s_i, force));
+    let mut a = own.parent;
+    while let (Some(ancestor), Some(s_a), Some(w)) = (bodies.get(a), subspaces.get(a), walk.get(a)) {
+        let value = dot6(s_a, force);
+        add_coupled::<T, N>(m, ancestor.drive.terms(), terms, value);
+        add_coupled::<T, N>(m, terms, ancestor.drive.terms(), value);
+        a = w.parent;
+    }
 }
 
 /// The 6×6 composite inertia `I^c_i` of every subtree from the ten-parameter composites that

@@ -8,7 +8,7 @@ use nalgebra::{ArrayStorage, Matrix3, RealField, Rotation3, SVector, Translation
 use super::error::DynamicsError;
 use super::kernels::{add_scaled6, check_finite};
 use crate::math::spatial::{Motion, Placement};
-use crate::model::{Body, BodyId, Data, JointKind, Model, WorldInertia};
+use crate::model::{Body, BodyId, Data, Inertia, JointKind, Model, WorldInertia};
 
 /// What one kinematics pass ([`kinematics`]) computes, each level including the one before.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -94,8 +94,9 @@ pub fn kinematics<T: RealField + Copy, const N: usize, const B: usize, const F: 
     data.q = *q;
     for (i, body) in model.bodies().iter().enumerate() {
         let parent = body.parent.map(|p| p.0);
-        let (placement, subspace) = joint_step(body, parent.and_then(|p| data.body_placements.get(p)), q);
-        let world_inertia = WorldInertia::from_body(&body.inertia, &placement);
+        let (r, t, subspace) = joint_step(body, parent.and_then(|p| data.body_placements.get(p)), q);
+        let world_inertia = world_inertia(&body.inertia, &r, &t);
+        let placement = from_columns(r, t);
         if let Some(v) = velocity {
             let (parent_velocity, parent_drift) = match (
                 parent.and_then(|p| data.body_velocities.get(p)),
@@ -173,9 +174,9 @@ pub fn support_kinematics<T: RealField + Copy, const N: usize, const B: usize, c
     for &i in path.get(..len).unwrap_or(&[]).iter().rev() {
         let Some(b) = bodies.get(i) else { continue };
         let parent = b.parent.and_then(|p| data.body_placements.get(p.0));
-        let (placement, subspace) = joint_step(b, parent, q);
+        let (r, t, subspace) = joint_step(b, parent, q);
         if let (Some(x), Some(s)) = (data.body_placements.get_mut(i), data.motion_subspaces.get_mut(i)) {
-            *x = placement;
+            *x = from_columns(r, t);
             *s = subspace;
         }
     }
@@ -184,36 +185,79 @@ pub fn support_kinematics<T: RealField + Copy, const N: usize, const B: usize, c
 
 /// The placement step of one body (every kinematics pass shares it): from the parent's world
 /// placement (`None`: the world), `⁰X_i = ⁰X_p · X_J(placement) · X(q_i)` with the joint value
-/// `q_i` through the drive map, and the world motion subspace `S_i = (a; p_i × a)` (revolute,
-/// world axis `a` through the body origin `p_i`) or `(0; a)` (prismatic). The placement products
-/// are written out on 3×3 arrays (no generic matrix iteration).
+/// `q_i` through the drive map, as rotation columns and translation, and the world motion
+/// subspace `S_i = (a; p_i × a)` (revolute, world axis `a` through the body origin `p_i`) or
+/// `(0; a)` (prismatic). About a coordinate axis the world axis is a column of the joint frame's
+/// rotation (no product). The placement products are written out on 3×3 arrays (no generic
+/// matrix iteration).
 #[inline(always)]
 fn joint_step<T: RealField + Copy, const N: usize>(
     body: &Body<T>,
     parent: Option<&Placement<T>>,
     q: &SVector<T, N>,
-) -> (Placement<T>, Motion<T>) {
+) -> (Columns<T>, [T; 3], Motion<T>) {
     let joint_frame = match parent {
         Some(parent_placement) => compose(parent_placement, &body.joint_placement),
         None => body.joint_placement,
     };
-    let value = body.drive.evaluate(q, true);
-    let a = body.joint.axis().into_inner();
     let r = columns(&joint_frame);
-    let axis = mul3(&r, &[a.x, a.y, a.z]);
-    let t = joint_frame.translation.vector;
+    let [t0, t1, t2] = joint_frame.translation.vector.data.0[0];
+    // One drive term (every joint but a coupled one): `offset + g q_c` without the term loop.
+    let value = match body.drive.terms() {
+        [t] => body.drive.offset() + t.coefficient * q.get(t.coordinate).copied().unwrap_or_else(T::zero),
+        _ => body.drive.evaluate(q, true),
+    };
+    let a = body.joint.axis().into_inner();
     match body.joint {
         JointKind::Revolute { .. } => {
-            let rotated = rotate(&r, &[a.x, a.y, a.z], value);
-            let [a0, a1, a2] = axis;
-            let lin = [t.y * a2 - t.z * a1, t.z * a0 - t.x * a2, t.x * a1 - t.y * a0];
-            (from_columns(rotated, [t.x, t.y, t.z]), Vector6::new(a0, a1, a2, lin[0], lin[1], lin[2]))
+            let (rotated, [a0, a1, a2]) = rotate(&r, &[a.x, a.y, a.z], value);
+            let lin = [t1 * a2 - t2 * a1, t2 * a0 - t0 * a2, t0 * a1 - t1 * a0];
+            (rotated, [t0, t1, t2], Vector6::new(a0, a1, a2, lin[0], lin[1], lin[2]))
         }
         JointKind::Prismatic { .. } => {
-            let [a0, a1, a2] = axis;
+            let [a0, a1, a2] = mul3(&r, &[a.x, a.y, a.z]);
             let z = T::zero();
-            (from_columns(r, [t.x + a0 * value, t.y + a1 * value, t.z + a2 * value]), Vector6::new(z, z, z, a0, a1, a2))
+            (r, [t0 + a0 * value, t1 + a1 * value, t2 + a2 * value], Vector6::new(z, z, z, a0, a1, a2))
         }
+    }
+}
+
+/// Ten-parameter world inertia (Featherstone (2.63)) of a body with inertia `inertia` (body
+/// frame) whose frame has world rotation columns `r` and origin `t`: `c = R c_b + t`,
+/// `h = m c`, `Ī = R I_c Rᵀ + m (|c|² 1 − c cᵀ)`, with `R I_c Rᵀ = Σ_l (R I_c)_l r_lᵀ` over the
+/// columns (a diagonal `I_c`, principal body axes, scales the columns: `(R I_c)_l = I_ll r_l`)
+/// and the parallel-axis term from `h` (`m (c_y² + c_z²) = h_y c_y + h_z c_z`, …). The same
+/// inertia as [`WorldInertia::from_body`]; the lower triangle of `I_c` is read.
+#[inline(always)]
+fn world_inertia<T: RealField + Copy>(inertia: &Inertia<T>, r: &Columns<T>, t: &[T; 3]) -> WorldInertia<T> {
+    let z = T::zero();
+    let [r0, r1, r2] = r;
+    let [[i00, i10, i20], [_, i11, i21], [_, _, i22]] = inertia.rotational.data.0;
+    let scale = |x: &[T; 3], k: T| [x[0] * k, x[1] * k, x[2] * k];
+    let p = if i10 == z && i20 == z && i21 == z {
+        [scale(r0, i00), scale(r1, i11), scale(r2, i22)]
+    } else {
+        [mul3(r, &[i00, i10, i20]), mul3(r, &[i10, i11, i21]), mul3(r, &[i20, i21, i22])]
+    };
+    // (R I_c Rᵀ)_ij = Σ_l (R I_c)_il R_jl.
+    let [[a0, a1, a2], [b0, b1, b2], [d0, d1, d2]] = p;
+    let ([x0, x1, x2], [y0, y1, y2], [w0, w1, w2]) = (*r0, *r1, *r2);
+    let [cb0, cb1, cb2] = inertia.com.data.0[0];
+    let [u0, u1, u2] = mul3(r, &[cb0, cb1, cb2]);
+    let (c0, c1, c2) = (u0 + t[0], u1 + t[1], u2 + t[2]);
+    let m = inertia.mass;
+    let (h0, h1, h2) = (m * c0, m * c1, m * c2);
+    WorldInertia {
+        mass: m,
+        first_moment: [h0, h1, h2],
+        rotational: [
+            (a0 * x0 + b0 * y0 + d0 * w0) + (h1 * c1 + h2 * c2),
+            (a1 * x1 + b1 * y1 + d1 * w1) + (h0 * c0 + h2 * c2),
+            (a2 * x2 + b2 * y2 + d2 * w2) + (h0 * c0 + h1 * c1),
+            (a0 * x1 + b0 * y1 + d0 * w1) - h0 * c1,
+            (a0 * x2 + b0 * y2 + d0 * w2) - h0 * c2,
+            (a1 * x2 + b1 * y2 + d1 * w2) - h1 * c2,
+        ],
     }
 }
 
@@ -267,11 +311,12 @@ fn compose<T: RealField + Copy>(a: &Placement<T>, b: &Placement<T>) -> Placement
     from_columns(mul33(&columns(a), &columns(b)), [t.x, t.y, t.z])
 }
 
-/// `R · Rot(a, angle)` for `R` given by columns and the unit axis `a`. About a coordinate axis
-/// the product touches two columns of `R` (e.g. about `z`: `(c r₀ + s r₁, c r₁ − s r₀, r₂)`);
-/// about any other axis it is the product with [`axis_angle`].
+/// `R · Rot(a, angle)` for `R` given by columns and the unit axis `a`, and the rotated axis
+/// `R a` (the same in both frames). About a coordinate axis the product touches two columns of
+/// `R` (e.g. about `z`: `(c r₀ + s r₁, c r₁ − s r₀, r₂)`) and `R a` is the third column; about
+/// any other axis it is the product with [`axis_angle`].
 #[inline(always)]
-fn rotate<T: RealField + Copy>(r: &Columns<T>, a: &[T; 3], angle: T) -> Columns<T> {
+fn rotate<T: RealField + Copy>(r: &Columns<T>, a: &[T; 3], angle: T) -> (Columns<T>, [T; 3]) {
     let (z, o) = (T::zero(), T::one());
     let [r0, r1, r2] = *r;
     let turn = |x: &[T; 3], y: &[T; 3], s: T, c: T| -> ([T; 3], [T; 3]) {
@@ -285,19 +330,19 @@ fn rotate<T: RealField + Copy>(r: &Columns<T>, a: &[T; 3], angle: T) -> Columns<
         [x, y, w] if x == z && y == z && w == o => {
             let (s, c) = angle.sin_cos();
             let (n0, n1) = turn(&r0, &r1, s, c);
-            [n0, n1, r2]
+            ([n0, n1, r2], r2)
         }
         [x, y, w] if x == o && y == z && w == z => {
             let (s, c) = angle.sin_cos();
             let (n1, n2) = turn(&r1, &r2, s, c);
-            [r0, n1, n2]
+            ([r0, n1, n2], r0)
         }
         [x, y, w] if x == z && y == o && w == z => {
             let (s, c) = angle.sin_cos();
             let (n2, n0) = turn(&r2, &r0, s, c);
-            [n0, r1, n2]
+            ([n0, r1, n2], r1)
         }
-        _ => mul33(r, &axis_angle(a, angle)),
+        _ => (mul33(r, &axis_angle(a, angle)), mul3(r, a)),
     }
 }
 
@@ -330,4 +375,70 @@ pub(super) fn cross_motion<T: RealField + Copy>(m: &Motion<T>, u: &Motion<T>) ->
         w2 * b0 - w0 * b2 + v2 * a0 - v0 * a2,
         w0 * b1 - w1 * b0 + v0 * a1 - v1 * a0,
     )
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
+    use super::*;
+    use crate::test_models::{branched, state};
+    use nalgebra::{UnitQuaternion, Vector3};
+
+    /// The ten parameters as an array (mass, first moment, rotational), cast to f64.
+    fn params<T: RealField + Copy>(w: &WorldInertia<T>) -> [f64; 10] {
+        let f = |x: T| nalgebra::try_convert::<T, f64>(x).unwrap();
+        let [h0, h1, h2] = w.first_moment;
+        let [a, b, c, d, e, g] = w.rotational;
+        [f(w.mass), f(h0), f(h1), f(h2), f(a), f(b), f(c), f(d), f(e), f(g)]
+    }
+
+    /// `world_inertia` (column form, diagonal fast path) against the reference
+    /// `WorldInertia::from_body` for the inertias of the branched test model (full and diagonal
+    /// `I_c`) and of Justin-like principal-axis bodies, at random placements far from and near the
+    /// origin: f64 to rounding, f32 within single-precision rounding of the f64 reference.
+    fn check<T: RealField + Copy>(tol: f64) {
+        let model = branched::<f64>();
+        let mut inertias: std::vec::Vec<Inertia<f64>> = model.bodies().iter().map(|b| b.inertia).collect();
+        inertias.push(Inertia {
+            mass: 3.0,
+            com: Vector3::new(0.0, 0.0, 0.15),
+            rotational: nalgebra::Matrix3::from_diagonal(&Vector3::new(0.0273, 0.0273, 0.0096)),
+        });
+        inertias.push(Inertia::point_mass(1.4, Vector3::new(0.02, -0.01, 0.3)));
+        let diagonal = inertias
+            .iter()
+            .filter(|i| i.rotational == nalgebra::Matrix3::from_diagonal(&i.rotational.diagonal()))
+            .count();
+        assert!(diagonal >= 3 && diagonal < inertias.len(), "both paths are exercised");
+        for seed in 0..200u64 {
+            let s = state(seed, 3.0);
+            let reach = if seed % 2 == 0 { 1.0 } else { 40.0 };
+            let rotation = UnitQuaternion::from_euler_angles(s[0], s[1], s[2]).to_rotation_matrix();
+            let x = Placement::from_parts(Translation3::new(s[3] * reach, s[4] * reach, s[5] * reach), rotation);
+            let xt: Placement<T> = nalgebra::convert(x);
+            for inertia in &inertias {
+                let reference = params(&WorldInertia::from_body(inertia, &x));
+                let it: Inertia<T> = Inertia {
+                    mass: nalgebra::convert(inertia.mass),
+                    com: inertia.com.map(nalgebra::convert),
+                    rotational: inertia.rotational.map(nalgebra::convert),
+                };
+                let fast = params(&world_inertia(&it, &columns(&xt), &xt.translation.vector.data.0[0]));
+                let scale = 1.0 + reference.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                for (a, b) in fast.iter().zip(reference.iter()) {
+                    assert!((a - b).abs() <= tol * scale, "seed {seed}: {fast:?} vs {reference:?}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn world_inertia_equals_from_body_f64() {
+        check::<f64>(1e-14);
+    }
+
+    #[test]
+    fn world_inertia_equals_from_body_f32() {
+        check::<f32>(2e-6);
+    }
 }
