@@ -312,7 +312,7 @@ fn update_row<T: RealField + Copy, const N: usize>(
             None => norm_squared(scratch.projected.as_slice()),
         }
     };
-    let ratio = (s.max(T::zero()) / reference).sqrt();
+    let ratio = sqrt(s.max(T::zero()) / reference);
     let activation = config.shaping.row_activation(task_activation, ratio);
     let updated = activation > T::zero() && s > T::zero() && config.recursion != Recursion::Unprojected;
     if updated {
