@@ -12,20 +12,20 @@ use crate::math::sqrt;
 /// Upper bound on Jacobi sweeps. Convergence is quadratic: over 200 000 random symmetric 6×6
 /// matrices (spectra spanning 1 to 10⁸, clustered eigenvalues; test `sweep_statistics`, run with
 /// `--ignored`) the symmetric rotations of [`symmetric_eigen`] stopped after 3 to 7 sweeps in f64
-/// except 14 that used all 8, and after 1 to 7 sweeps in f32 except 161 that used all 8; after
+/// except 14 that ran all 8, and after 1 to 7 sweeps in f32 except 161 that ran all 8 (these
+/// include the matrices that stagnate at the rounding floor without meeting the rule); after
 /// the call `‖Vᵀ A V − diag λ‖_F` (evaluated in the same precision, so including the rounding of
 /// that product) was at most 55 ε‖A‖_F (f64) and 49 ε‖A‖_F (f32) on every one of them (test
 /// `eight_sweeps_reach_the_rounding_floor` checks 20 ε on its smaller sample). More sweeps would
-/// buy nothing and cost 3.4 k instructions each on the Cortex-M7 (6×6, f32).
+/// buy nothing and cost up to 3 347 instructions each on the Cortex-M7 (6×6, f32).
 pub const MAX_SWEEPS: usize = 8;
 
 /// `A = V diag(λ) Vᵀ` for a symmetric `A` (both triangles are read: pass a symmetric matrix).
 /// Returns `(λ, V)`, eigenvalues unsorted, `V` orthonormal.
 ///
 /// Cyclic Jacobi: sweeps over the pairs `p < q` in row order, each rotation zeroing `a_pq`
-/// (`t = sign(τ)/(|τ| + √(1 + τ²))`, `t = 1` for `τ = 0`, `τ = (a_qq − a_pp)/(2 a_pq)`, `c = 1/√(1 + t²)`,
-/// `s = t c`).
-/// The rotation `A ← Jᵀ A J` is applied in its symmetric form ([`rotate_symmetric`]):
+/// (`t = sign(τ)/(|τ| + √(1 + τ²))`, `t = 1` for `τ = 0`, `τ = (a_qq − a_pp)/(2 a_pq)`,
+/// `c = 1/√(1 + t²)`, `s = t c`). The rotation `A ← Jᵀ A J` is applied in its symmetric form ([`rotate_symmetric`]):
 /// `a_pp ← a_pp − t a_pq`, `a_qq ← a_qq + t a_pq`, `a_pq = a_qp ← 0`, and for every other `r`
 /// the pair `(a_rp, a_rq)` rotated once and written to both triangles, so `A` stays exactly
 /// symmetric; the columns of `V` are rotated with the same `c`, `s`. Stops when the off-diagonal
@@ -36,8 +36,8 @@ pub fn symmetric_eigen<T: RealField + Copy, const D: usize>(a: &SMatrix<T, D, D>
     (lambda, v)
 }
 
-/// [`symmetric_eigen`] and the number of sweeps it ran (the convergence checks that passed
-/// before the stopping rule held, at most [`MAX_SWEEPS`]).
+/// [`symmetric_eigen`] and the number of sweeps it ran: the sweeps before the stopping rule held,
+/// or [`MAX_SWEEPS`] when it did not hold before the last one.
 fn jacobi<T: RealField + Copy, const D: usize>(a: &SMatrix<T, D, D>) -> (SVector<T, D>, SMatrix<T, D, D>, usize) {
     let mut a = *a;
     let mut v = SMatrix::<T, D, D>::identity();
