@@ -211,8 +211,12 @@ fn justin_consumers_on_the_tree_factor_match_the_dense_reference_f32() {
 /// tree factor (what the step forms for the projection) against the factor itself (chain
 /// mobilities and solves), at random states: the mobilities `(M̃⁻¹)_ii` (also against the plain
 /// dense inverse), `M̃⁻¹ τ` of an upper-body torque, and the barrier torques of every upper-body
-/// joint between its onset and past its speed limit.
-fn justin_barrier_inverse_matches<T: RealField + Copy>(tolerance: f64) {
+/// joint between its onset and past its speed limit. `tolerance` bounds the two sources
+/// against each other, `accuracy` the factor against the plain `f64` inverse of the same matrix
+/// (both relative to `max|M̃⁻¹|`): the latter is the factor's own rounding on matrices with
+/// `κ₁(M̃) ≈ 10⁴`, whose backward-error bound `ε κ₁` (Higham, Sec. 10.1) is ≈ 1.3e-3 in `f32`;
+/// observed at most 1.02e-5 in `f32`.
+fn justin_barrier_inverse_matches<T: RealField + Copy>(tolerance: f64, accuracy: f64) {
     use kernel::controller::speed_barrier::{speed_barrier, InverseInertia, JointLimits, SpeedBarrierParameters};
     const N: usize = justin::N;
     let model = justin::model::<T>().unwrap();
@@ -247,7 +251,7 @@ fn justin_barrier_inverse_matches<T: RealField + Copy>(tolerance: f64) {
         for i in 0..N {
             let (fast, reference) = (f64_of(dense.mobility(i)), f64_of(factor.mobility(i)));
             assert!((fast - reference).abs() <= tolerance * scale, "case {case}, joint {i}: {fast} vs {reference}");
-            assert!((reference - plain[(i, i)]).abs() <= tolerance * scale, "case {case}, joint {i}");
+            assert!((reference - plain[(i, i)]).abs() <= accuracy * scale, "case {case}, joint {i}");
         }
         let torque = SVector::<f64, N>::from_fn(|i, _| if upper[i] { rng.uniform(-50.0, 50.0) } else { 0.0 });
         let (fast, reference) = (dense.apply(&torque.map(convert)), factor.apply(&torque.map(convert)));
@@ -276,6 +280,6 @@ fn justin_barrier_inverse_matches<T: RealField + Copy>(tolerance: f64) {
 
 #[test]
 fn justin_speed_barrier_dense_inverse_matches_the_factor() {
-    justin_barrier_inverse_matches::<f64>(1e-12);
-    justin_barrier_inverse_matches::<f32>(1e-5);
+    justin_barrier_inverse_matches::<f64>(1e-12, 1e-12);
+    justin_barrier_inverse_matches::<f32>(1e-5, 2e-5);
 }
