@@ -25,7 +25,7 @@ pub const MAX_SWEEPS: usize = 8;
 ///
 /// Cyclic Jacobi: sweeps over the pairs `p < q` in row order, each rotation zeroing `a_pq`
 /// (`t = sign(τ)/(|τ| + √(1 + τ²))`, `t = 1` for `τ = 0`, `τ = (a_qq − a_pp)/(2 a_pq)`,
-/// `c = 1/√(1 + t²)`, `s = t c`). The rotation `A ← Jᵀ A J` is applied in its symmetric form ([`rotate_symmetric`]):
+/// `c = 1/√(1 + t²)`, `s = t c`). The rotation `A ← Jᵀ A J` is applied in its symmetric form (`rotate_symmetric`):
 /// `a_pp ← a_pp − t a_pq`, `a_qq ← a_qq + t a_pq`, `a_pq = a_qp ← 0`, and for every other `r`
 /// the pair `(a_rp, a_rq)` rotated once and written to both triangles, so `A` stays exactly
 /// symmetric; the columns of `V` are rotated with the same `c`, `s`. Stops when the off-diagonal
