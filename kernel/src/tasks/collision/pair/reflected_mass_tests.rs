@@ -5,7 +5,37 @@
 use crate::dynamics::{crba, forward_kinematics, TreeFactorization};
 use crate::model::Data;
 use crate::test_models::{branched, state, N};
-use nalgebra::{RealField, SVector};
+use nalgebra::{RealField, SMatrix, SVector};
+
+/// The branched model's inertia `M` at `state(seed)`, factorized, then decoupled for no root,
+/// the first root and the first two (the set's rows and columns of `M` cleared to their
+/// diagonal): per set, the set, its factor and the dense inverse of its inertia in `f64`.
+fn decoupled_factors<T: RealField + Copy>(
+    seed: u64,
+) -> [(&'static [usize], TreeFactorization<T, N>, SMatrix<f64, N, N>); 3] {
+    let model = branched::<T>();
+    let mut data = Data::new(&model);
+    let q = state(seed, 2.0).map(|e| nalgebra::convert::<f64, T>(e));
+    forward_kinematics(&model, &mut data, &q, &SVector::zeros()).unwrap();
+    let m = *crba(&model, &mut data);
+    let mut plain = TreeFactorization::new(&model);
+    plain.factorize(&m).unwrap();
+    [&[][..], &[0][..], &[0, 1][..]].map(|set| {
+        let mut tree = plain.clone();
+        let mut cleared = m;
+        let mut decoupled = [false; N];
+        for &c in set {
+            decoupled[c] = true;
+            let diagonal = cleared[(c, c)];
+            cleared.row_mut(c).fill(T::zero());
+            cleared.column_mut(c).fill(T::zero());
+            cleared[(c, c)] = diagonal;
+        }
+        tree.decouple(&decoupled, &cleared).unwrap();
+        let dense_inverse = cleared.map(|x| nalgebra::try_convert::<T, f64>(x).unwrap()).try_inverse().unwrap();
+        (set, tree, dense_inverse)
+    })
+}
 
 /// The elimination-tree ancestor chain `k, λ(k), λ(λ(k)), …` of `k`.
 fn chain<T: RealField + Copy>(tree: &TreeFactorization<T, N>, k: usize) -> std::vec::Vec<usize> {
@@ -24,28 +54,9 @@ fn chain<T: RealField + Copy>(tree: &TreeFactorization<T, N>, k: usize) -> std::
 /// The fast path makes the reference's operations in its order here (the roots off the
 /// chain precede it), so the two are equal to the bit.
 fn check_single_row_masses<T: RealField + Copy>(seed: u64, tol: f64) {
-    let model = branched::<T>();
-    let mut data = Data::new(&model);
-    let q = state(seed, 2.0).map(|e| nalgebra::convert::<f64, T>(e));
-    forward_kinematics(&model, &mut data, &q, &SVector::zeros()).unwrap();
-    let m = *crba(&model, &mut data);
-    let mut plain = TreeFactorization::new(&model);
-    plain.factorize(&m).unwrap();
     let to64 = |x: T| nalgebra::try_convert::<T, f64>(x).unwrap();
     let (mut fast_paths, mut fallbacks) = (0, 0);
-    for set in [&[][..], &[0_usize][..], &[0, 1]] {
-        let mut tree = plain.clone();
-        let mut cleared = m;
-        let mut decoupled = [false; N];
-        for &c in set {
-            decoupled[c] = true;
-            let diagonal = cleared[(c, c)];
-            cleared.row_mut(c).fill(T::zero());
-            cleared.column_mut(c).fill(T::zero());
-            cleared[(c, c)] = diagonal;
-        }
-        tree.decouple(&decoupled, &cleared).unwrap();
-        let dense_inverse = cleared.map(to64).try_inverse().unwrap();
+    for (set, tree, dense_inverse) in decoupled_factors::<T>(seed) {
         let mut rows = std::vec::Vec::new();
         for leaf in 0..N {
             let chain = chain(&tree, leaf);
@@ -101,28 +112,9 @@ fn single_row_reflected_masses_match_the_reference() {
 /// roots below the chain, with entries off the chain (the fallback) and for an empty head, on
 /// the plain factor and on decoupled ones; and against the dense `J M⁻¹ Jᵀ`.
 fn check_head_masses<T: RealField + Copy>(seed: u64, tol: f64) {
-    let model = branched::<T>();
-    let mut data = Data::new(&model);
-    let q = state(seed, 2.0).map(|e| nalgebra::convert::<f64, T>(e));
-    forward_kinematics(&model, &mut data, &q, &SVector::zeros()).unwrap();
-    let m = *crba(&model, &mut data);
-    let mut plain = TreeFactorization::new(&model);
-    plain.factorize(&m).unwrap();
     let to64 = |x: T| nalgebra::try_convert::<T, f64>(x).unwrap();
     let mut compared = 0;
-    for set in [&[][..], &[0_usize][..], &[0, 1]] {
-        let mut tree = plain.clone();
-        let mut cleared = m;
-        let mut decoupled = [false; N];
-        for &c in set {
-            decoupled[c] = true;
-            let diagonal = cleared[(c, c)];
-            cleared.row_mut(c).fill(T::zero());
-            cleared.column_mut(c).fill(T::zero());
-            cleared[(c, c)] = diagonal;
-        }
-        tree.decouple(&decoupled, &cleared).unwrap();
-        let dense_inverse = cleared.map(to64).try_inverse().unwrap();
+    for (set, tree, dense_inverse) in decoupled_factors::<T>(seed) {
         for leaf in 0..N {
             let values = state(seed ^ (leaf as u64 + 211), 1.0);
             let mut on_chain = [T::zero(); N];
@@ -171,28 +163,9 @@ fn head_reflected_masses_match_the_reference() {
 /// pair row): heads on the same chain, on chains with shared ancestors and on disjoint ones
 /// (decoupled roots), with and without roots, on the plain and on decoupled factors.
 fn check_head_solutions<T: RealField + Copy>(seed: u64, tol: f64) {
-    let model = branched::<T>();
-    let mut data = Data::new(&model);
-    let q = state(seed, 2.0).map(|e| nalgebra::convert::<f64, T>(e));
-    forward_kinematics(&model, &mut data, &q, &SVector::zeros()).unwrap();
-    let m = *crba(&model, &mut data);
-    let mut plain = TreeFactorization::new(&model);
-    plain.factorize(&m).unwrap();
     let to64 = |x: T| nalgebra::try_convert::<T, f64>(x).unwrap();
     let (mut solved_pairs, mut disjoint_pairs, mut refused) = (0, 0, 0);
-    for set in [&[][..], &[0_usize][..], &[0, 1]] {
-        let mut tree = plain.clone();
-        let mut cleared = m;
-        let mut decoupled = [false; N];
-        for &c in set {
-            decoupled[c] = true;
-            let diagonal = cleared[(c, c)];
-            cleared.row_mut(c).fill(T::zero());
-            cleared.column_mut(c).fill(T::zero());
-            cleared[(c, c)] = diagonal;
-        }
-        tree.decouple(&decoupled, &cleared).unwrap();
-        let dense_inverse = cleared.map(to64).try_inverse().unwrap();
+    for (set, tree, dense_inverse) in decoupled_factors::<T>(seed) {
         // (head, solution) of every solved head.
         let mut solved: std::vec::Vec<([T; N], usize, [f64; N])> = std::vec::Vec::new();
         for leaf in 0..N {
