@@ -10,9 +10,10 @@
 //!   half that side (exact, as Justin's chest);
 //! - mesh → its bounding capsule: the axis is the vertices' principal direction through their
 //!   centroid, the radius the largest distance of a vertex from that axis, the end points the
-//!   shortest segment on the axis that keeps every vertex inside. Meshes are read with `stl_io`
-//!   (STL only); `package://<package>/<path>` resolves to `<--package-path>/<package>/<path>`. A
-//!   capsule is convex, so containing the vertices it contains the whole mesh.
+//!   shortest segment on the axis that keeps every vertex inside. STL meshes are read with
+//!   `stl_io`, the vertex positions of COLLADA (`.dae`) meshes with `RustyXML`;
+//!   `package://<package>/<path>` resolves to `<--package-path>/<package>/<path>`. A capsule is
+//!   convex, so containing the vertices it contains the whole mesh.
 //!
 //! **Pair survey.** Pairs on one body and pairs of adjacent links are dropped by the kernel's rules
 //! ([`kernel::tasks::collision::exclusion_rule`]; the same rule is applied here on the
@@ -135,7 +136,7 @@ fn box_triangles(size: [f64; 3], origin: &Placement<f64>) -> Vec<(SweptSphere<f6
     ]
 }
 
-/// The vertices of the STL mesh `filename` (m, mesh frame, scaled).
+/// The vertices of the mesh `filename`, STL or COLLADA (m, mesh frame, scaled).
 pub fn mesh_vertices(filename: &str, scale: [f64; 3], packages: Option<&Path>) -> Result<Vec<Vector3<f64>>, String> {
     let path = match filename.strip_prefix("package://") {
         Some(rest) => {
@@ -145,14 +146,84 @@ pub fn mesh_vertices(filename: &str, scale: [f64; 3], packages: Option<&Path>) -
         }
         None => Path::new(filename.strip_prefix("file://").unwrap_or(filename)).to_path_buf(),
     };
-    let mut file = std::fs::File::open(&path).map_err(|e| format!("mesh {}: {e}", path.display()))?;
-    let mesh = stl_io::read_stl(&mut file).map_err(|e| format!("mesh {} (only STL is read): {e}", path.display()))?;
-    let [sx, sy, sz] = scale;
-    Ok(mesh
-        .vertices
-        .iter()
-        .map(|v| Vector3::new(f64::from(v[0]) * sx, f64::from(v[1]) * sy, f64::from(v[2]) * sz))
-        .collect())
+    let collada = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("dae"));
+    let vertices = if collada { collada_vertices(&path)? } else { stl_vertices(&path)? };
+    Ok(vertices.iter().map(|v| v.component_mul(&Vector3::from(scale))).collect())
+}
+
+/// The vertices of an STL file (m).
+fn stl_vertices(path: &Path) -> Result<Vec<Vector3<f64>>, String> {
+    let mut file = std::fs::File::open(path).map_err(|e| format!("mesh {}: {e}", path.display()))?;
+    let mesh =
+        stl_io::read_stl(&mut file).map_err(|e| format!("mesh {} (STL or COLLADA .dae): {e}", path.display()))?;
+    Ok(mesh.vertices.iter().map(|v| Vector3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2]))).collect())
+}
+
+/// The vertices of a COLLADA (`.dae`) file (m): every `<mesh>`'s `POSITION` source, scaled by the
+/// `<unit meter>` of its `<asset>`. The coordinates are read as they stand, in the link frame, as
+/// ROS and Pinocchio read a collision mesh: `<up_axis>` is ignored (MeshLab writes `Y_UP` over
+/// link-frame coordinates). A `<node>` transform (`matrix`, `translate`, `rotate`, `scale`) is
+/// refused, not applied.
+fn collada_vertices(path: &Path) -> Result<Vec<Vector3<f64>>, String> {
+    let fail = |problem: String| format!("mesh {}: {problem}", path.display());
+    let text = std::fs::read_to_string(path).map_err(|e| fail(e.to_string()))?;
+    let root: xml::Element = text.parse().map_err(|e| fail(format!("malformed XML: {e}")))?;
+    let unit = descendants(&root, "unit").first().and_then(|u| attribute_number(u, "meter")).unwrap_or(1.0);
+    let transforms = ["matrix", "translate", "rotate", "scale"];
+    if let Some(node) = descendants(&root, "node").iter().find(|n| n.children.iter().any(|c| is_named(c, &transforms)))
+    {
+        return Err(fail(format!("node {:?} has a transform, which is not read", node.get_attribute("id", None))));
+    }
+    let mut vertices = Vec::new();
+    for mesh in descendants(&root, "mesh") {
+        let source = descendants(mesh, "vertices")
+            .iter()
+            .flat_map(|v| descendants(v, "input"))
+            .find(|input| input.get_attribute("semantic", None) == Some("POSITION"))
+            .and_then(|input| input.get_attribute("source", None))
+            .and_then(|id| id.strip_prefix('#'))
+            .ok_or_else(|| fail("a <mesh> without a POSITION input".to_owned()))?;
+        let array = descendants(mesh, "source")
+            .into_iter()
+            .find(|s| s.get_attribute("id", None) == Some(source))
+            .and_then(|s| descendants(s, "float_array").into_iter().next())
+            .ok_or_else(|| fail(format!("no <float_array> for the positions #{source}")))?;
+        let numbers: Vec<f64> = array
+            .content_str()
+            .split_whitespace()
+            .map(|x| x.parse::<f64>().map_err(|e| fail(format!("position {x:?}: {e}"))))
+            .collect::<Result<_, _>>()?;
+        if numbers.len() % 3 != 0 {
+            return Err(fail(format!("{} position numbers, not a multiple of 3", numbers.len())));
+        }
+        vertices.extend(numbers.chunks_exact(3).map(|c| Vector3::from_column_slice(c) * unit));
+    }
+    Ok(vertices)
+}
+
+/// Whether `node` is an element with one of `names` (any namespace).
+fn is_named(node: &xml::Xml, names: &[&str]) -> bool {
+    matches!(node, xml::Xml::ElementNode(e) if names.contains(&e.name.as_str()))
+}
+
+/// Every element below `element` named `name` (any namespace; COLLADA declares a default one),
+/// in document order.
+fn descendants<'a>(element: &'a xml::Element, name: &str) -> Vec<&'a xml::Element> {
+    let mut found = Vec::new();
+    for child in &element.children {
+        if let xml::Xml::ElementNode(e) = child {
+            if e.name == name {
+                found.push(e);
+            }
+            found.extend(descendants(e, name));
+        }
+    }
+    found
+}
+
+/// A numeric attribute.
+fn attribute_number(element: &xml::Element, name: &str) -> Option<f64> {
+    element.get_attribute(name, None).and_then(|x| x.parse().ok())
 }
 
 /// A link's name and points in its frame (m).
@@ -470,7 +541,9 @@ pub fn readme_section(fitted: &Fitted) -> String {
         "Swept-sphere volumes fitted to the URDF's `<collision>` elements (`host-sim/src/import/collision.rs`): ",
     );
     s.push_str("a cylinder or capsule becomes a capsule, a box the rectangle in its mid-plane swept by half its ");
-    s.push_str("thickness, a mesh (STL) its bounding capsule along the vertices' principal direction. The pair ");
+    s.push_str(
+        "thickness, a mesh (STL or COLLADA) its bounding capsule along the vertices' principal direction. The pair ",
+    );
     s.push_str(&format!(
         "exclusions come from a survey over {SURVEY_SAMPLES} random configurations (see the header of the `.collision` file).\n\n"
     ));
