@@ -172,7 +172,8 @@ fn collada_vertices(path: &Path) -> Result<Vec<Vector3<f64>>, String> {
     let transforms = ["matrix", "translate", "rotate", "scale"];
     if let Some(node) = descendants(&root, "node").iter().find(|n| n.children.iter().any(|c| is_named(c, &transforms)))
     {
-        return Err(fail(format!("node {:?} has a transform, which is not read", node.get_attribute("id", None))));
+        let id = node.get_attribute("id", None).unwrap_or("without id");
+        return Err(fail(format!("<node> {id} has a transform, which the import does not apply")));
     }
     let mut vertices = Vec::new();
     for mesh in descendants(&root, "mesh") {
@@ -571,6 +572,42 @@ mod tests {
         // Along x the points span 0.49 m: the capsule is not much longer.
         let Core::Segment([a, b]) = capsule.core else { panic!("not a capsule") };
         assert!((a - b).norm() + 2.0 * capsule.radius < 0.49 + 0.15, "{capsule:?}");
+    }
+
+    /// A COLLADA file with one mesh of two vertices (positions in cm) beside a normals source.
+    const DAE: &str = r##"<?xml version="1.0"?>
+        <COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">
+          <asset><unit meter="0.01"/><up_axis>Y_UP</up_axis></asset>
+          <library_geometries><geometry id="g"><mesh>
+            <source id="g-normals"><float_array id="n" count="3">9 9 9</float_array></source>
+            <source id="g-positions"><float_array id="p" count="6">1 2 3 -4 5 -6</float_array></source>
+            <vertices id="g-vertices"><input semantic="POSITION" source="#g-positions"/></vertices>
+          </mesh></geometry></library_geometries>
+          <library_visual_scenes><visual_scene id="s">
+            <node id="node"><instance_geometry url="#g"/></node>
+          </visual_scene></library_visual_scenes>
+        </COLLADA>"##;
+
+    /// The vertices (or the error) of the COLLADA `text` scaled by `[1, 1, 2]`.
+    fn collada(text: &str) -> Result<Vec<Vector3<f64>>, String> {
+        let path = std::env::temp_dir().join(format!("host-sim-{}-mesh.dae", std::process::id()));
+        std::fs::write(&path, text).unwrap();
+        let vertices = mesh_vertices(path.to_str().unwrap(), [1.0, 1.0, 2.0], None);
+        std::fs::remove_file(&path).unwrap();
+        vertices
+    }
+
+    #[test]
+    fn collada_positions_are_read_in_the_files_unit() {
+        let vertices = collada(DAE).unwrap();
+        let expected = [Vector3::new(0.01, 0.02, 0.06), Vector3::new(-0.04, 0.05, -0.12)];
+        assert_eq!(vertices.len(), 2);
+        for (v, e) in vertices.iter().zip(expected) {
+            assert!((v - e).amax() < 1e-15, "{v} != {e}");
+        }
+        let moved = DAE.replace(r#"<node id="node">"#, r#"<node id="node"><translate>0 0 1</translate>"#);
+        let error = collada(&moved).unwrap_err();
+        assert!(error.ends_with("<node> node has a transform, which the import does not apply"), "{error}");
     }
 
     #[test]
