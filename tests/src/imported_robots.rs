@@ -1,7 +1,7 @@
 //! Robots imported by `host-sim import` (`fixtures/robots/`): the checked-in files are what
 //! the import writes today, the model is the URDF's with the off-chain joints frozen, and the
-//! collision volumes contain the URDF's collision primitives, for the Panda and TIAGo++. Their
-//! dynamics against Pinocchio: `dynamics::pinocchio::imported_panda_matches_pinocchio` and
+//! collision volumes of each body contain the URDF's collision primitives on it, for the Panda and
+//! TIAGo++. Their dynamics against Pinocchio: `dynamics::pinocchio::imported_panda_matches_pinocchio` and
 //! `imported_tiago_dual_matches_pinocchio`.
 //!
 //! After changing the import or a robot's URDF, re-run the command in the robot's `README.md`
@@ -13,8 +13,10 @@ use std::path::PathBuf;
 use fixtures::robots::{panda, tiago_dual};
 use host_sim::import::collision::primitive_points;
 use host_sim::import::{generate, robots_index, ImportOptions, ROBOTS_DIR};
+use kernel::model::Frame;
 use kernel::tasks::collision::SweptSphere;
-use nalgebra::Vector3;
+use kernel::BodyId;
+use nalgebra::{Point3, Vector3};
 
 fn repository() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
@@ -122,23 +124,24 @@ fn tiago_dual_controls_its_torso_lift_and_arms_and_freezes_the_rest() {
     assert_eq!(parent(tiago_dual::HEAD_2_LINK), parent(tiago_dual::TORSO_LIFT_LINK));
 }
 
-/// The volumes of one link parsed from the collision file (the file format of
-/// `fixtures/collision/justin.collision`).
-fn volumes_of(file: &str, link: &str) -> Vec<SweptSphere<f64>> {
+/// The volumes of the collision file (the file format of `fixtures/collision/justin.collision`),
+/// each with its link, in the link's frame.
+fn volumes(file: &str) -> Vec<(String, SweptSphere<f64>)> {
     file.lines()
         .filter_map(|line| {
             let fields: Vec<&str> = line.split_whitespace().collect();
-            if fields.len() < 5 || fields[3] != link {
+            if fields.len() < 5 || !["sphere", "capsule", "triangle"].contains(&fields[0]) {
                 return None;
             }
             let numbers: Vec<f64> = fields[4..].iter().map(|x| x.parse().unwrap()).collect();
             let p = |k: usize| Vector3::new(numbers[1 + 3 * k], numbers[2 + 3 * k], numbers[3 + 3 * k]);
-            match fields[0] {
-                "sphere" => Some(SweptSphere::sphere(p(0), numbers[0])),
-                "capsule" => Some(SweptSphere::capsule(p(0), p(1), numbers[0])),
-                "triangle" => Some(SweptSphere::swept_triangle(p(0), p(1), p(2), numbers[0])),
-                _ => None,
-            }
+            let shape = match fields[0] {
+                "sphere" => SweptSphere::sphere(p(0), numbers[0]),
+                "capsule" => SweptSphere::capsule(p(0), p(1), numbers[0]),
+                "triangle" => SweptSphere::swept_triangle(p(0), p(1), p(2), numbers[0]),
+                _ => return None,
+            };
+            Some((fields[3].to_owned(), shape))
         })
         .collect()
 }
@@ -146,16 +149,24 @@ fn volumes_of(file: &str, link: &str) -> Vec<SweptSphere<f64>> {
 #[test]
 fn the_collision_volumes_contain_the_urdf_primitives() {
     // Panda: 9 meshes (links 0 to 7, hand) and 2 x 4 finger boxes.
-    contains_the_primitives(&panda_import(), 17);
+    let panda_model = panda::model::<f64>().unwrap();
+    contains_the_primitives(&panda_import(), 17, panda_model.frames(), &panda::FRAME_NAMES);
     // TIAGo++: 59 meshes (base, torso 4, head 2, arms 2 x 6, hands 2 x 20), 33 boxes (torso 3,
     // hands 2 x 15), 12 spheres, 8 cylinders.
-    contains_the_primitives(&tiago_dual_import(), 112);
+    let tiago_model = tiago_dual::model::<f64>().unwrap();
+    contains_the_primitives(&tiago_dual_import(), 112, tiago_model.frames(), &tiago_dual::FRAME_NAMES);
 }
 
 /// Every point of every `<collision>` primitive of the robot (`count` of them) lies in the
-/// volumes of its link.
-fn contains_the_primitives(options: &ImportOptions, count: usize) {
+/// volumes of its body (the import drops a volume inside another one of the same body); `frames`
+/// and `names` are the generated model's frames and their links.
+fn contains_the_primitives(options: &ImportOptions, count: usize, frames: &[Frame<f64>], names: &[&str]) {
+    let frame_of = |link: &str| &frames[names.iter().position(|n| *n == link).unwrap()];
     let file = std::fs::read_to_string(options.directory().join(format!("{}.collision", options.name))).unwrap();
+    let volumes: Vec<(Option<BodyId>, SweptSphere<f64>)> = volumes(&file)
+        .iter()
+        .map(|(link, shape)| (frame_of(link).parent, shape.transformed(&frame_of(link).placement)))
+        .collect();
     let urdf = std::fs::read_to_string(repository().join(&options.urdf)).unwrap();
     let packages = repository().join("fixtures/urdf/packages");
     let primitives = primitive_points(&urdf, Some(&packages)).unwrap();
@@ -163,10 +174,12 @@ fn contains_the_primitives(options: &ImportOptions, count: usize) {
     let mut worst = f64::NEG_INFINITY;
     let mut points = 0;
     for (link, surface) in &primitives {
-        let volumes = volumes_of(&file, link);
-        assert!(!volumes.is_empty(), "no volume on link {link}");
+        let frame = frame_of(link);
+        let body: Vec<&SweptSphere<f64>> = volumes.iter().filter(|(b, _)| *b == frame.parent).map(|(_, v)| v).collect();
+        assert!(!body.is_empty(), "no volume on the body of link {link}");
         for p in surface {
-            let inside = volumes.iter().map(|v| v.signed_distance_to(p)).fold(f64::INFINITY, f64::min);
+            let p = (frame.placement * Point3::from(*p)).coords;
+            let inside = body.iter().map(|v| v.signed_distance_to(&p)).fold(f64::INFINITY, f64::min);
             worst = worst.max(inside);
             points += 1;
         }

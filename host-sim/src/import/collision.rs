@@ -15,6 +15,12 @@
 //!   `package://<package>/<path>` resolves to `<--package-path>/<package>/<path>`. A capsule is
 //!   convex, so containing the vertices it contains the whole mesh.
 //!
+//! **Contained volumes.** A volume that lies inside another volume of the same body is dropped
+//! (its distance to anything is never the smaller one): TIAGo++'s finger primitives lie inside the
+//! safety box of its hand. A swept sphere `A` (core `a`, radius `r_a`) lies inside `B` exactly
+//! when every corner `v` of `a` has `d(v, B) + r_a ≤ 0`: the distance to `B`'s convex core is
+//! convex, so its largest value on `a` is at a corner.
+//!
 //! **Pair survey.** Pairs on one body and pairs of adjacent links are dropped by the kernel's rules
 //! ([`kernel::tasks::collision::exclusion_rule`]; the same rule is applied here on the
 //! description). Every other pair's distance is sampled over [`SURVEY_SAMPLES`] random
@@ -70,8 +76,10 @@ pub struct FittedVolume {
 /// The fitted volumes of a robot.
 #[derive(Clone, Debug)]
 pub struct Fitted {
-    /// Every volume, in link and collision-element order.
+    /// Every volume kept, in link and collision-element order.
     pub volumes: Vec<FittedVolume>,
+    /// The volumes dropped as contained, each with the name of the volume that contains it.
+    pub contained: Vec<(FittedVolume, String)>,
 }
 
 /// Fits volumes to every `<collision>` element of `robot`. `packages` resolves `package://` URIs.
@@ -89,7 +97,52 @@ pub fn fit(robot: &urdf_rs::Robot, packages: Option<&Path>) -> Result<Fitted, St
             }
         }
     }
-    Ok(Fitted { volumes })
+    Ok(Fitted { volumes, contained: Vec::new() })
+}
+
+/// Drops every volume that lies inside another kept volume of the same body of `d` (see the
+/// module docs).
+pub(crate) fn without_contained(d: &Description, fitted: Fitted) -> Result<Fitted, String> {
+    let attached = attach(d, &fitted.volumes)?;
+    let mut kept = vec![true; fitted.volumes.len()];
+    let mut contained = Vec::new();
+    for (i, (body, shape)) in attached.iter().enumerate() {
+        let container = attached.iter().enumerate().position(|(j, (other_body, other))| {
+            j != i && kept.get(j) == Some(&true) && other_body == body && inside(shape, other)
+        });
+        if let (Some(j), Some(volume), Some(flag)) = (container, fitted.volumes.get(i), kept.get_mut(i)) {
+            *flag = false;
+            let name = fitted.volumes.get(j).map_or_else(String::new, |v| v.name.clone());
+            contained.push((volume.clone(), name));
+        }
+    }
+    let volumes = fitted.volumes.into_iter().zip(kept).filter_map(|(v, keep)| keep.then_some(v)).collect();
+    Ok(Fitted { volumes, contained })
+}
+
+/// Whether `a` lies inside `b` (both in one frame).
+fn inside(a: &SweptSphere<f64>, b: &SweptSphere<f64>) -> bool {
+    let corners: &[Vector3<f64>] = match &a.core {
+        Core::Point(p) => std::slice::from_ref(p),
+        Core::Segment(points) => points,
+        Core::Triangle(points) => points,
+    };
+    corners.iter().all(|v| b.signed_distance_to(v) + a.radius <= 0.0)
+}
+
+/// A volume's body (`None`: the world) and its shape in that body's frame.
+type Attached = (Option<usize>, SweptSphere<f64>);
+
+/// Each volume with the body it moves with and its shape in that body's frame.
+fn attach(d: &Description, volumes: &[FittedVolume]) -> Result<Vec<Attached>, String> {
+    volumes
+        .iter()
+        .map(|v| {
+            let frame =
+                d.frames.iter().find(|f| f.link == v.link).ok_or_else(|| format!("internal: no frame {}", v.link))?;
+            Ok((frame.parent, v.shape.transformed(&frame.placement)))
+        })
+        .collect()
 }
 
 /// The volume(s) of one primitive placed by `origin`, each with its description.
@@ -356,14 +409,7 @@ pub struct Survey {
 
 /// Surveys every pair of `volumes` the kernel's rules keep (see the module docs).
 pub(crate) fn survey(d: &Description, volumes: &[FittedVolume]) -> Result<Survey, String> {
-    let attached: Vec<(Option<usize>, SweptSphere<f64>)> = volumes
-        .iter()
-        .map(|v| {
-            let frame =
-                d.frames.iter().find(|f| f.link == v.link).ok_or_else(|| format!("internal: no frame {}", v.link))?;
-            Ok((frame.parent, v.shape.transformed(&frame.placement)))
-        })
-        .collect::<Result<_, String>>()?;
+    let attached = attach(d, volumes)?;
     let mut pairs = Vec::new();
     for i in 0..attached.len() {
         for j in i + 1..attached.len() {
@@ -499,6 +545,7 @@ pub fn file(options: &ImportOptions, fitted: &Fitted, survey: &Survey) -> String
         ACTIVATION_DISTANCE_M + SURVEY_MARGIN_M
     ));
     s.push_str("#   always_near: it stays below d0.\n\n");
+    s.push_str(&format!("# Dropped as inside another volume of the same body: {}.\n\n", contained_list(fitted)));
     s.push_str(&format!("# ---- volumes: {} ----\n", fitted.volumes.len()));
     for v in &fitted.volumes {
         s.push_str(&format!("# {}\n", v.source));
@@ -535,6 +582,16 @@ pub fn file(options: &ImportOptions, fitted: &Fitted, survey: &Survey) -> String
     s
 }
 
+/// The dropped volumes as `name (in container)`, comma-separated, or `none`.
+fn contained_list(fitted: &Fitted) -> String {
+    if fitted.contained.is_empty() {
+        return "none".to_owned();
+    }
+    let names: Vec<String> =
+        fitted.contained.iter().map(|(v, container)| format!("{} (in {container})", v.name)).collect();
+    names.join(", ")
+}
+
 /// The README's collision section.
 pub fn readme_section(fitted: &Fitted) -> String {
     let mut s = String::from("## Collision model\n\n");
@@ -547,6 +604,11 @@ pub fn readme_section(fitted: &Fitted) -> String {
     );
     s.push_str(&format!(
         "exclusions come from a survey over {SURVEY_SAMPLES} random configurations (see the header of the `.collision` file).\n\n"
+    ));
+    s.push_str(&format!(
+        "Dropped as inside another volume of the same body ({}): {}.\n\n",
+        fitted.contained.len(),
+        contained_list(fitted)
     ));
     s.push_str("| volume | link | fitted to |\n| --- | --- | --- |\n");
     for v in &fitted.volumes {
@@ -572,6 +634,25 @@ mod tests {
         // Along x the points span 0.49 m: the capsule is not much longer.
         let Core::Segment([a, b]) = capsule.core else { panic!("not a capsule") };
         assert!((a - b).norm() + 2.0 * capsule.radius < 0.49 + 0.15, "{capsule:?}");
+    }
+
+    #[test]
+    fn a_volume_is_inside_another_exactly_when_its_corners_are_deep_enough() {
+        let capsule = SweptSphere::capsule(Vector3::zeros(), Vector3::new(1.0, 0.0, 0.0), 0.2);
+        let segment = |y: f64, r: f64| SweptSphere::capsule(Vector3::new(0.1, y, 0.0), Vector3::new(0.9, y, 0.0), r);
+        assert!(inside(&segment(0.0, 0.2), &capsule));
+        assert!(inside(&segment(0.05, 0.15), &capsule));
+        assert!(!inside(&segment(0.05, 0.16), &capsule), "reaches 0.21 from the axis");
+        let triangle = SweptSphere::swept_triangle(
+            Vector3::new(0.2, -0.1, 0.0),
+            Vector3::new(0.8, -0.1, 0.0),
+            Vector3::new(0.5, 0.1, 0.0),
+            0.1,
+        );
+        assert!(inside(&triangle, &capsule));
+        assert!(!inside(&capsule, &triangle));
+        assert!(inside(&SweptSphere::sphere(Vector3::new(1.1, 0.0, 0.0), 0.099), &capsule));
+        assert!(!inside(&SweptSphere::sphere(Vector3::new(1.1, 0.0, 0.0), 0.11), &capsule));
     }
 
     /// A COLLADA file with one mesh of two vertices (positions in cm) beside a normals source.

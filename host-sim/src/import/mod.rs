@@ -13,7 +13,7 @@
 //!    code generator ([`crate::codegen`]) as Justin's, into `mod.rs`, a module of
 //!    `fixtures::robots` (the index `fixtures/robots/mod.rs` is rewritten to list every robot).
 //! 3. **Collision model** ([`collision`]): swept-sphere volumes fitted to the URDF's
-//!    `<collision>` geometry and the pair survey, written to `<name>.collision` in the format of
+//!    `<collision>` geometry, less those inside another volume of their body, and the pair survey, written to `<name>.collision` in the format of
 //!    `fixtures/collision/justin.collision`.
 //! 4. **`README.md`**: the command, the controlled, frozen and TCP frames, the collision model.
 //!
@@ -113,7 +113,7 @@ pub fn generate(options: &ImportOptions) -> Result<Files, String> {
     let source = codegen::model_source(&description, &options.urdf, &Module::Robot(&module));
     let packages = options.package_path.as_ref().map(|dir| options.root.join(dir));
     let robot = urdf_rs::read_from_string(&prepared.text).map_err(|e| format!("{}: {e}", options.urdf))?;
-    let fitted = collision::fit(&robot, packages.as_deref())?;
+    let fitted = collision::without_contained(&description, collision::fit(&robot, packages.as_deref())?)?;
     let survey = collision::survey(&description, &fitted.volumes)?;
     let collision_file = collision::file(options, &fitted, &survey);
     let readme = readme(options, &description, &module, &prepared.welded, &fitted, &survey);
