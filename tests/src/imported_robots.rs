@@ -1,7 +1,8 @@
 //! Robots imported by `host-sim import` (`fixtures/robots/`): the checked-in files are what
 //! the import writes today, the model is the URDF's with the off-chain joints frozen, and the
-//! collision volumes contain the URDF's collision primitives. The Panda's dynamics against
-//! Pinocchio: `dynamics::pinocchio::imported_panda_matches_pinocchio`.
+//! collision volumes of each body contain the URDF's collision primitives on it, for the Panda and
+//! TIAGo++. Their dynamics against Pinocchio: `dynamics::pinocchio::imported_panda_matches_pinocchio` and
+//! `imported_tiago_dual_matches_pinocchio`.
 //!
 //! After changing the import or a robot's URDF, re-run the command in the robot's `README.md`
 //! (or `UPDATE_GENERATED=1 cargo test -p thesis-tests imported_files`).
@@ -9,32 +10,54 @@
 
 use std::path::PathBuf;
 
-use fixtures::robots::panda;
+use fixtures::robots::{panda, tiago_dual};
 use host_sim::import::collision::primitive_points;
 use host_sim::import::{generate, robots_index, ImportOptions, ROBOTS_DIR};
+use kernel::model::Frame;
 use kernel::tasks::collision::SweptSphere;
-use nalgebra::Vector3;
+use kernel::BodyId;
+use nalgebra::{Point3, Vector3};
 
 fn repository() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
-/// The import of the Panda as its README states it.
-fn panda_import() -> ImportOptions {
+/// The fixed-base import of `name` from `fixtures/urdf/<name>.urdf` with the vendored meshes, as
+/// the robot's README states it.
+fn import(name: &str, tcps: &[&str]) -> ImportOptions {
     ImportOptions {
         root: repository(),
-        urdf: "fixtures/urdf/panda.urdf".to_owned(),
-        name: "panda".to_owned(),
-        tcps: vec!["panda_hand_tcp".to_owned()],
+        urdf: format!("fixtures/urdf/{name}.urdf"),
+        name: name.to_owned(),
+        tcps: tcps.iter().map(|t| (*t).to_owned()).collect(),
         planar_base: false,
         package_path: Some("fixtures/urdf/packages".to_owned()),
     }
 }
 
+fn panda_import() -> ImportOptions {
+    import("panda", &["panda_hand_tcp"])
+}
+
+/// TIAGo++ with the grasping frames of its Hey5 hands as TCPs: with the hands frozen, the point
+/// between the fingers the hand grasps at (0.13 m ahead of the wrist's tool flange
+/// `arm_*_tool_link`), as `panda_hand_tcp` is the Panda's.
+fn tiago_dual_import() -> ImportOptions {
+    import("tiago_dual", &["hand_left_grasping_frame", "hand_right_grasping_frame"])
+}
+
 #[test]
 fn imported_files_are_up_to_date() {
-    let options = panda_import();
-    for (name, generated) in generate(&options).unwrap() {
+    for options in [panda_import(), tiago_dual_import()] {
+        check_files(&options);
+    }
+    let index = std::fs::read_to_string(repository().join(ROBOTS_DIR).join("mod.rs")).unwrap();
+    assert_eq!(index, robots_index(&repository().join(ROBOTS_DIR)).unwrap());
+}
+
+/// The checked-in files of an import are what it generates today.
+fn check_files(options: &ImportOptions) {
+    for (name, generated) in generate(options).unwrap() {
         let path = options.directory().join(&name);
         if std::env::var("UPDATE_GENERATED").is_ok_and(|v| v == "1") {
             std::fs::write(&path, &generated).unwrap();
@@ -48,8 +71,6 @@ fn imported_files_are_up_to_date() {
             options.command()
         );
     }
-    let index = std::fs::read_to_string(repository().join(ROBOTS_DIR).join("mod.rs")).unwrap();
-    assert_eq!(index, robots_index(&repository().join(ROBOTS_DIR)).unwrap());
 }
 
 #[test]
@@ -79,47 +100,91 @@ fn the_panda_controls_its_arm_and_freezes_its_fingers() {
     assert!(panda::model::<f32>().is_ok());
 }
 
-/// The volumes of one link parsed from the collision file (the file format of
-/// `fixtures/collision/justin.collision`).
-fn volumes_of(file: &str, link: &str) -> Vec<SweptSphere<f64>> {
+#[test]
+fn tiago_dual_controls_its_torso_lift_and_arms_and_freezes_the_rest() {
+    assert_eq!(tiago_dual::N, 15);
+    let arm = |side: &'static str| (1..=7).map(move |k| format!("arm_{side}_{k}_joint"));
+    let controlled: Vec<String> =
+        std::iter::once("torso_lift_joint".to_owned()).chain(arm("left")).chain(arm("right")).collect();
+    assert_eq!(tiago_dual::JOINT_NAMES.to_vec(), controlled);
+    // 129 joints: 28 fixed, 15 controlled, 86 frozen (head 2, wheels and suspensions 4, casters 8,
+    // hands 2 x 36).
+    assert_eq!(tiago_dual::FROZEN_JOINTS.len(), 86);
+    let frozen = |prefix: &str| tiago_dual::FROZEN_JOINTS.iter().filter(|j| j.starts_with(prefix)).count();
+    assert_eq!([frozen("head_"), frozen("wheel_") + frozen("suspension_"), frozen("caster_")], [2, 4, 8]);
+    assert_eq!([frozen("hand_left_"), frozen("hand_right_")], [36, 36]);
+    assert_eq!(tiago_dual::TCPS, [tiago_dual::HAND_LEFT_GRASPING_FRAME, tiago_dual::HAND_RIGHT_GRASPING_FRAME]);
+    let model = tiago_dual::model::<f64>().unwrap();
+    // The URDF's 98.05 kg less the base, wheels, casters and fixed torso column welded to the world:
+    // what Pinocchio's model with the same joints locked moves (`fixtures/pinocchio/tiago_dual.json`).
+    assert!((model.total_mass() - 31.280055).abs() < 1e-9, "{}", model.total_mass());
+    // The frozen hand hangs from the last arm body; the frozen head from the torso lift.
+    let parent = |frame: kernel::FrameId| model.frames()[frame.0].parent;
+    assert_eq!(parent(tiago_dual::HAND_LEFT_INDEX_FLEX_3_LINK), parent(tiago_dual::ARM_LEFT_7_LINK));
+    assert_eq!(parent(tiago_dual::HEAD_2_LINK), parent(tiago_dual::TORSO_LIFT_LINK));
+}
+
+/// The volumes of the collision file (the file format of `fixtures/collision/justin.collision`),
+/// each with its link, in the link's frame.
+fn volumes(file: &str) -> Vec<(String, SweptSphere<f64>)> {
     file.lines()
         .filter_map(|line| {
             let fields: Vec<&str> = line.split_whitespace().collect();
-            if fields.len() < 5 || fields[3] != link {
+            if fields.len() < 5 || !["sphere", "capsule", "triangle"].contains(&fields[0]) {
                 return None;
             }
             let numbers: Vec<f64> = fields[4..].iter().map(|x| x.parse().unwrap()).collect();
             let p = |k: usize| Vector3::new(numbers[1 + 3 * k], numbers[2 + 3 * k], numbers[3 + 3 * k]);
-            match fields[0] {
-                "sphere" => Some(SweptSphere::sphere(p(0), numbers[0])),
-                "capsule" => Some(SweptSphere::capsule(p(0), p(1), numbers[0])),
-                "triangle" => Some(SweptSphere::swept_triangle(p(0), p(1), p(2), numbers[0])),
-                _ => None,
-            }
+            let shape = match fields[0] {
+                "sphere" => SweptSphere::sphere(p(0), numbers[0]),
+                "capsule" => SweptSphere::capsule(p(0), p(1), numbers[0]),
+                "triangle" => SweptSphere::swept_triangle(p(0), p(1), p(2), numbers[0]),
+                _ => return None,
+            };
+            Some((fields[3].to_owned(), shape))
         })
         .collect()
 }
 
 #[test]
 fn the_collision_volumes_contain_the_urdf_primitives() {
-    let options = panda_import();
-    let file = std::fs::read_to_string(options.directory().join("panda.collision")).unwrap();
+    // Panda: 9 meshes (links 0 to 7, hand) and 2 x 4 finger boxes.
+    let panda_model = panda::model::<f64>().unwrap();
+    contains_the_primitives(&panda_import(), 17, panda_model.frames(), &panda::FRAME_NAMES);
+    // TIAGo++: 59 meshes (base, torso 4, head 2, arms 2 x 6, hands 2 x 20), 33 boxes (torso 3,
+    // hands 2 x 15), 12 spheres, 8 cylinders.
+    let tiago_model = tiago_dual::model::<f64>().unwrap();
+    contains_the_primitives(&tiago_dual_import(), 112, tiago_model.frames(), &tiago_dual::FRAME_NAMES);
+}
+
+/// Every point of every `<collision>` primitive of the robot (`count` of them) lies in the
+/// volumes of its body (the import drops a volume inside another one of the same body); `frames`
+/// and `names` are the generated model's frames and their links.
+fn contains_the_primitives(options: &ImportOptions, count: usize, frames: &[Frame<f64>], names: &[&str]) {
+    let frame_of = |link: &str| &frames[names.iter().position(|n| *n == link).unwrap()];
+    let file = std::fs::read_to_string(options.directory().join(format!("{}.collision", options.name))).unwrap();
+    let volumes: Vec<(Option<BodyId>, SweptSphere<f64>)> = volumes(&file)
+        .iter()
+        .map(|(link, shape)| (frame_of(link).parent, shape.transformed(&frame_of(link).placement)))
+        .collect();
     let urdf = std::fs::read_to_string(repository().join(&options.urdf)).unwrap();
     let packages = repository().join("fixtures/urdf/packages");
     let primitives = primitive_points(&urdf, Some(&packages)).unwrap();
-    assert_eq!(primitives.len(), 17, "9 meshes (links 0 to 7, hand) and 2 x 4 finger boxes");
+    assert_eq!(primitives.len(), count, "{}", options.name);
     let mut worst = f64::NEG_INFINITY;
     let mut points = 0;
     for (link, surface) in &primitives {
-        let volumes = volumes_of(&file, link);
-        assert!(!volumes.is_empty(), "no volume on link {link}");
+        let frame = frame_of(link);
+        let body: Vec<&SweptSphere<f64>> = volumes.iter().filter(|(b, _)| *b == frame.parent).map(|(_, v)| v).collect();
+        assert!(!body.is_empty(), "no volume on the body of link {link}");
         for p in surface {
-            let inside = volumes.iter().map(|v| v.signed_distance_to(p)).fold(f64::INFINITY, f64::min);
+            let p = (frame.placement * Point3::from(*p)).coords;
+            let inside = body.iter().map(|v| v.signed_distance_to(&p)).fold(f64::INFINITY, f64::min);
             worst = worst.max(inside);
             points += 1;
         }
     }
-    println!("{points} primitive points, largest signed distance to the volumes {worst:.2e} m");
+    println!("{}: {points} primitive points, largest signed distance to the volumes {worst:.2e} m", options.name);
     assert!(points > 1000);
     assert!(worst <= 1e-12, "a point of a collision primitive lies {worst} m outside its volumes");
 }

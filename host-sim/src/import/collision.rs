@@ -10,9 +10,16 @@
 //!   half that side (exact, as Justin's chest);
 //! - mesh → its bounding capsule: the axis is the vertices' principal direction through their
 //!   centroid, the radius the largest distance of a vertex from that axis, the end points the
-//!   shortest segment on the axis that keeps every vertex inside. Meshes are read with `stl_io`
-//!   (STL only); `package://<package>/<path>` resolves to `<--package-path>/<package>/<path>`. A
-//!   capsule is convex, so containing the vertices it contains the whole mesh.
+//!   shortest segment on the axis that keeps every vertex inside. STL meshes are read with
+//!   `stl_io`, the vertex positions of COLLADA (`.dae`) meshes with `RustyXML`;
+//!   `package://<package>/<path>` resolves to `<--package-path>/<package>/<path>`. A capsule is
+//!   convex, so containing the vertices it contains the whole mesh.
+//!
+//! **Contained volumes.** A volume that lies inside another volume of the same body is dropped
+//! (its distance to anything is never the smaller one): TIAGo++'s finger primitives lie inside the
+//! safety box of its hand. A swept sphere `A` (core `a`, radius `r_a`) lies inside `B` exactly
+//! when every corner `v` of `a` has `d(v, B) + r_a ≤ 0`: the distance to `B`'s convex core is
+//! convex, so its largest value on `a` is at a corner.
 //!
 //! **Pair survey.** Pairs on one body and pairs of adjacent links are dropped by the kernel's rules
 //! ([`kernel::tasks::collision::exclusion_rule`]; the same rule is applied here on the
@@ -69,8 +76,10 @@ pub struct FittedVolume {
 /// The fitted volumes of a robot.
 #[derive(Clone, Debug)]
 pub struct Fitted {
-    /// Every volume, in link and collision-element order.
+    /// Every volume kept, in link and collision-element order.
     pub volumes: Vec<FittedVolume>,
+    /// The volumes dropped as contained, each with the name of the volume that contains it.
+    pub contained: Vec<(FittedVolume, String)>,
 }
 
 /// Fits volumes to every `<collision>` element of `robot`. `packages` resolves `package://` URIs.
@@ -88,7 +97,52 @@ pub fn fit(robot: &urdf_rs::Robot, packages: Option<&Path>) -> Result<Fitted, St
             }
         }
     }
-    Ok(Fitted { volumes })
+    Ok(Fitted { volumes, contained: Vec::new() })
+}
+
+/// Drops every volume that lies inside another kept volume of the same body of `d` (see the
+/// module docs).
+pub(crate) fn without_contained(d: &Description, fitted: Fitted) -> Result<Fitted, String> {
+    let attached = attach(d, &fitted.volumes)?;
+    let mut kept = vec![true; fitted.volumes.len()];
+    let mut contained = Vec::new();
+    for (i, (body, shape)) in attached.iter().enumerate() {
+        let container = attached.iter().enumerate().position(|(j, (other_body, other))| {
+            j != i && kept.get(j) == Some(&true) && other_body == body && inside(shape, other)
+        });
+        if let (Some(j), Some(volume), Some(flag)) = (container, fitted.volumes.get(i), kept.get_mut(i)) {
+            *flag = false;
+            let name = fitted.volumes.get(j).map_or_else(String::new, |v| v.name.clone());
+            contained.push((volume.clone(), name));
+        }
+    }
+    let volumes = fitted.volumes.into_iter().zip(kept).filter_map(|(v, keep)| keep.then_some(v)).collect();
+    Ok(Fitted { volumes, contained })
+}
+
+/// Whether `a` lies inside `b` (both in one frame).
+fn inside(a: &SweptSphere<f64>, b: &SweptSphere<f64>) -> bool {
+    let corners: &[Vector3<f64>] = match &a.core {
+        Core::Point(p) => std::slice::from_ref(p),
+        Core::Segment(points) => points,
+        Core::Triangle(points) => points,
+    };
+    corners.iter().all(|v| b.signed_distance_to(v) + a.radius <= 0.0)
+}
+
+/// A volume's body (`None`: the world) and its shape in that body's frame.
+type Attached = (Option<usize>, SweptSphere<f64>);
+
+/// Each volume with the body it moves with and its shape in that body's frame.
+fn attach(d: &Description, volumes: &[FittedVolume]) -> Result<Vec<Attached>, String> {
+    volumes
+        .iter()
+        .map(|v| {
+            let frame =
+                d.frames.iter().find(|f| f.link == v.link).ok_or_else(|| format!("internal: no frame {}", v.link))?;
+            Ok((frame.parent, v.shape.transformed(&frame.placement)))
+        })
+        .collect()
 }
 
 /// The volume(s) of one primitive placed by `origin`, each with its description.
@@ -135,7 +189,7 @@ fn box_triangles(size: [f64; 3], origin: &Placement<f64>) -> Vec<(SweptSphere<f6
     ]
 }
 
-/// The vertices of the STL mesh `filename` (m, mesh frame, scaled).
+/// The vertices of the mesh `filename`, STL or COLLADA (m, mesh frame, scaled).
 pub fn mesh_vertices(filename: &str, scale: [f64; 3], packages: Option<&Path>) -> Result<Vec<Vector3<f64>>, String> {
     let path = match filename.strip_prefix("package://") {
         Some(rest) => {
@@ -145,14 +199,85 @@ pub fn mesh_vertices(filename: &str, scale: [f64; 3], packages: Option<&Path>) -
         }
         None => Path::new(filename.strip_prefix("file://").unwrap_or(filename)).to_path_buf(),
     };
-    let mut file = std::fs::File::open(&path).map_err(|e| format!("mesh {}: {e}", path.display()))?;
-    let mesh = stl_io::read_stl(&mut file).map_err(|e| format!("mesh {} (only STL is read): {e}", path.display()))?;
-    let [sx, sy, sz] = scale;
-    Ok(mesh
-        .vertices
-        .iter()
-        .map(|v| Vector3::new(f64::from(v[0]) * sx, f64::from(v[1]) * sy, f64::from(v[2]) * sz))
-        .collect())
+    let collada = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("dae"));
+    let vertices = if collada { collada_vertices(&path)? } else { stl_vertices(&path)? };
+    Ok(vertices.iter().map(|v| v.component_mul(&Vector3::from(scale))).collect())
+}
+
+/// The vertices of an STL file (m).
+fn stl_vertices(path: &Path) -> Result<Vec<Vector3<f64>>, String> {
+    let mut file = std::fs::File::open(path).map_err(|e| format!("mesh {}: {e}", path.display()))?;
+    let mesh =
+        stl_io::read_stl(&mut file).map_err(|e| format!("mesh {} (STL or COLLADA .dae): {e}", path.display()))?;
+    Ok(mesh.vertices.iter().map(|v| Vector3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2]))).collect())
+}
+
+/// The vertices of a COLLADA (`.dae`) file (m): every `<mesh>`'s `POSITION` source, scaled by the
+/// `<unit meter>` of its `<asset>`. The coordinates are read as they stand, in the link frame, as
+/// ROS and Pinocchio read a collision mesh: `<up_axis>` is ignored (MeshLab writes `Y_UP` over
+/// link-frame coordinates). A `<node>` transform (`matrix`, `translate`, `rotate`, `scale`) is
+/// refused, not applied.
+fn collada_vertices(path: &Path) -> Result<Vec<Vector3<f64>>, String> {
+    let fail = |problem: String| format!("mesh {}: {problem}", path.display());
+    let text = std::fs::read_to_string(path).map_err(|e| fail(e.to_string()))?;
+    let root: xml::Element = text.parse().map_err(|e| fail(format!("malformed XML: {e}")))?;
+    let unit = descendants(&root, "unit").first().and_then(|u| attribute_number(u, "meter")).unwrap_or(1.0);
+    let transforms = ["matrix", "translate", "rotate", "scale"];
+    if let Some(node) = descendants(&root, "node").iter().find(|n| n.children.iter().any(|c| is_named(c, &transforms)))
+    {
+        let id = node.get_attribute("id", None).unwrap_or("without id");
+        return Err(fail(format!("<node> {id} has a transform, which the import does not apply")));
+    }
+    let mut vertices = Vec::new();
+    for mesh in descendants(&root, "mesh") {
+        let source = descendants(mesh, "vertices")
+            .iter()
+            .flat_map(|v| descendants(v, "input"))
+            .find(|input| input.get_attribute("semantic", None) == Some("POSITION"))
+            .and_then(|input| input.get_attribute("source", None))
+            .and_then(|id| id.strip_prefix('#'))
+            .ok_or_else(|| fail("a <mesh> without a POSITION input".to_owned()))?;
+        let array = descendants(mesh, "source")
+            .into_iter()
+            .find(|s| s.get_attribute("id", None) == Some(source))
+            .and_then(|s| descendants(s, "float_array").into_iter().next())
+            .ok_or_else(|| fail(format!("no <float_array> for the positions #{source}")))?;
+        let numbers: Vec<f64> = array
+            .content_str()
+            .split_whitespace()
+            .map(|x| x.parse::<f64>().map_err(|e| fail(format!("position {x:?}: {e}"))))
+            .collect::<Result<_, _>>()?;
+        if numbers.len() % 3 != 0 {
+            return Err(fail(format!("{} position numbers, not a multiple of 3", numbers.len())));
+        }
+        vertices.extend(numbers.chunks_exact(3).map(|c| Vector3::from_column_slice(c) * unit));
+    }
+    Ok(vertices)
+}
+
+/// Whether `node` is an element with one of `names` (any namespace).
+fn is_named(node: &xml::Xml, names: &[&str]) -> bool {
+    matches!(node, xml::Xml::ElementNode(e) if names.contains(&e.name.as_str()))
+}
+
+/// Every element below `element` named `name` (any namespace; COLLADA declares a default one),
+/// in document order.
+fn descendants<'a>(element: &'a xml::Element, name: &str) -> Vec<&'a xml::Element> {
+    let mut found = Vec::new();
+    for child in &element.children {
+        if let xml::Xml::ElementNode(e) = child {
+            if e.name == name {
+                found.push(e);
+            }
+            found.extend(descendants(e, name));
+        }
+    }
+    found
+}
+
+/// A numeric attribute.
+fn attribute_number(element: &xml::Element, name: &str) -> Option<f64> {
+    element.get_attribute(name, None).and_then(|x| x.parse().ok())
 }
 
 /// A link's name and points in its frame (m).
@@ -284,14 +409,7 @@ pub struct Survey {
 
 /// Surveys every pair of `volumes` the kernel's rules keep (see the module docs).
 pub(crate) fn survey(d: &Description, volumes: &[FittedVolume]) -> Result<Survey, String> {
-    let attached: Vec<(Option<usize>, SweptSphere<f64>)> = volumes
-        .iter()
-        .map(|v| {
-            let frame =
-                d.frames.iter().find(|f| f.link == v.link).ok_or_else(|| format!("internal: no frame {}", v.link))?;
-            Ok((frame.parent, v.shape.transformed(&frame.placement)))
-        })
-        .collect::<Result<_, String>>()?;
+    let attached = attach(d, volumes)?;
     let mut pairs = Vec::new();
     for i in 0..attached.len() {
         for j in i + 1..attached.len() {
@@ -427,6 +545,7 @@ pub fn file(options: &ImportOptions, fitted: &Fitted, survey: &Survey) -> String
         ACTIVATION_DISTANCE_M + SURVEY_MARGIN_M
     ));
     s.push_str("#   always_near: it stays below d0.\n\n");
+    s.push_str(&format!("# Dropped as inside another volume of the same body: {}.\n\n", contained_list(fitted)));
     s.push_str(&format!("# ---- volumes: {} ----\n", fitted.volumes.len()));
     for v in &fitted.volumes {
         s.push_str(&format!("# {}\n", v.source));
@@ -463,6 +582,16 @@ pub fn file(options: &ImportOptions, fitted: &Fitted, survey: &Survey) -> String
     s
 }
 
+/// The dropped volumes as `name (in container)`, comma-separated, or `none`.
+fn contained_list(fitted: &Fitted) -> String {
+    if fitted.contained.is_empty() {
+        return "none".to_owned();
+    }
+    let names: Vec<String> =
+        fitted.contained.iter().map(|(v, container)| format!("{} (in {container})", v.name)).collect();
+    names.join(", ")
+}
+
 /// The README's collision section.
 pub fn readme_section(fitted: &Fitted) -> String {
     let mut s = String::from("## Collision model\n\n");
@@ -470,9 +599,16 @@ pub fn readme_section(fitted: &Fitted) -> String {
         "Swept-sphere volumes fitted to the URDF's `<collision>` elements (`host-sim/src/import/collision.rs`): ",
     );
     s.push_str("a cylinder or capsule becomes a capsule, a box the rectangle in its mid-plane swept by half its ");
-    s.push_str("thickness, a mesh (STL) its bounding capsule along the vertices' principal direction. The pair ");
+    s.push_str(
+        "thickness, a mesh (STL or COLLADA) its bounding capsule along the vertices' principal direction. The pair ",
+    );
     s.push_str(&format!(
         "exclusions come from a survey over {SURVEY_SAMPLES} random configurations (see the header of the `.collision` file).\n\n"
+    ));
+    s.push_str(&format!(
+        "Dropped as inside another volume of the same body ({}): {}.\n\n",
+        fitted.contained.len(),
+        contained_list(fitted)
     ));
     s.push_str("| volume | link | fitted to |\n| --- | --- | --- |\n");
     for v in &fitted.volumes {
@@ -498,6 +634,61 @@ mod tests {
         // Along x the points span 0.49 m: the capsule is not much longer.
         let Core::Segment([a, b]) = capsule.core else { panic!("not a capsule") };
         assert!((a - b).norm() + 2.0 * capsule.radius < 0.49 + 0.15, "{capsule:?}");
+    }
+
+    #[test]
+    fn a_volume_is_inside_another_exactly_when_its_corners_are_deep_enough() {
+        let capsule = SweptSphere::capsule(Vector3::zeros(), Vector3::new(1.0, 0.0, 0.0), 0.2);
+        let segment = |y: f64, r: f64| SweptSphere::capsule(Vector3::new(0.1, y, 0.0), Vector3::new(0.9, y, 0.0), r);
+        assert!(inside(&segment(0.0, 0.2), &capsule));
+        assert!(inside(&segment(0.05, 0.15), &capsule));
+        assert!(!inside(&segment(0.05, 0.16), &capsule), "reaches 0.21 from the axis");
+        let triangle = SweptSphere::swept_triangle(
+            Vector3::new(0.2, -0.1, 0.0),
+            Vector3::new(0.8, -0.1, 0.0),
+            Vector3::new(0.5, 0.1, 0.0),
+            0.1,
+        );
+        assert!(inside(&triangle, &capsule));
+        assert!(!inside(&capsule, &triangle));
+        assert!(inside(&SweptSphere::sphere(Vector3::new(1.1, 0.0, 0.0), 0.099), &capsule));
+        assert!(!inside(&SweptSphere::sphere(Vector3::new(1.1, 0.0, 0.0), 0.11), &capsule));
+    }
+
+    /// A COLLADA file with one mesh of two vertices (positions in cm) beside a normals source.
+    const DAE: &str = r##"<?xml version="1.0"?>
+        <COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">
+          <asset><unit meter="0.01"/><up_axis>Y_UP</up_axis></asset>
+          <library_geometries><geometry id="g"><mesh>
+            <source id="g-normals"><float_array id="n" count="3">9 9 9</float_array></source>
+            <source id="g-positions"><float_array id="p" count="6">1 2 3 -4 5 -6</float_array></source>
+            <vertices id="g-vertices"><input semantic="POSITION" source="#g-positions"/></vertices>
+          </mesh></geometry></library_geometries>
+          <library_visual_scenes><visual_scene id="s">
+            <node id="node"><instance_geometry url="#g"/></node>
+          </visual_scene></library_visual_scenes>
+        </COLLADA>"##;
+
+    /// The vertices (or the error) of the COLLADA `text` scaled by `[1, 1, 2]`.
+    fn collada(text: &str) -> Result<Vec<Vector3<f64>>, String> {
+        let path = std::env::temp_dir().join(format!("host-sim-{}-mesh.dae", std::process::id()));
+        std::fs::write(&path, text).unwrap();
+        let vertices = mesh_vertices(path.to_str().unwrap(), [1.0, 1.0, 2.0], None);
+        std::fs::remove_file(&path).unwrap();
+        vertices
+    }
+
+    #[test]
+    fn collada_positions_are_read_in_the_files_unit() {
+        let vertices = collada(DAE).unwrap();
+        let expected = [Vector3::new(0.01, 0.02, 0.06), Vector3::new(-0.04, 0.05, -0.12)];
+        assert_eq!(vertices.len(), 2);
+        for (v, e) in vertices.iter().zip(expected) {
+            assert!((v - e).amax() < 1e-15, "{v} != {e}");
+        }
+        let moved = DAE.replace(r#"<node id="node">"#, r#"<node id="node"><translate>0 0 1</translate>"#);
+        let error = collada(&moved).unwrap_err();
+        assert!(error.ends_with("<node> node has a transform, which the import does not apply"), "{error}");
     }
 
     #[test]

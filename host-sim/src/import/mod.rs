@@ -5,13 +5,15 @@
 //!    robot's coordinates. Every other movable joint (head, wheels, casters, grippers) is frozen:
 //!    its `type` becomes `fixed` (at zero, so its `<origin>` is the placement), its `<mimic>` and
 //!    `<coupling>` are dropped, and its child link is merged into the controlled body like any
-//!    fixed link. `--base planar` adds the platform coordinates `base_x`, `base_y` (prismatic)
-//!    and `base_theta` (continuous) between a new root link `world` and the URDF's root.
+//!    fixed link. On a fixed base the links welded to the world (the root and the links fixed
+//!    to it) lose their `<inertial>`: it never enters the dynamics. `--base planar` adds the
+//!    platform coordinates `base_x`, `base_y` (prismatic) and `base_theta` (continuous) between
+//!    a new root link `world` and the URDF's root.
 //! 2. **Model.** The prepared URDF goes through the same loader ([`crate::urdf`]) and the same
 //!    code generator ([`crate::codegen`]) as Justin's, into `mod.rs`, a module of
 //!    `fixtures::robots` (the index `fixtures/robots/mod.rs` is rewritten to list every robot).
 //! 3. **Collision model** ([`collision`]): swept-sphere volumes fitted to the URDF's
-//!    `<collision>` geometry and the pair survey, written to `<name>.collision` in the format of
+//!    `<collision>` geometry, less those inside another volume of their body, and the pair survey, written to `<name>.collision` in the format of
 //!    `fixtures/collision/justin.collision`.
 //! 4. **`README.md`**: the command, the controlled, frozen and TCP frames, the collision model.
 //!
@@ -86,9 +88,10 @@ pub type Files = Vec<(String, String)>;
 /// Generates the files of the robot without writing them.
 ///
 /// Errors (one line each): unreadable or malformed URDF (every loader error of
-/// [`crate::urdf::load`]), an invalid name, no or an unknown TCP link, a floating or planar
-/// joint on a controlled chain, a controlled joint coupled to a frozen one, a link name that
-/// is no Rust identifier or clashes with a generated constant, a mesh that cannot be read.
+/// [`crate::urdf::load`], a kinematic loop among them), an invalid name, no or an unknown TCP
+/// link, a floating or planar joint on a controlled chain, a controlled joint coupled to a frozen
+/// one, a negative mass, a controlled body without mass, a link name that is no Rust identifier
+/// or clashes with a generated constant, a mesh that cannot be read.
 pub fn generate(options: &ImportOptions) -> Result<Files, String> {
     check_identifier(&options.name, "robot name")?;
     if options.name.chars().any(|c| c.is_ascii_uppercase()) {
@@ -99,10 +102,8 @@ pub fn generate(options: &ImportOptions) -> Result<Files, String> {
     }
     let path = options.root.join(&options.urdf);
     let text = std::fs::read_to_string(&path).map_err(|e| format!("cannot read URDF {}: {e}", path.display()))?;
-    let prepared = prepare(&text, &options.tcps, options.planar_base).map_err(|e| format!("{}: {e}", options.urdf))?;
-    let description =
-        urdf::describe(&prepared.text, Coupling::Coupled).map_err(|e| format!("{}: {e}", options.urdf))?;
-    check_names(&description)?;
+    let (prepared, description) =
+        describe(&text, &options.tcps, options.planar_base).map_err(|e| format!("{}: {e}", options.urdf))?;
     let module = RobotModule {
         command: options.command(),
         frozen_joints: prepared.frozen.clone(),
@@ -112,10 +113,10 @@ pub fn generate(options: &ImportOptions) -> Result<Files, String> {
     let source = codegen::model_source(&description, &options.urdf, &Module::Robot(&module));
     let packages = options.package_path.as_ref().map(|dir| options.root.join(dir));
     let robot = urdf_rs::read_from_string(&prepared.text).map_err(|e| format!("{}: {e}", options.urdf))?;
-    let fitted = collision::fit(&robot, packages.as_deref())?;
+    let fitted = collision::without_contained(&description, collision::fit(&robot, packages.as_deref())?)?;
     let survey = collision::survey(&description, &fitted.volumes)?;
     let collision_file = collision::file(options, &fitted, &survey);
-    let readme = readme(options, &description, &module, &fitted, &survey);
+    let readme = readme(options, &description, &module, &prepared.welded, &fitted, &survey);
     Ok(vec![
         ("mod.rs".to_owned(), source),
         (format!("{}.collision", options.name), collision_file),
@@ -165,11 +166,30 @@ struct Prepared {
     text: String,
     /// Movable joints frozen at zero, in file order.
     frozen: Vec<String>,
+    /// Links welded to the world (fixed base) whose `<inertial>` was dropped, in file order.
+    welded: Vec<String>,
 }
 
-/// Freezes the joints off the chains to `tcps` and adds the planar base if asked.
+/// The prepared URDF and its description, checked: link names, and a mass on every controlled
+/// body.
+fn describe(text: &str, tcps: &[String], planar_base: bool) -> Result<(Prepared, Description), String> {
+    let prepared = prepare(text, tcps, planar_base)?;
+    let description = urdf::describe(&prepared.text, Coupling::Coupled)?;
+    check_names(&description)?;
+    if let Some(body) = description.bodies.iter().find(|b| b.inertia.mass <= 0.0) {
+        return Err(format!(
+            "link {} (joint {}) has no mass, with the links fixed to it: a controlled body needs a positive mass",
+            body.link, body.joint
+        ));
+    }
+    Ok((prepared, description))
+}
+
+/// Freezes the joints off the chains to `tcps`, drops the inertia of the links welded to the
+/// world (fixed base) and adds the planar base if asked.
 fn prepare(text: &str, tcps: &[String], planar_base: bool) -> Result<Prepared, String> {
     let mut root: xml::Element = text.parse().map_err(|e| format!("malformed XML: {e}"))?;
+    check_masses(&root)?;
     let joints = joint_elements(&root);
     let parent_joint: HashMap<&str, &JointElement> = joints.iter().map(|j| (j.child.as_str(), j)).collect();
     let links: HashSet<String> = root.get_children("link", None).filter_map(|l| attribute(l, "name")).collect();
@@ -205,10 +225,61 @@ fn prepare(text: &str, tcps: &[String], planar_base: bool) -> Result<Prepared, S
         }
     }
     freeze(&mut root, &frozen);
-    if planar_base {
+    let welded = if planar_base {
         add_planar_base(&mut root, &links)?;
+        Vec::new()
+    } else {
+        drop_welded_inertia(&mut root)
+    };
+    Ok(Prepared { text: root.to_string(), frozen, welded })
+}
+
+/// Refuses a link with a negative `<mass>`.
+fn check_masses(root: &xml::Element) -> Result<(), String> {
+    for link in root.get_children("link", None) {
+        let mass = link.get_child("inertial", None).and_then(|i| child_attribute(i, "mass", "value"));
+        if let Some(value) = mass.filter(|m| m.trim().parse::<f64>().is_ok_and(|m| m < 0.0)) {
+            let name = attribute(link, "name").unwrap_or_default();
+            return Err(format!("link {name} has a negative mass ({value} kg)"));
+        }
     }
-    Ok(Prepared { text: root.to_string(), frozen })
+    Ok(())
+}
+
+/// Drops the `<inertial>` of every link welded to the world (the root link and the links fixed
+/// to it, frozen joints included): on a fixed base their inertia never enters `M`, `C` or `g`,
+/// and the loader need not read it (TIAGo++'s antennas carry a non-physical one). Returns the
+/// links whose inertial was dropped.
+fn drop_welded_inertia(root: &mut xml::Element) -> Vec<String> {
+    let joints = joint_elements(root);
+    let children: HashSet<&str> = joints.iter().map(|j| j.child.as_str()).collect();
+    let mut welded: HashSet<String> = root
+        .get_children("link", None)
+        .filter_map(|l| attribute(l, "name"))
+        .filter(|name| !children.contains(name.as_str()))
+        .collect();
+    loop {
+        let reached: Vec<String> = joints
+            .iter()
+            .filter(|j| j.kind == "fixed" && welded.contains(&j.parent) && !welded.contains(&j.child))
+            .map(|j| j.child.clone())
+            .collect();
+        if reached.is_empty() {
+            break;
+        }
+        welded.extend(reached);
+    }
+    let mut dropped = Vec::new();
+    for child in &mut root.children {
+        let xml::Xml::ElementNode(link) = child else { continue };
+        let name = attribute(link, "name").unwrap_or_default();
+        if link.name != "link" || !welded.contains(&name) || link.get_child("inertial", None).is_none() {
+            continue;
+        }
+        link.children.retain(|c| !matches!(c, xml::Xml::ElementNode(e) if e.name == "inertial"));
+        dropped.push(name);
+    }
+    dropped
 }
 
 /// A `<joint>` element's names.
@@ -322,6 +393,7 @@ fn readme(
     options: &ImportOptions,
     d: &Description,
     module: &RobotModule,
+    welded: &[String],
     fitted: &collision::Fitted,
     survey: &collision::Survey,
 ) -> String {
@@ -364,6 +436,12 @@ fn readme(
         "**Frozen joints** (fixed at zero; their links are merged into the controlled bodies): {}.\n\n",
         list(&module.frozen_joints)
     ));
+    if !module.planar_base {
+        s.push_str(&format!(
+            "**Welded to the world** (fixed base: their inertia never enters the dynamics, so the import drops it): {}.\n\n",
+            list(welded)
+        ));
+    }
     s.push_str(&format!("**TCP frames**: {}.\n\n", list(&module.tcps)));
     s.push_str(&collision::readme_section(fitted));
     s
@@ -406,14 +484,60 @@ mod tests {
         assert_eq!((d.coordinates[0].lower, d.coordinates[0].upper, d.coordinates[2].velocity), (-100.0, 100.0, 2.1));
     }
 
+    /// `URDF` with a point mass on every link: 1 kg, or the mass `masses` gives the link.
+    fn with_masses(masses: &[(&str, &str)]) -> String {
+        ["base", "a", "b", "finger", "head"].iter().fold(URDF.to_owned(), |text, link| {
+            let mass = masses.iter().find(|(l, _)| l == link).map_or("1", |(_, m)| m);
+            text.replace(
+                &format!("<link name=\"{link}\"/>"),
+                &format!(
+                    "<link name=\"{link}\"><inertial><mass value=\"{mass}\"/>\
+                     <inertia ixx=\"0\" ixy=\"0\" ixz=\"0\" iyy=\"0\" iyz=\"0\" izz=\"0\"/></inertial></link>"
+                ),
+            )
+        })
+    }
+
+    /// The import's error for `text` with the TCP `b`; it is one line.
+    fn error_of(text: &str) -> String {
+        let error = describe(text, &["b".to_owned()], false).err().unwrap();
+        assert!(!error.contains('\n'), "not one line: {error}");
+        error
+    }
+
     #[test]
     fn bad_input_gets_a_one_line_error() {
-        let unknown = prepare(URDF, &["nope".to_owned()], false).err().unwrap();
+        assert!(describe(&with_masses(&[]), &["b".to_owned()], false).is_ok());
+        let unknown = describe(&with_masses(&[]), &["nope".to_owned()], false).err().unwrap();
         assert_eq!(unknown, "unknown TCP frame nope: the URDF has no link of that name");
-        let floating = URDF.replace(r#"name="j1" type="revolute""#, r#"name="j1" type="floating""#);
-        let error = prepare(&floating, &["b".to_owned()], false).err().unwrap();
-        assert!(error.starts_with("joint j1 on the chain to TCP b is floating"), "{error}");
+        for kind in ["floating", "planar"] {
+            let text = with_masses(&[]).replace(r#"name="j2" type="revolute""#, &format!(r#"name="j2" type="{kind}""#));
+            let error = error_of(&text);
+            assert!(error.starts_with(&format!("joint j2 on the chain to TCP b is {kind}: only revolute")), "{error}");
+        }
+        let closing = r#"<joint name="back" type="revolute"><parent link="b"/><child link="a"/>
+            <limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>"#;
+        let looped = error_of(&with_masses(&[]).replace("</robot>", closing));
+        assert!(looped.contains("kinematic loop"), "{looped}");
+        assert_eq!(error_of(&with_masses(&[("head", "-0.5")])), "link head has a negative mass (-0.5 kg)");
+        // The frozen finger's mass counts for the last controlled body; without it the body is empty.
+        assert!(describe(&with_masses(&[("b", "0")]), &["b".to_owned()], false).is_ok());
+        assert_eq!(
+            error_of(&with_masses(&[("b", "0"), ("finger", "0")])),
+            "link b (joint j2) has no mass, with the links fixed to it: a controlled body needs a positive mass"
+        );
         assert!(check_identifier("9lives", "robot name").is_err());
-        assert!(!error.contains('\n'));
+    }
+
+    #[test]
+    fn links_welded_to_the_world_lose_their_inertia_on_a_fixed_base() {
+        // The head joint h is frozen: head is welded to base; a and b move.
+        let prepared = prepare(&with_masses(&[]), &["b".to_owned()], false).unwrap();
+        assert_eq!(prepared.welded, ["base", "head"]);
+        let d = urdf::describe(&prepared.text, Coupling::Coupled).unwrap();
+        let masses: Vec<f64> = d.bodies.iter().map(|b| b.inertia.mass).collect();
+        assert_eq!(masses, [1.0, 2.0], "a, then b with the frozen finger");
+        // On a planar base the root moves: nothing is dropped.
+        assert!(prepare(&with_masses(&[]), &["b".to_owned()], true).unwrap().welded.is_empty());
     }
 }

@@ -1,6 +1,6 @@
 //! Rigid-body dynamics of URDF robots against independent references.
 //!
-//! - [`pinocchio`]: `M`, `C`, `g` and a frame Jacobian of the URDFs in `fixtures/urdf/`, loaded
+//! - [`pinocchio`]: `M`, `C`, `g` and frame Jacobians of the URDFs in `fixtures/urdf/`, loaded
 //!   with `host_sim::urdf`, against the values Pinocchio computed for the same files
 //!   (`fixtures/pinocchio/<robot>.json`, written by `fixtures/pinocchio/generate.py`), and the
 //!   `host-sim dynamics` command against the library.
@@ -32,8 +32,9 @@ pub(crate) struct Fixture {
     pub robot: String,
     /// Absolute path of the URDF the reference was computed from.
     pub urdf: PathBuf,
-    /// Link whose origin Jacobian and placement are given.
-    pub frame: String,
+    /// Links whose origin Jacobians and placements are given: the file's `frame`, then its
+    /// `other_frames` (a robot with two TCPs).
+    pub frames: Vec<String>,
     /// Joint names in the reference's coordinate order.
     pub joints: Vec<String>,
     pub states: Vec<Reference>,
@@ -46,10 +47,17 @@ pub(crate) struct Reference {
     pub m: Rows,
     pub c: Rows,
     pub g: Vec<f64>,
+    /// The values of each of the fixture's `frames`.
+    pub frames: Vec<FrameValues>,
+}
+
+/// A frame's Jacobian and world placement at one state.
+#[derive(Debug, PartialEq)]
+pub(crate) struct FrameValues {
     /// 6×N, linear rows first, world-aligned at the frame origin.
     pub j: Rows,
-    pub frame_translation: Vec<f64>,
-    pub frame_rotation: Rows,
+    pub translation: Vec<f64>,
+    pub rotation: Rows,
 }
 
 impl Fixture {
@@ -61,6 +69,12 @@ impl Fixture {
         let string = |v: &Value| v.as_str().unwrap().to_owned();
         let vector = |v: &Value| -> Vec<f64> { v.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect() };
         let rows = |v: &Value| -> Rows { v.as_array().unwrap().iter().map(vector).collect() };
+        let frame_values = |f: &Value| FrameValues {
+            j: rows(&f["J"]),
+            translation: vector(&f["frame_translation"]),
+            rotation: rows(&f["frame_rotation"]),
+        };
+        let others = |v: &Value| v.as_array().cloned().unwrap_or_default();
         let states = doc["states"]
             .as_array()
             .unwrap()
@@ -71,15 +85,17 @@ impl Fixture {
                 m: rows(&s["M"]),
                 c: rows(&s["C"]),
                 g: vector(&s["g"]),
-                j: rows(&s["J"]),
-                frame_translation: vector(&s["frame_translation"]),
-                frame_rotation: rows(&s["frame_rotation"]),
+                frames: std::iter::once(frame_values(s))
+                    .chain(others(&s["other_frames"]).iter().map(frame_values))
+                    .collect(),
             })
             .collect();
         Self {
             robot: string(&doc["robot"]),
             urdf: repo_root().join(string(&doc["urdf"])),
-            frame: string(&doc["frame"]),
+            frames: std::iter::once(string(&doc["frame"]))
+                .chain(others(&doc["other_frames"]).iter().map(string))
+                .collect(),
             joints: doc["joints"].as_array().unwrap().iter().map(string).collect(),
             states,
         }
@@ -105,9 +121,7 @@ pub(crate) struct Evaluated {
     pub m: Rows,
     pub c: Rows,
     pub g: Vec<f64>,
-    pub j: Rows,
-    pub frame_translation: Vec<f64>,
-    pub frame_rotation: Rows,
+    pub frame: FrameValues,
 }
 
 /// Evaluates `M`, `C`, `g`, the Jacobian and the placement of `frame` at `(q, v)`.
@@ -132,9 +146,11 @@ pub(crate) fn evaluate<const N: usize, const B: usize, const F: usize>(
         m: rows(&m),
         c: rows(&c),
         g: g.iter().copied().collect(),
-        j: rows(&j),
-        frame_translation: placement.translation.vector.iter().copied().collect(),
-        frame_rotation: rows(placement.rotation.matrix()),
+        frame: FrameValues {
+            j: rows(&j),
+            translation: placement.translation.vector.iter().copied().collect(),
+            rotation: rows(placement.rotation.matrix()),
+        },
     }
 }
 

@@ -2,9 +2,10 @@
 //!
 //! For every fixture `fixtures/pinocchio/<robot>.json` (Pinocchio's `crba`,
 //! `computeCoriolisMatrix`, `computeGeneralizedGravity` and `LOCAL_WORLD_ALIGNED` frame
-//! Jacobian at 24 random states of the URDF in `fixtures/urdf/`), the URDF is loaded with
-//! `host_sim::urdf::load` (independent joints, fixed joints merged, as Pinocchio does) and
-//! `M`, `C`, `g`, `J` and the frame placement must agree per state within
+//! Jacobians at 24 random states of the URDF in `fixtures/urdf/`), the URDF is loaded with
+//! `host_sim::urdf::load` (independent joints, fixed joints merged, as Pinocchio does), or the
+//! imported robot is built by its generated constructor, and `M`, `C`, `g`, `C v`, and each
+//! frame's `J` and placement must agree per state within
 //! `max|A − B| ≤ 1e-9 · max(1, max|B|)`. Coordinates are matched by joint name, so the two
 //! libraries may order the tree differently. The `dynamics` command of `host-sim` must print
 //! exactly the library's numbers, and reject bad input with a one-line message.
@@ -15,7 +16,9 @@ use host_sim::dynamics_cli;
 use host_sim::urdf::{load, load_str, Coupling, UrdfRobot};
 use serde_json::{json, Value};
 
-use super::{evaluate, Fixture, Rows};
+use kernel::FrameId;
+
+use super::{evaluate, Evaluated, Fixture, Rows};
 
 /// Relative tolerance per quantity and state: `max|A − B| ≤ TOLERANCE · max(1, max|B|)`.
 const TOLERANCE: f64 = 1e-9;
@@ -59,24 +62,35 @@ fn check_robot<const N: usize, const B: usize, const F: usize>(
     tolerance: f64,
 ) {
     let name = &fixture.robot;
-    let frame = robot.frame(&fixture.frame).unwrap();
+    let frames: Vec<FrameId> = fixture.frames.iter().map(|f| robot.frame(f).unwrap()).collect();
     let perm = fixture.permutation(&robot.joint_names);
     let identity: Vec<usize> = (0..N.max(6)).collect();
-    let quantities = ["M", "C", "g", "J", "C v", "frame translation", "frame rotation"];
-    let mut worst = [(0.0_f64, 0_usize); 7];
+    let mut quantities: Vec<String> = ["M", "C", "g", "C v"].map(str::to_owned).into();
+    for frame in &fixture.frames {
+        quantities.extend(["J", "translation", "rotation"].map(|q| format!("{frame} {q}")));
+    }
+    let mut worst = vec![(0.0_f64, 0_usize); quantities.len()];
     for (s, reference) in fixture.states.iter().enumerate() {
         let q: Vec<f64> = perm.iter().map(|&p| reference.q[p]).collect();
         let v: Vec<f64> = perm.iter().map(|&p| reference.v[p]).collect();
-        let ours = evaluate(robot, frame, &q, &v);
-        let errors = [
-            relative_error(&ours.m, &reference.m, &perm, &perm),
-            relative_error(&ours.c, &reference.c, &perm, &perm),
-            relative_error(&column(&ours.g), &column(&reference.g), &perm, &[0]),
-            relative_error(&ours.j, &reference.j, &identity, &perm),
-            relative_error(&column(&product(&ours.c, &v)), &column(&product(&reference.c, &reference.v)), &perm, &[0]),
-            relative_error(&column(&ours.frame_translation), &column(&reference.frame_translation), &identity, &[0]),
-            relative_error(&ours.frame_rotation, &reference.frame_rotation, &identity, &identity),
+        let ours: Vec<Evaluated> = frames.iter().map(|&frame| evaluate(robot, frame, &q, &v)).collect();
+        let mut errors = vec![
+            relative_error(&ours[0].m, &reference.m, &perm, &perm),
+            relative_error(&ours[0].c, &reference.c, &perm, &perm),
+            relative_error(&column(&ours[0].g), &column(&reference.g), &perm, &[0]),
+            relative_error(
+                &column(&product(&ours[0].c, &v)),
+                &column(&product(&reference.c, &reference.v)),
+                &perm,
+                &[0],
+            ),
         ];
+        assert_eq!(reference.frames.len(), frames.len(), "{name}: state {s} lacks a frame");
+        for (ours, theirs) in ours.iter().map(|o| &o.frame).zip(&reference.frames) {
+            errors.push(relative_error(&ours.j, &theirs.j, &identity, &perm));
+            errors.push(relative_error(&column(&ours.translation), &column(&theirs.translation), &identity, &[0]));
+            errors.push(relative_error(&ours.rotation, &theirs.rotation, &identity, &identity));
+        }
         for (w, e) in worst.iter_mut().zip(errors) {
             if e > w.0 || e.is_nan() {
                 *w = (e, s);
@@ -84,7 +98,7 @@ fn check_robot<const N: usize, const B: usize, const F: usize>(
         }
     }
     let report: Vec<String> =
-        quantities.iter().zip(worst).map(|(q, (e, s))| format!("{q} {e:.2e} (state {s})")).collect();
+        quantities.iter().zip(&worst).map(|(q, (e, s))| format!("{q} {e:.2e} (state {s})")).collect();
     println!("{name} vs Pinocchio, {} states, worst relative error: {}", fixture.states.len(), report.join(", "));
     assert!(
         worst.iter().all(|(e, _)| *e <= tolerance),
@@ -119,23 +133,46 @@ fn joint_order_is_matched_by_name() {
     check_robot(&fixture, &robot, TOLERANCE);
 }
 
+/// An imported robot's generated model with the names the generated module lists.
+fn imported<const N: usize, const B: usize, const F: usize>(
+    model: kernel::Model<f64, N, B, F>,
+    joints: &[&str],
+    frames: &[&str],
+    bodies: &[&str],
+) -> UrdfRobot<N, B, F> {
+    let names = |list: &[&str]| list.iter().map(|s| (*s).to_owned()).collect::<Vec<_>>();
+    UrdfRobot { model, joint_names: names(joints), frame_names: names(frames), body_names: names(bodies) }
+}
+
 /// The imported Panda (`fixtures::robots::panda`, generated by `host-sim import`: the seven arm
 /// joints, the fingers frozen at zero) against Pinocchio's model with the fingers locked at
-/// zero (`panda_arm.json`), at the TCP `panda_hand_tcp`, to 1e-12 relative.
+/// zero (`panda_arm.json`): `M`, `C`, `g` and the Jacobian of the TCP `panda_hand_tcp` at 24
+/// random states, to 1e-12 relative.
 #[test]
 fn imported_panda_matches_pinocchio() {
     use fixtures::robots::panda;
     let fixture = Fixture::load("panda_arm");
     assert_eq!(fixture.states.len(), 24);
-    let names = |list: &[&str]| list.iter().map(|s| (*s).to_owned()).collect::<Vec<_>>();
-    let robot = UrdfRobot {
-        model: panda::model::<f64>().unwrap(),
-        joint_names: names(&panda::JOINT_NAMES),
-        frame_names: names(&panda::FRAME_NAMES),
-        body_names: names(&panda::BODY_NAMES),
-    };
-    assert_eq!(robot.frame(&fixture.frame), Some(panda::PANDA_HAND_TCP));
+    let robot = imported(panda::model::<f64>().unwrap(), &panda::JOINT_NAMES, &panda::FRAME_NAMES, &panda::BODY_NAMES);
+    assert_eq!(fixture.frames, ["panda_hand_tcp"]);
+    assert_eq!(robot.frame(&fixture.frames[0]), Some(panda::PANDA_HAND_TCP));
     check_robot(&fixture, &robot, 1e-12);
+}
+
+/// The imported TIAGo++ (`fixtures::robots::tiago_dual`: the torso lift and both arms, the head,
+/// wheels, casters and hands frozen at zero) against Pinocchio's model with the same joints
+/// locked at zero (`tiago_dual.json`): `M`, `C`, `g` and the Jacobians of both TCPs at 24 random
+/// states, to 1e-9 relative (the bound).
+#[test]
+fn imported_tiago_dual_matches_pinocchio() {
+    use fixtures::robots::tiago_dual as tiago;
+    let fixture = Fixture::load("tiago_dual");
+    assert_eq!(fixture.states.len(), 24);
+    let robot = imported(tiago::model::<f64>().unwrap(), &tiago::JOINT_NAMES, &tiago::FRAME_NAMES, &tiago::BODY_NAMES);
+    assert_eq!(fixture.frames, ["hand_left_grasping_frame", "hand_right_grasping_frame"]);
+    let tcps: Vec<_> = fixture.frames.iter().map(|f| robot.frame(f).unwrap()).collect();
+    assert_eq!(tcps, tiago::TCPS);
+    check_robot(&fixture, &robot, TOLERANCE);
 }
 
 /// A file in the system temp directory, removed when dropped.
@@ -160,7 +197,7 @@ impl Drop for TempFile {
 fn cli_matches_library<const N: usize>(name: &str) {
     let fixture = Fixture::load(name);
     let robot = load::<N, N, FRAMES>(&fixture.urdf, Coupling::Independent).unwrap();
-    let frame = robot.frame(&fixture.frame).unwrap();
+    let frame = robot.frame(&fixture.frames[0]).unwrap();
     let perm = fixture.permutation(&robot.joint_names);
     let states: Vec<(Vec<f64>, Vec<f64>)> = fixture
         .states
@@ -169,7 +206,7 @@ fn cli_matches_library<const N: usize>(name: &str) {
         .collect();
     let input: Vec<Value> = states.iter().map(|(q, v)| json!({"q": q, "v": v})).collect();
     let file = TempFile::new(&format!("{name}-states.json"), &Value::Array(input).to_string());
-    let output = dynamics_cli::run(&fixture.urdf, &fixture.frame, &file.0).unwrap();
+    let output = dynamics_cli::run(&fixture.urdf, &fixture.frames[0], &file.0).unwrap();
     let records: Vec<Value> = serde_json::from_str::<Value>(&output).unwrap().as_array().unwrap().clone();
     assert_eq!(records.len(), states.len());
     let vector = |v: &Value| -> Vec<f64> { v.as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect() };
@@ -181,7 +218,7 @@ fn cli_matches_library<const N: usize>(name: &str) {
         assert_eq!(rows(&record["M"]), expected.m);
         assert_eq!(rows(&record["C"]), expected.c);
         assert_eq!(vector(&record["g"]), expected.g);
-        assert_eq!(rows(&record["J"]), expected.j);
+        assert_eq!(rows(&record["J"]), expected.frame.j);
     }
 }
 
