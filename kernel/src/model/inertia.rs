@@ -28,6 +28,11 @@ impl<T: RealField + Copy> Inertia<T> {
 
     /// `true` if the values describe a physical body: finite, `m ≥ 0`, symmetric rotational
     /// inertia with non-negative principal moments satisfying the triangle inequality.
+    ///
+    /// Each test allows `tol = (‖I‖ + 1) · max(1e-9, 64 ε)`, `ε` the scalar's machine epsilon:
+    /// 1e-9 in `f64`; in `f32` the rounding of the stored moments and of the eigenvalues
+    /// (a few `ε ‖I‖`), so that a body on the triangle inequality's edge in the URDF (TIAGo++'s
+    /// `arm_*_1_link`) is physical in both scalars.
     pub fn is_physical(&self) -> bool {
         let finite = self.mass.is_finite()
             && self.com.iter().all(|x| x.is_finite())
@@ -36,7 +41,8 @@ impl<T: RealField + Copy> Inertia<T> {
             return false;
         }
         let scale = self.rotational.norm() + T::one();
-        let tol = scale * nalgebra::convert::<f64, T>(1e-9);
+        let tol =
+            scale * nalgebra::convert::<f64, T>(1e-9).max(T::default_epsilon() * nalgebra::convert::<f64, T>(64.0));
         if (self.rotational - self.rotational.transpose()).norm() > tol {
             return false;
         }
@@ -224,4 +230,41 @@ impl<T: RealField + Copy> WorldInertia<T> {
 #[inline]
 fn dot3<T: RealField + Copy>(a: &[T; 3], b: &[T; 3]) -> T {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::{Matrix3, RealField, Vector3};
+
+    use super::Inertia;
+
+    /// A body with principal moments `(a, b, c)` about its centre of mass.
+    fn body<T: RealField + Copy>(a: f64, b: f64, c: f64) -> Inertia<T> {
+        let rotational = Matrix3::from_diagonal(&Vector3::new(a, b, c)).map(nalgebra::convert::<f64, T>);
+        Inertia { mass: T::one(), com: Vector3::zeros(), rotational }
+    }
+
+    fn physical_bodies<T: RealField + Copy>() {
+        // On the triangle inequality's edge by 1.5e-12 kg m², as TIAGo++'s `arm_*_1_link`.
+        assert!(body::<T>(0.01, 0.004, 0.006 - 1.5e-12).is_physical());
+        // Violating it by 1 % of the moments, a negative moment, a negative mass, NaN.
+        assert!(!body::<T>(0.01, 0.004, 0.0059).is_physical());
+        assert!(!body::<T>(0.01, 0.01, -1e-3).is_physical());
+        assert!(!Inertia { mass: -T::one(), ..body::<T>(0.01, 0.01, 0.01) }.is_physical());
+        assert!(!body::<T>(f64::NAN, 0.01, 0.01).is_physical());
+        // An asymmetric rotational inertia.
+        let mut skew = body::<T>(0.01, 0.01, 0.01);
+        skew.rotational[(0, 1)] = nalgebra::convert(1e-3);
+        assert!(!skew.is_physical());
+    }
+
+    #[test]
+    fn physical_bodies_f64() {
+        physical_bodies::<f64>();
+    }
+
+    #[test]
+    fn physical_bodies_f32() {
+        physical_bodies::<f32>();
+    }
 }
