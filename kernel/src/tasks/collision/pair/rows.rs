@@ -94,6 +94,12 @@ impl<T: RealField + Copy, const N: usize, const P: usize, const C: usize> PairRo
         *slot = k;
     }
 
+    /// Number of cached pairs.
+    #[cfg(test)]
+    pub(super) fn len(&self) -> usize {
+        self.entries.len()
+    }
+
     /// Removes the last entry (from [`Self::vacant`]): its evaluation failed.
     fn discard(&mut self) {
         self.entries.pop();
