@@ -349,10 +349,11 @@ pub fn collision_rows_from_geometry<
 }
 
 /// [`collision_rows_from_geometry`] with the pair rows shared between fields through `cache`:
-/// a pair another field of this cycle already evaluated costs only its force law. `cache`
-/// must be cleared ([`PairRowCache::clear`]) whenever the geometry or the inertia factor
-/// change; with a cleared cache the rows are those of [`collision_rows_from_geometry`], and
-/// with a filled one they are equal to them (the same arithmetic).
+/// a pair another field of this cycle already evaluated costs a copy of its Jacobian and its
+/// force law. `cache` must be cleared ([`PairRowCache::clear`]) whenever the state (the
+/// geometry, the velocity `data.v`) or the inertia factor change; with a cleared cache the rows
+/// are those of [`collision_rows_from_geometry`], and with a filled one they are equal to them
+/// (the same arithmetic).
 #[allow(clippy::too_many_arguments, reason = "the inputs of collision_rows_from_geometry and the cache")]
 pub fn collision_rows_shared<
     'm,
