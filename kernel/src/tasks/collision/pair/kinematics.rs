@@ -2,7 +2,7 @@
 //! support-path pair Jacobians (3.17)–(3.18) and both inverse reflected masses (3.20) over the
 //! inertia factor (dense rows or the tree-sparse factor).
 
-use nalgebra::{Cholesky, Const, RealField, RowSVector, SMatrix, Vector3};
+use nalgebra::{Cholesky, Const, RealField, SMatrix, Vector3};
 
 use crate::dynamics::{DynamicsError, TreeFactorization};
 use crate::model::{BodyId, Data, Model};
@@ -83,36 +83,42 @@ pub fn inverse_reflected_masses<T: RealField + Copy, const N: usize, const K: us
 }
 
 /// The kinematic tree as the support-path walks of [`projected_jacobian_into`] read it: per
-/// body its parent (`usize::MAX`: the world) and its joint's drive term when it has exactly
-/// one (`coordinate = usize::MAX` otherwise: no term, or several, read from the model), and
-/// the length of the head of a point Jacobian on the body (one past the largest coordinate of
-/// any drive term on its support path: the entries a walk may write). Built once per
+/// body one [`Link`] (its parent and its joint's drive term when it has exactly one), and the
+/// length of the head of a point Jacobian on the body (one past the largest coordinate of any
+/// drive term on its support path: the entries a walk may write). Built once per
 /// [`collision_rows_shared`](super::collision_rows_shared) call that evaluates a pair (a row
 /// not in the cache), instead of reading the body descriptions in every walk.
 pub(super) struct SupportTable<T, const B: usize> {
-    parent: [usize; B],
-    coordinate: [usize; B],
-    coefficient: [T; B],
+    links: [Link<T>; B],
     head: [usize; B],
+}
+
+/// One body of a [`SupportTable`]: its parent (`usize::MAX`: the world) and its joint's drive
+/// term when it has exactly one (`coordinate = usize::MAX` otherwise: no term, or several,
+/// read from the model). One record, so that a walk step reads it with one bounds check.
+#[derive(Clone, Copy)]
+struct Link<T> {
+    parent: usize,
+    coordinate: usize,
+    coefficient: T,
 }
 
 impl<T: RealField + Copy, const B: usize> SupportTable<T, B> {
     pub(super) fn new<const N: usize, const F: usize>(model: &Model<T, N, B, F>) -> Self {
-        let mut table =
-            Self { parent: [usize::MAX; B], coordinate: [usize::MAX; B], coefficient: [T::zero(); B], head: [0; B] };
+        let none = Link { parent: usize::MAX, coordinate: usize::MAX, coefficient: T::zero() };
+        let mut table = Self { links: [none; B], head: [0; B] };
         let bodies = model.bodies();
-        let slots = table.parent.iter_mut().zip(table.coordinate.iter_mut()).zip(table.coefficient.iter_mut());
-        for (body, ((parent, coordinate), coefficient)) in bodies.iter().zip(slots) {
-            *parent = body.parent.map_or(usize::MAX, |p| p.0);
+        for (body, link) in bodies.iter().zip(table.links.iter_mut()) {
+            link.parent = body.parent.map_or(usize::MAX, |p| p.0);
             if let [term] = body.drive.terms() {
-                *coordinate = term.coordinate;
-                *coefficient = term.coefficient;
+                link.coordinate = term.coordinate;
+                link.coefficient = term.coefficient;
             }
         }
         // One pass when parents precede their children (a parent's head is final), a walk to
         // the root otherwise.
         for i in 0..B {
-            let (Some(body), Some(&parent)) = (bodies.get(i), table.parent.get(i)) else { break };
+            let (Some(body), Some(parent)) = (bodies.get(i), table.links.get(i).map(|l| l.parent)) else { break };
             let own = body.drive.terms().iter().fold(0, |h, t| h.max(t.coordinate + 1));
             let above = if parent < i {
                 table.head.get(parent).copied().unwrap_or(0)
@@ -139,6 +145,7 @@ impl<T: RealField + Copy, const B: usize> SupportTable<T, B> {
 /// joint's drive terms, (3.17)–(3.18), the path and single drive terms read from `table`. The
 /// fast form of [`projected_jacobian`](super::projected_jacobian).
 #[allow(clippy::too_many_arguments, reason = "the model, its table, the state and the point")]
+#[inline(always)]
 fn projected_jacobian_into<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
     model: &Model<T, N, B, F>,
     table: &SupportTable<T, B>,
@@ -154,17 +161,12 @@ fn projected_jacobian_into<T: RealField + Copy, const N: usize, const B: usize, 
     let (e, m) = (direction, &moment);
     let mut next = body.0;
     for _ in 0..B {
-        let (Some(&parent), Some(&coordinate), Some(&coefficient), Some(s)) = (
-            table.parent.get(next),
-            table.coordinate.get(next),
-            table.coefficient.get(next),
-            data.motion_subspaces.get(next),
-        ) else {
+        let (Some(link), Some(s)) = (table.links.get(next), data.motion_subspaces.get(next)) else {
             break;
         };
         let value = e.x * s.w + e.y * s.a + e.z * s.b + (m.x * s.x + m.y * s.y + m.z * s.z);
-        if let Some(x) = row.get_mut(coordinate) {
-            *x += value * coefficient;
+        if let Some(x) = row.get_mut(link.coordinate) {
+            *x += value * link.coefficient;
         } else if let Some(joint) = bodies.get(next) {
             for term in joint.drive.terms() {
                 if let Some(x) = row.get_mut(term.coordinate) {
@@ -172,12 +174,12 @@ fn projected_jacobian_into<T: RealField + Copy, const N: usize, const B: usize, 
                 }
             }
         }
-        next = parent;
+        next = link.parent;
     }
     Ok(())
 }
 
-/// The scalars of a pair row's kinematics ([`pair_kinematics`]).
+/// The configuration- and velocity-dependent scalars of a pair row ([`pair_kinematics`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) struct PairKinematics<T> {
     /// `m_i⁻¹ + m_j⁻¹` (3.20), 1/kg.
@@ -187,18 +189,52 @@ pub(super) struct PairKinematics<T> {
     /// the `M⁻¹` metric); `None` on dense factor
     /// rows or when a support is not a chain of the tree factor.
     pub(super) metric: Option<T>,
+    /// The distance rate `ḋ = j q̇` at the velocity `data.v`.
+    pub(super) rate: T,
 }
 
-/// The configuration-dependent part of pair `pair`'s row: the two projected Jacobians written in
-/// place ([`projected_jacobian_into`]), their difference written into `jacobian`, and the sum of
-/// both inverse reflected masses (3.20), returned: one forward substitution over the factor for
-/// both ([`inverse_reflected_masses`] on dense rows) or one substitution along each support
-/// path ([`TreeFactorization::substitute_head`] on the tree factor, the
-/// head's length from `table`); none for a world-fixed volume, whose mass is infinite. On the
-/// tree factor it also returns the row's `j M⁻¹ jᵀ = ‖x_j − x_i‖²` from the two substitutions'
-/// solutions `x = J L⁻¹` (the two supports share only their common ancestors). The proximity
-/// must have a direction.
-#[allow(clippy::too_many_arguments, reason = "the pair, the model with its table, the state and the factor")]
+impl<T: RealField + Copy> PairKinematics<T> {
+    /// Zero masses, rate and metric (a placeholder of an unused cache entry).
+    pub(super) fn zero() -> Self {
+        Self { inverse_mass_sum: T::zero(), metric: None, rate: T::zero() }
+    }
+}
+
+/// The buffers of [`pair_kinematics`], allocated once for all pairs of a call: `first` and
+/// `difference` are zero between pairs (each pair resets what it wrote), `work` (the tree
+/// substitution's buffer) and `spare` (the row's copy when the cache is full) are scratch.
+/// After an error their content is unspecified: the buffers are dropped with the call.
+pub(super) struct PairScratch<T, const N: usize> {
+    /// `J_i` of the pair being evaluated.
+    first: [T; N],
+    /// `x_i − x_j` of the two tree substitutions.
+    difference: [T; N],
+    work: [T; N],
+    spare: [T; N],
+}
+
+impl<T: RealField + Copy, const N: usize> PairScratch<T, N> {
+    pub(super) fn new() -> Self {
+        Self { first: [T::zero(); N], difference: [T::zero(); N], work: [T::zero(); N], spare: [T::zero(); N] }
+    }
+}
+
+/// The configuration-dependent part of pair `pair`'s row: the two projected Jacobians
+/// ([`projected_jacobian_into`]: `J_j` walked into `jacobian`, which must be zero on entry,
+/// `J_i` into `scratch`), the row `j = J_j − J_i` written into `jacobian` and `copy` (the
+/// cache's entry; `None`: a scratch buffer) in one pass that also forms the distance rate
+/// `ḋ = j q̇` at `data.v`, and the sum of both inverse reflected masses (3.20): one forward
+/// substitution over the factor for both ([`inverse_reflected_masses`] on dense rows) or one
+/// substitution along each support path ([`TreeFactorization::substitute_head`] on the tree
+/// factor, the head's length from `table`); none for a world-fixed volume, whose mass is
+/// infinite. On the tree factor it also returns the row's `j M⁻¹ jᵀ = ‖x_j − x_i‖²` from the
+/// two substitutions' solutions `x = J L⁻¹` (the two supports share only their common
+/// ancestors). The proximity must have a direction.
+///
+/// The row's finiteness is left to the row list ([`crate::tasks::TaskRows::push_with_metric`]
+/// rejects a non-finite row and ignores a non-finite metric); a non-finite mass sum, which
+/// would only zero the damping, is an error here.
+#[allow(clippy::too_many_arguments, reason = "the pair, the model with its table, the state, the factor, the outputs")]
 pub(super) fn pair_kinematics<
     T: RealField + Copy,
     const N: usize,
@@ -214,47 +250,57 @@ pub(super) fn pair_kinematics<
     data: &Data<T, N, B, F>,
     factor: &PairFactor<'_, T, N>,
     pair: usize,
-    jacobian: &mut RowSVector<T, N>,
+    scratch: &mut PairScratch<T, N>,
+    jacobian: &mut [T; N],
+    copy: Option<&mut [T; N]>,
 ) -> Result<PairKinematics<T>, TaskError> {
     let invalid = TaskError::InvalidParameter { name: "pair" };
     let &CollisionPair { first, second } = collision_model.pairs().get(pair).ok_or(invalid)?;
     let (Some(a), Some(b)) = (collision_model.volume(first), collision_model.volume(second)) else {
         return Err(invalid);
     };
-    let e = proximity.direction.ok_or(TaskError::Singular)?.into_inner();
-    let mut jacobian_first = [T::zero(); N];
-    let mut jacobian_second = [T::zero(); N];
+    let Some(direction) = proximity.direction.as_ref() else {
+        return Err(TaskError::Singular);
+    };
+    let e: &Vector3<T> = direction;
+    let PairScratch { first: jacobian_first, difference, work, spare } = scratch;
     if let Some(body) = a.body {
-        projected_jacobian_into(model, table, data, body, &proximity.core_first, &e, &mut jacobian_first)?;
+        projected_jacobian_into(model, table, data, body, &proximity.core_first, e, jacobian_first)?;
     }
     if let Some(body) = b.body {
-        projected_jacobian_into(model, table, data, body, &proximity.core_second, &e, &mut jacobian_second)?;
+        projected_jacobian_into(model, table, data, body, &proximity.core_second, e, jacobian)?;
     }
+    let jacobian_second = &*jacobian;
     let end = |body: Option<BodyId>| body.and_then(|b| table.head.get(b.0)).copied().unwrap_or(N);
-    let head_first = jacobian_first.get(..end(a.body)).unwrap_or(&jacobian_first);
-    let head_second = jacobian_second.get(..end(b.body)).unwrap_or(&jacobian_second);
+    let head_first = jacobian_first.get(..end(a.body)).unwrap_or(jacobian_first.as_slice());
+    let head_second = jacobian_second.get(..end(b.body)).unwrap_or(jacobian_second.as_slice());
     let (inverse_mass_sum, metric) = match (a.body.is_some(), b.body.is_some(), factor) {
         (true, true, PairFactor::Rows(rows)) => {
-            let [wi, wj] = inverse_reflected_masses(rows, [&jacobian_first, &jacobian_second])?;
+            let [wi, wj] = inverse_reflected_masses(rows, [&*jacobian_first, jacobian_second])?;
             (wi + wj, None)
         }
-        (true, false, PairFactor::Rows(rows)) => (inverse_reflected_masses(rows, [&jacobian_first])?[0], None),
-        (false, true, PairFactor::Rows(rows)) => (inverse_reflected_masses(rows, [&jacobian_second])?[0], None),
+        (true, false, PairFactor::Rows(rows)) => (inverse_reflected_masses(rows, [&*jacobian_first])?[0], None),
+        (false, true, PairFactor::Rows(rows)) => (inverse_reflected_masses(rows, [jacobian_second])?[0], None),
         (true, true, PairFactor::Tree(tree)) => {
             // `j = J_j − J_i` is linear in the substitution: `j M⁻¹ jᵀ = ‖x_i − x_j‖²`.
-            let (mut difference, mut work) = ([T::zero(); N], [T::zero(); N]);
-            let wi = tree.substitute_head(head_first, &mut work, |k, x| {
+            let wi = tree.substitute_head(head_first, work, |k, x| {
                 if let Some(d) = difference.get_mut(k) {
                     *d = x;
                 }
             });
-            let wj = tree.substitute_head(head_second, &mut work, |k, x| {
+            let wj = tree.substitute_head(head_second, work, |k, x| {
                 if let Some(d) = difference.get_mut(k) {
                     *d -= x;
                 }
             });
+            // The squared norm, zeroing `difference` for the next pair.
+            let norm = difference.iter_mut().fold(T::zero(), |sum, d| {
+                let x = *d;
+                *d = T::zero();
+                sum + x * x
+            });
             match (wi, wj) {
-                (Some(wi), Some(wj)) => (wi + wj, Some(difference.iter().fold(T::zero(), |sum, &d| sum + d * d))),
+                (Some(wi), Some(wj)) => (wi + wj, Some(norm)),
                 _ => (
                     tree.inverse_reflected_mass_of_head(head_first) + tree.inverse_reflected_mass_of_head(head_second),
                     None,
@@ -273,15 +319,19 @@ pub(super) fn pair_kinematics<
         (false, false, PairFactor::Tree(_)) => (T::zero(), Some(T::zero())),
         (false, false, PairFactor::Rows(_)) => (T::zero(), None),
     };
-    // The difference and its finiteness in one pass (no early exit: a branch-free flag).
-    let mut finite = inverse_mass_sum.is_finite();
-    for ((x, &ji), &jj) in jacobian.as_mut_slice().iter_mut().zip(&jacobian_first).zip(&jacobian_second) {
-        let value = jj - ji;
-        finite &= value.is_finite();
+    // The difference, its copy and the rate in one pass, zeroing `J_i` for the next pair.
+    let copy = copy.unwrap_or(spare);
+    let mut rate = T::zero();
+    let outputs = jacobian.iter_mut().zip(copy.iter_mut());
+    for (((x, c), ji), &v) in outputs.zip(jacobian_first.iter_mut()).zip(data.v.as_slice()) {
+        let value = *x - *ji;
+        *ji = T::zero();
         *x = value;
+        *c = value;
+        rate += value * v;
     }
-    if !finite {
+    if !inverse_mass_sum.is_finite() {
         return Err(TaskError::NonFinite);
     }
-    Ok(PairKinematics { inverse_mass_sum, metric: metric.filter(|m| m.is_finite()) })
+    Ok(PairKinematics { inverse_mass_sum, metric, rate })
 }

@@ -257,6 +257,8 @@ pub fn evaluate_pair<
 #[cfg(test)]
 mod reflected_mass_tests;
 #[cfg(test)]
+mod row_cache_tests;
+#[cfg(test)]
 mod selection_tests;
 #[cfg(test)]
 mod tests;

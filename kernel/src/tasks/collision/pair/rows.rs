@@ -4,9 +4,9 @@
 //! per-pair evaluation they are tested against is [`super::evaluate_pair`].
 
 use heapless::Vec;
-use nalgebra::{convert, RealField, RowSVector};
+use nalgebra::{convert, RealField};
 
-use super::kinematics::{factor_rows, pair_kinematics, PairFactor, PairKinematics, SupportTable};
+use super::kinematics::{factor_rows, pair_kinematics, PairFactor, PairKinematics, PairScratch, SupportTable};
 use super::parameters::CollisionParameters;
 use super::selection::{heapify, sift};
 use crate::dynamics::InertiaFactor;
@@ -16,15 +16,16 @@ use crate::tasks::collision::model::{CollisionData, CollisionModel};
 use crate::tasks::collision::volumes::Proximity;
 use crate::tasks::{TaskError, TaskRow, TaskRows};
 
-/// The configuration-dependent part of the pair rows of one cycle, shared by the collision
-/// fields that evaluate the same geometry (the strong and the weak field of Fig. 6.3): per pair,
-/// the row Jacobian `eᵀ(J_{x,q,j} − J_{x,q,i})` (3.17)–(3.18) and the sum of the inverse
-/// reflected masses `m_i⁻¹ + m_j⁻¹` (3.20). A pair whose row one field computed costs the next
-/// field only its force law. Valid for one geometry: [`Self::clear`] it when the kinematics or
-/// the inertia factor change (every cycle). Holds up to `C` pairs; a pair that does not fit is
-/// computed again, never dropped. Also holds the selection of the first field that had to drop
-/// candidates (its last selected distance and pair), which decides every later field's selection with as many free
-/// rows without a heap.
+/// The configuration- and velocity-dependent part of the pair rows of one cycle, shared by the
+/// collision fields that evaluate the same geometry (the strong and the weak field of Fig. 6.3):
+/// per pair, the row Jacobian `eᵀ(J_{x,q,j} − J_{x,q,i})` (3.17)–(3.18), the sum of the
+/// inverse reflected masses `m_i⁻¹ + m_j⁻¹` (3.20) and the distance rate `ḋ = j q̇`. A pair
+/// whose row one field computed costs the next field a copy of its Jacobian and its force
+/// law. Valid for one state `(q, q̇)` and inertia factor: [`Self::clear`] it when they change
+/// (every cycle). Holds up to `C` pairs, each written in place when its row is computed; a pair
+/// that does not fit is computed again, never dropped. Also holds the selection of the first
+/// field that had to drop candidates (its last selected distance and pair), which decides every
+/// later field's selection with as many free rows without a heap.
 #[derive(Clone, Debug)]
 pub struct PairRowCache<T: RealField, const N: usize, const P: usize, const C: usize> {
     /// Entry of each pair in `entries` (`u16::MAX`: none).
@@ -51,7 +52,7 @@ pub(super) struct Selection<T> {
 
 #[derive(Clone, Copy, Debug)]
 struct CachedPairRow<T: RealField, const N: usize> {
-    jacobian: RowSVector<T, N>,
+    jacobian: [T; N],
     kinematics: PairKinematics<T>,
 }
 
@@ -62,7 +63,7 @@ impl<T: RealField + Copy, const N: usize, const P: usize, const C: usize> Defaul
 }
 
 impl<T: RealField + Copy, const N: usize, const P: usize, const C: usize> PairRowCache<T, N, P, C> {
-    /// Forgets every pair and the selection (a new geometry or inertia factor).
+    /// Forgets every pair and the selection (a new state or inertia factor).
     pub fn clear(&mut self) {
         self.slot = [u16::MAX; P];
         self.entries.clear();
@@ -74,23 +75,63 @@ impl<T: RealField + Copy, const N: usize, const P: usize, const C: usize> PairRo
         self.entries.get(k)
     }
 
-    fn insert(&mut self, pair: usize, row: CachedPairRow<T, N>) {
-        let (Some(slot), Ok(k)) = (self.slot.get_mut(pair), u16::try_from(self.entries.len())) else {
+    /// Appends a zero entry, to be written in place and then [`Self::commit`]ted or
+    /// [`Self::discard`]ed; `None` when the cache is full.
+    fn vacant(&mut self) -> Option<&mut CachedPairRow<T, N>> {
+        let zero = CachedPairRow { jacobian: [T::zero(); N], kinematics: PairKinematics::zero() };
+        self.entries.push(zero).ok()?;
+        self.entries.last_mut()
+    }
+
+    /// Makes the last entry (from [`Self::vacant`]) `pair`'s, with its scalars.
+    fn commit(&mut self, pair: usize, kinematics: PairKinematics<T>) {
+        let k = self.entries.len().wrapping_sub(1);
+        let (Some(slot), Some(entry), Ok(k)) = (self.slot.get_mut(pair), self.entries.get_mut(k), u16::try_from(k))
+        else {
             return;
         };
-        if self.entries.push(row).is_ok() {
-            *slot = k;
+        entry.kinematics = kinematics;
+        *slot = k;
+    }
+
+    /// Number of cached pairs.
+    #[cfg(test)]
+    pub(super) fn len(&self) -> usize {
+        self.entries.len()
+    }
+
+    /// Removes the last entry (from [`Self::vacant`]): its evaluation failed.
+    fn discard(&mut self) {
+        self.entries.pop();
+    }
+}
+
+/// Copies `source` into `target` in blocks of eight entries (block moves the compiler keeps
+/// inline, instead of a call of `memcpy`).
+#[inline(always)]
+fn copy_row<T: Copy, const N: usize>(target: &mut [T; N], source: &[T; N]) {
+    let (mut to, mut from) = (target.chunks_exact_mut(8), source.chunks_exact(8));
+    for (t, s) in (&mut to).zip(&mut from) {
+        if let (Ok(t), Ok(s)) = (<&mut [T; 8]>::try_from(t), <&[T; 8]>::try_from(s)) {
+            *t = *s;
         }
+    }
+    for (t, s) in to.into_remainder().iter_mut().zip(from.remainder()) {
+        *t = *s;
     }
 }
 
 /// The row of pair `pair` (as [`evaluate_pair`](super::evaluate_pair)`(..).row`, equal to rounding) written into
-/// `row` without the pair's intermediate results: the row Jacobian and the inverse reflected
-/// masses from `cache`, or from [`pair_kinematics`] (then cached), the force law (3.10) of
-/// `parameters` and the damping constant of (3.23) in the closed form
-/// `c = 2 ξ √(k / (m_i⁻¹ + m_j⁻¹))` (see [`pair_damping`](super::pair_damping)). The proximity must have a
+/// `row`, which must be a zero row on entry (as [`TaskRows::push_with_metric`] gives it),
+/// without the pair's intermediate results: the row Jacobian, the inverse reflected masses and
+/// the distance rate from `cache`, or from [`pair_kinematics`] (then cached, the Jacobian
+/// written into the cache's entry in the same pass), the force law (3.10) of `parameters` and
+/// the damping constant of (3.23) in the closed form `c = 2 ξ √(k / (m_i⁻¹ + m_j⁻¹))` (see
+/// [`pair_damping`](super::pair_damping)). `work` holds the support table and the buffers of
+/// [`pair_kinematics`], built on the first pair not in the cache. The proximity must have a
 /// direction. Returns the row's `j M⁻¹ jᵀ` over the factor when the kinematics gave it
-/// ([`pair_kinematics`]). On error `row` is unspecified.
+/// ([`pair_kinematics`]). On error `row` and `work` are unspecified. The row's finiteness is
+/// checked by the row list.
 #[allow(clippy::too_many_arguments, reason = "the inputs of pair_kinematics, the force law and the cache")]
 fn pair_row_into<
     T: RealField + Copy,
@@ -106,7 +147,7 @@ fn pair_row_into<
     model: &Model<T, N, B, F>,
     data: &Data<T, N, B, F>,
     factor: &PairFactor<'_, T, N>,
-    table: Option<&SupportTable<T, B>>,
+    work: &mut Option<(SupportTable<T, B>, PairScratch<T, N>)>,
     parameters: &CollisionParameters<T>,
     pair: usize,
     cache: &mut PairRowCache<T, N, P, C>,
@@ -115,24 +156,42 @@ fn pair_row_into<
     let invalid = TaskError::InvalidParameter { name: "pair" };
     let proximity: &Proximity<T> = collision.proximities.get(pair).ok_or(invalid)?;
     let d = proximity.distance;
+    let jacobian = <&mut [T; N]>::try_from(row.jacobian.as_mut_slice()).map_err(|_| invalid)?;
     let kinematics = match cache.get(pair) {
         Some(entry) => {
-            row.jacobian = entry.jacobian;
+            copy_row(jacobian, &entry.jacobian);
             entry.kinematics
         }
         None => {
-            let built;
-            let table = match table {
-                Some(table) => table,
-                None => {
-                    built = SupportTable::new(model);
-                    &built
+            let (table, scratch) = work.get_or_insert_with(|| (SupportTable::new(model), PairScratch::new()));
+            let entry = cache.vacant();
+            let cached = entry.is_some();
+            let kinematics = pair_kinematics(
+                collision_model,
+                proximity,
+                model,
+                table,
+                data,
+                factor,
+                pair,
+                scratch,
+                jacobian,
+                entry.map(|e| &mut e.jacobian),
+            );
+            match kinematics {
+                Ok(kinematics) => {
+                    if cached {
+                        cache.commit(pair, kinematics);
+                    }
+                    kinematics
                 }
-            };
-            let kinematics =
-                pair_kinematics(collision_model, proximity, model, table, data, factor, pair, &mut row.jacobian)?;
-            cache.insert(pair, CachedPairRow { jacobian: row.jacobian, kinematics });
-            kinematics
+                Err(e) => {
+                    if cached {
+                        cache.discard();
+                    }
+                    return Err(e);
+                }
+            }
         }
     };
     let inverse_mass_sum = kinematics.inverse_mass_sum;
@@ -142,13 +201,9 @@ fn pair_row_into<
     } else {
         T::zero()
     };
-    let rate = row.jacobian.as_slice().iter().zip(data.v.as_slice()).fold(T::zero(), |r, (&j, &v)| r + j * v);
-    row.force = parameters.force(d) - c * rate;
+    row.force = parameters.force(d) - c * kinematics.rate;
     row.potential = parameters.potential(d);
     row.activation = parameters.activation(d);
-    if !(row.force.is_finite() && row.potential.is_finite() && row.activation.is_finite()) {
-        return Err(TaskError::NonFinite);
-    }
     Ok(kinematics.metric)
 }
 
@@ -173,9 +228,13 @@ pub(super) fn pair_row<
     pair: usize,
     cache: &mut PairRowCache<T, N, P, C>,
 ) -> Result<TaskRow<T, N>, TaskError> {
-    let mut row =
-        TaskRow { jacobian: RowSVector::zeros(), force: T::zero(), potential: T::zero(), activation: T::zero() };
-    pair_row_into(collision_model, collision, model, data, factor, None, parameters, pair, cache, &mut row)?;
+    let mut row = TaskRow {
+        jacobian: nalgebra::RowSVector::zeros(),
+        force: T::zero(),
+        potential: T::zero(),
+        activation: T::zero(),
+    };
+    pair_row_into(collision_model, collision, model, data, factor, &mut None, parameters, pair, cache, &mut row)?;
     Ok(row)
 }
 
@@ -290,10 +349,11 @@ pub fn collision_rows_from_geometry<
 }
 
 /// [`collision_rows_from_geometry`] with the pair rows shared between fields through `cache`:
-/// a pair another field of this cycle already evaluated costs only its force law. `cache`
-/// must be cleared ([`PairRowCache::clear`]) whenever the geometry or the inertia factor
-/// change; with a cleared cache the rows are those of [`collision_rows_from_geometry`], and
-/// with a filled one they are equal to them (the same arithmetic).
+/// a pair another field of this cycle already evaluated costs a copy of its Jacobian and its
+/// force law. `cache` must be cleared ([`PairRowCache::clear`]) whenever the state (the
+/// geometry, the velocity `data.v`) or the inertia factor change; with a cleared cache the rows
+/// are those of [`collision_rows_from_geometry`], and with a filled one they are equal to them
+/// (the same arithmetic).
 #[allow(clippy::too_many_arguments, reason = "the inputs of collision_rows_from_geometry and the cache")]
 pub fn collision_rows_shared<
     'm,
@@ -402,12 +462,8 @@ pub fn collision_rows_shared<
         };
         let start = rows.len();
         // Built when the first pair that is not in the cache is evaluated.
-        let mut built = None;
+        let mut work = None;
         for (index, _) in chosen.iter().enumerate().filter(|(_, &flag)| flag) {
-            if built.is_none() && cache.get(index).is_none() {
-                built = Some(SupportTable::new(model));
-            }
-            let table = built.as_ref();
             let mut result = Ok(());
             let pushed = rows.push_with_metric(|row| {
                 let row = pair_row_into(
@@ -416,7 +472,7 @@ pub fn collision_rows_shared<
                     model,
                     data,
                     &factor,
-                    table,
+                    &mut work,
                     parameters,
                     index,
                     cache,
