@@ -25,7 +25,7 @@ use crate::tasks::end_stops::{end_stops, EndStop, EndStopConfig};
 use crate::tasks::joint_impedance::{joint_impedance, JointImpedance, JointImpedanceConfig, JointTarget};
 use crate::tasks::manipulability::{manipulability_avoidance, Manipulability, ManipulabilityConfig};
 use crate::tasks::torso_workspace::{torso_workspace, TorsoWorkspace};
-use crate::tasks::{TaskError, TaskRows};
+use crate::tasks::{RowSink, TaskError};
 
 /// Validated task objects built from the configuration.
 #[derive(Clone, Debug)]
@@ -189,7 +189,8 @@ pub(super) struct EvaluationContext<
     pub(super) tcp_jacobians: &'a PerHand<SMatrix<T, 6, N>>,
 }
 
-/// Appends the rows of one task to `rows` and records its telemetry.
+/// Appends the rows of one task to `rows` (the task's window of the stack) and records its
+/// telemetry.
 pub(super) fn evaluate<
     T: RealField + Copy,
     const N: usize,
@@ -202,7 +203,7 @@ pub(super) fn evaluate<
     cx: &EvaluationContext<'_, T, N, B, F, V, P>,
     data: &mut Data<T, N, B, F>,
     scratch: &mut Scratch<'_, T, N, V, P>,
-    rows: &mut TaskRows<T, N, MAX_TASK_ROWS>,
+    rows: &mut impl RowSink<T, N, MAX_TASK_ROWS>,
     telemetry: &mut Telemetry<T, N>,
 ) -> Result<(), Fault> {
     match kind {

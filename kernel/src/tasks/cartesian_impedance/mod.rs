@@ -54,7 +54,9 @@
 use heapless::Vec;
 use nalgebra::{Matrix3, Matrix6, RealField, RowSVector, SMatrix, UnitQuaternion, Vector3, Vector6};
 
-use super::{TaskError, TaskRow, TaskRows};
+#[cfg(test)]
+use super::TaskRows;
+use super::{RowSink, TaskError, TaskRow};
 use crate::dynamics::{frame_jacobian, DynamicsError, TreeFactorization};
 use crate::math::spatial::{skew, Placement};
 use crate::model::{Data, FrameId, Model};
@@ -334,7 +336,7 @@ pub fn cartesian_impedance<T: RealField + Copy, const N: usize, const B: usize, 
     data: &Data<T, N, B, F>,
     task: &CartesianImpedance<T>,
     target: &CartesianTarget<T>,
-    rows: &mut TaskRows<T, N, R>,
+    rows: &mut impl RowSink<T, N, R>,
 ) -> Result<CartesianReport<T>, TaskError> {
     evaluate(model, data, MassFactor::Dense, task, target, None, rows)
 }
@@ -357,7 +359,7 @@ pub fn cartesian_impedance_factored<
     mass: Option<&TreeFactorization<T, N>>,
     task: &CartesianImpedance<T>,
     target: &CartesianTarget<T>,
-    rows: &mut TaskRows<T, N, R>,
+    rows: &mut impl RowSink<T, N, R>,
 ) -> Result<CartesianReport<T>, TaskError> {
     evaluate(model, data, MassFactor::Tree(mass), task, target, None, rows)
 }
@@ -379,7 +381,7 @@ pub fn cartesian_impedance_with_jacobian<
     task: &CartesianImpedance<T>,
     target: &CartesianTarget<T>,
     jacobian: &SMatrix<T, 6, N>,
-    rows: &mut TaskRows<T, N, R>,
+    rows: &mut impl RowSink<T, N, R>,
 ) -> Result<CartesianReport<T>, TaskError> {
     evaluate(model, data, MassFactor::Tree(mass), task, target, Some(jacobian), rows)
 }
@@ -400,7 +402,7 @@ fn evaluate<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
     task: &CartesianImpedance<T>,
     target: &CartesianTarget<T>,
     world_jacobian: Option<&SMatrix<T, 6, N>>,
-    rows: &mut TaskRows<T, N, R>,
+    rows: &mut impl RowSink<T, N, R>,
 ) -> Result<CartesianReport<T>, TaskError> {
     let config = &task.config;
     let pose_finite = crate::math::all_finite(target.pose.rotation.matrix())

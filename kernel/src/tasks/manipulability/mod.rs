@@ -30,7 +30,9 @@
 use nalgebra::{RealField, RowSVector, Vector3};
 
 use super::cartesian_impedance::AxisMask;
-use super::{TaskError, TaskRow, TaskRows};
+#[cfg(test)]
+use super::TaskRows;
+use super::{RowSink, TaskError, TaskRow};
 use crate::dynamics::DynamicsError;
 use crate::math::cholesky::{cholesky_in_place, solve_lower_in_place, solve_lower_transpose_in_place};
 use crate::math::spatial::{angular, linear_at_point};
@@ -307,7 +309,7 @@ pub fn manipulability_avoidance<T: RealField + Copy, const N: usize, const B: us
     model: &Model<T, N, B, F>,
     data: &Data<T, N, B, F>,
     task: &Manipulability<T, N>,
-    rows: &mut TaskRows<T, N, R>,
+    rows: &mut impl RowSink<T, N, R>,
 ) -> Result<ManipulabilityReport<T>, TaskError> {
     if rows.len() >= R {
         return Err(TaskError::Capacity { capacity: R });

@@ -68,7 +68,9 @@ use crate::dynamics::{InertiaFactor, TreeFactorization};
 
 use self::distance::ArcBoundary;
 use self::kinematics::{wrap_from, wrap_to_pi};
-use super::{TaskError, TaskRow, TaskRows};
+#[cfg(test)]
+use super::TaskRows;
+use super::{RowSink, TaskError, TaskRow};
 use crate::math::cholesky::solve_lower_in_place;
 use crate::math::sqrt;
 use crate::math::switching::transition_activation;
@@ -373,7 +375,7 @@ pub fn torso_workspace<'m, T: RealField + Copy, const N: usize, const R: usize>(
     q: &SVector<T, N>,
     v: &SVector<T, N>,
     inertia: impl Into<InertiaFactor<'m, T, N>>,
-    rows: &mut TaskRows<T, N, R>,
+    rows: &mut impl RowSink<T, N, R>,
 ) -> Result<TorsoWorkspaceReport<T>, TaskError> {
     if !(crate::math::all_finite(q) && crate::math::all_finite(v)) {
         return Err(TaskError::NonFinite);
