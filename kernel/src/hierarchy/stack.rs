@@ -336,3 +336,7 @@ fn finite<T: RealField + Copy, const N: usize>(row: &TaskRow<T, N>) -> bool {
     let probe = row.jacobian.as_slice().iter().fold(row.force * zero + row.activation * zero, |sum, &x| sum + x * zero);
     probe == zero
 }
+
+#[cfg(test)]
+#[path = "stack_tests.rs"]
+mod tests;
