@@ -18,7 +18,7 @@ use super::layout::{Hand, JointGroup};
 use super::settings::ControllerSettings;
 use super::speed_barrier::{speed_barrier, InverseInertia, JointLimits};
 use super::state::{ControllerState, InertiaFactors, Workspace};
-use super::task_set::{evaluate, EvaluationContext, Scratch};
+use super::task_set::{evaluate, row_summary, EvaluationContext, Scratch};
 use super::trajectory::{JointTrajectory, PoseTrajectory};
 use crate::dynamics::{
     coriolis_transpose_velocity, coriolis_velocity_products, crba, forward_kinematics, gravity, kinematics,
@@ -277,20 +277,13 @@ impl<
                 &mut rows,
                 &mut self.state.telemetry,
             );
-            if let Err(fault) = evaluated {
-                return Err(rows.overflow().map_or(fault, Fault::Hierarchy));
-            }
+            evaluated.map_err(|fault| rows.overflow().map_or(fault, Fault::Hierarchy))?;
             let t = &mut self.state.telemetry;
             if let (Some(kind), Some(activation), Some(norm)) =
                 (t.tasks.get_mut(index), t.task_activation.get_mut(index), t.task_torque_norm.get_mut(index))
             {
                 *kind = Some(entry.kind);
-                *activation = rows.rows().iter().fold(T::zero(), |a, r| a.max(r.row.activation));
-                let torque = rows
-                    .rows()
-                    .iter()
-                    .fold(SVector::<T, N>::zeros(), |tau, r| tau + r.row.jacobian.transpose() * r.row.force);
-                *norm = sqrt(torque.norm_squared());
+                (*activation, *norm) = row_summary(rows.rows());
             }
             entry.place(rows).map_err(Fault::Hierarchy)?;
         }

@@ -14,6 +14,8 @@ use super::layout::{Hand, JointGroup, PerHand};
 use super::telemetry::Telemetry;
 use super::trajectory::{JointTrajectory, PoseTrajectory};
 use crate::dynamics::TreeFactorization;
+use crate::hierarchy::StackRow;
+use crate::math::sqrt;
 use crate::model::{Data, Model};
 use crate::tasks::cartesian_impedance::{
     cartesian_impedance_with_jacobian, AxisMask, CartesianImpedance, CartesianImpedanceConfig, StiffnessFrame,
@@ -273,4 +275,12 @@ pub(super) fn evaluate<
         }
     }
     Ok(())
+}
+
+/// The telemetry of one task's rows as the task emitted them (before the level weight): the
+/// largest activation and the norm of the torque `τ = Σ jᵀ f` of the rows used alone.
+pub(super) fn row_summary<T: RealField + Copy, const N: usize>(rows: &[StackRow<T, N>]) -> (T, T) {
+    let activation = rows.iter().fold(T::zero(), |a, r| a.max(r.row.activation));
+    let torque = rows.iter().fold(SVector::<T, N>::zeros(), |tau, r| tau + r.row.jacobian.transpose() * r.row.force);
+    (activation, sqrt(torque.norm_squared()))
 }
