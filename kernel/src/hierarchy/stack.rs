@@ -11,7 +11,9 @@
 //! weight to force and activation in place. Only a task moving between two levels has its rows
 //! on the stack twice (once per level, each with its weight), so only then are rows copied.
 //! A row's slot is reused from cycle to cycle: a writer that writes the whole row
-//! ([`RowSink::push_with_metric`], the collision rows) does not clear the slot first.
+//! ([`RowSink::push_with_metric`]: the collision, Cartesian and manipulability rows) does not
+//! clear the slot first; one that writes a few entries ([`RowSink::push_with`]: joint, end-stop
+//! and torso workspace rows) gets it as a zero row.
 //!
 //! Lists built elsewhere ([`TaskRows`]) are still put on the stack with [`Stack::push_rows`],
 //! [`super::push_scaled`] and [`super::push_transitioning`] (one copy per row), with the same
