@@ -951,3 +951,109 @@ fn justin_fast_recursion_equals_the_plain_recursion() {
     // when a nearly dependent row locks (κ ≈ 560), hence the floor 4e-6 κ (≈ 64 ε_f32 κ).
     assert!(worst64 > 0.0 && worst32 > 0.0, "{worst64} {worst32}");
 }
+
+/// Justin's rows written in place on the controller's stack ([`kernel::hierarchy::TaskWindow`])
+/// against the plain path (owned [`TaskRows`] pushed with `push_rows` / `push_transitioning`).
+mod windows {
+    use super::justin;
+    use crate::support::Rng;
+    use fixtures::justin::collision as jc;
+    use kernel::dynamics::{crba, forward_kinematics, TreeFactorization};
+    use kernel::hierarchy::{push_transitioning, Stack};
+    use kernel::tasks::collision::{collision_rows_shared, CollisionData, CollisionParameters, PairRowCache};
+    use kernel::tasks::end_stops::{end_stops, EndStop, EndStopConfig};
+    use kernel::tasks::TaskRows;
+    use kernel::Data;
+    use nalgebra::{convert, RealField, SVector};
+
+    const N: usize = justin::N;
+    const Q: usize = 32;
+    const R: usize = 128;
+
+    /// On random Justin states (capacity-frame-like: both collision fields at their 32 rows on
+    /// the tree factor, the second sharing the first's pair rows, then the end stops moving
+    /// between levels): the stack filled through windows over the slots of the previous state's
+    /// rows equals, bit for bit, the stack filled from owned lists. Shows that the collision rows,
+    /// which are written whole into a slot that is not cleared first, do not depend on what the
+    /// slot held.
+    fn justin_windows_equal_owned_lists<T: RealField + Copy>(seed: u64) {
+        let model = justin::model::<T>().unwrap();
+        let bounds = justin::model::<f64>().unwrap();
+        let collision = jc::collision_model(&model).unwrap();
+        let mut data = Data::new(&model);
+        let mut cd = CollisionData::new(&collision);
+        let c = |x: f64| convert::<f64, T>(x);
+        // Wide fields: every pair is a candidate, each field keeps its 32 closest.
+        let fields = [
+            CollisionParameters::try_new(c(150.0), c(5.0), c(0.7), c(0.01), c(5.0)).unwrap(),
+            CollisionParameters::try_new(c(25.0), c(10.0), c(0.7), c(0.0), c(10.0)).unwrap(),
+        ];
+        let stops: std::vec::Vec<EndStop<T, N>> = (justin::BASE_DOF..N)
+            .map(|i| {
+                let (lower, upper) = (bounds.limits.position_lower[i], bounds.limits.position_upper[i]);
+                EndStop::try_new(EndStopConfig::coordinate(i, c(lower), c(upper), c(0.2), c(50.0), c(3.0))).unwrap()
+            })
+            .collect();
+        let mut rng = Rng(seed);
+        let mut fast = Stack::<T, N, R>::new();
+        let mut rows_compared = 0;
+        for trial in 0..12 {
+            let q = SVector::<f64, N>::from_fn(|k, _| {
+                let (lower, upper) = (bounds.limits.position_lower[k], bounds.limits.position_upper[k]);
+                if k < justin::BASE_DOF {
+                    rng.uniform(-1.0, 1.0)
+                } else {
+                    rng.uniform(lower, upper)
+                }
+            });
+            let v = SVector::<f64, N>::from_fn(|_, _| rng.uniform(-1.0, 1.0));
+            let (q, v) = (q.cast::<T>(), v.cast::<T>());
+            forward_kinematics(&model, &mut data, &q, &v).unwrap();
+            crba(&model, &mut data);
+            let mut tree = TreeFactorization::new(&model);
+            tree.factorize(&data.mass_matrix).unwrap();
+            collision.update(&data, &mut cd);
+            let progress = c(0.15 + 0.7 * rng.uniform(0.0, 1.0));
+
+            let mut plain = Stack::<T, N, R>::new();
+            let mut cache = PairRowCache::<T, N, { jc::PAIRS }, Q>::default();
+            for (level, field) in fields.iter().enumerate() {
+                let mut list = TaskRows::<T, N, Q>::new();
+                collision_rows_shared(&collision, &cd, &model, &data, &tree, field, &mut cache, &mut list).unwrap();
+                assert_eq!(list.len(), Q);
+                plain.push_rows(level, &list).unwrap();
+            }
+            let mut list = TaskRows::<T, N, Q>::new();
+            end_stops(&stops, &q, &v, &mut list).unwrap();
+            push_transitioning(&mut plain, &list, 1, 0, progress).unwrap();
+
+            // The previous trial's rows are in the slots.
+            fast.clear();
+            let mut cache = PairRowCache::<T, N, { jc::PAIRS }, Q>::default();
+            for (level, field) in fields.iter().enumerate() {
+                let mut window = fast.task::<Q>();
+                collision_rows_shared(&collision, &cd, &model, &data, &tree, field, &mut cache, &mut window).unwrap();
+                window.place(level).unwrap();
+            }
+            let mut window = fast.task::<Q>();
+            end_stops(&stops, &q, &v, &mut window).unwrap();
+            window.place_transitioning(1, 0, progress).unwrap();
+
+            assert_eq!(fast, plain, "trial {trial}");
+            assert_eq!(fast.rows().len(), 2 * Q + 2 * stops.len());
+            assert!(fast.rows().iter().take(2 * Q).all(|r| r.metric_norm_squared.is_some()));
+            rows_compared += fast.rows().len();
+        }
+        assert!(rows_compared > 1000, "{rows_compared} rows compared");
+    }
+
+    #[test]
+    fn justin_windows_equal_owned_lists_f64() {
+        justin_windows_equal_owned_lists::<f64>(0x0013_0064);
+    }
+
+    #[test]
+    fn justin_windows_equal_owned_lists_f32() {
+        justin_windows_equal_owned_lists::<f32>(0x0013_0032);
+    }
+}

@@ -159,10 +159,10 @@ mod chapter3_tasks {
             forward_kinematics(&model, &mut data, &q, &v).unwrap();
             crba(&model, &mut data);
             let target = CartesianTarget::at_rest(data.frame_placements[justin::RIGHT_TCP.0]);
-            let report = cartesian_impedance(&model, &data, &cartesian, &target, &mut rows).unwrap();
-            joint_impedance(&posture, &q, &v, &JointTarget::at_rest(q), &mut rows).unwrap();
-            end_stops(&stops, &q, &v, &mut rows).unwrap();
-            let measure = manipulability_avoidance(&model, &data, &singularity, &mut rows).unwrap();
+            let report = cartesian_impedance(&model, &data, &cartesian, &target, &mut *rows).unwrap();
+            joint_impedance(&posture, &q, &v, &JointTarget::at_rest(q), &mut *rows).unwrap();
+            end_stops(&stops, &q, &v, &mut *rows).unwrap();
+            let measure = manipulability_avoidance(&model, &data, &singularity, &mut *rows).unwrap();
             frame_jacobian_derivative(&model, &data, justin::LEFT_TCP, &v, &mut derivative).unwrap();
             let _ = rows.torque();
             most = most.max(allocations() - before);
@@ -221,7 +221,7 @@ mod torso_workspace_rows {
             forward_kinematics(&model, &mut data, &q, &v).unwrap();
             crba(&model, &mut data);
             let inertia = mass_matrix_cholesky(&data).unwrap();
-            let report = torso_workspace(&task, &q, &v, &inertia, &mut rows).unwrap();
+            let report = torso_workspace(&task, &q, &v, &inertia, &mut *rows).unwrap();
             let _ = rows.torque();
             most = most.max(allocations() - before);
             assert_eq!(rows.len(), BOUNDARIES);

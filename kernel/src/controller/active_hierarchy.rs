@@ -8,8 +8,7 @@ use nalgebra::RealField;
 use super::capacity::{MAX_ACTIVE, MAX_LEVELS, MAX_TASKS, MAX_TASK_ROWS};
 use super::config::{TaskKind, TaskSpec};
 use super::error::CommandError;
-use crate::hierarchy::{push_scaled, push_transitioning, transition_weight, HierarchyError, Stack};
-use crate::tasks::TaskRows;
+use crate::hierarchy::{transition_weight, HierarchyError, TaskWindow};
 
 /// A hierarchy entry, possibly moving: on `from` with weight `1 − σ` and on `to` with `σ`,
 /// `σ = transition_weight(progress)` (4.68); `None` is "not in the hierarchy".
@@ -22,22 +21,23 @@ pub(super) struct ActiveTask<T> {
 }
 
 impl<T: RealField + Copy> ActiveTask<T> {
-    /// Pushes the task's rows onto the stack: on its level with weight one when at rest, with
-    /// the transition weight (4.68) on the levels it moves between, fades in or out of.
-    pub(super) fn push_rows<const N: usize, const R: usize>(
+    /// Places the task's rows, appended to the stack through `rows`: on its level with weight
+    /// one when at rest, with the transition weight (4.68) on the levels it moves between, fades
+    /// in or out of.
+    pub(super) fn place<const N: usize, const R: usize>(
         &self,
-        stack: &mut Stack<T, N, R>,
-        rows: &TaskRows<T, N, MAX_TASK_ROWS>,
+        rows: TaskWindow<'_, T, N, R, MAX_TASK_ROWS>,
     ) -> Result<(), HierarchyError> {
         let sigma = transition_weight(self.progress);
         match (self.from, self.to) {
-            (Some(from), Some(to)) if from != to => {
-                push_transitioning(stack, rows, from.into(), to.into(), self.progress)
+            (Some(from), Some(to)) if from != to => rows.place_transitioning(from.into(), to.into(), self.progress),
+            (_, Some(to)) if self.from.is_none() => rows.place_scaled(to.into(), sigma),
+            (Some(from), None) => rows.place_scaled(from.into(), T::one() - sigma),
+            (_, Some(to)) => rows.place(to.into()),
+            (None, None) => {
+                rows.discard();
+                Ok(())
             }
-            (_, Some(to)) if self.from.is_none() => push_scaled(stack, rows, to.into(), sigma),
-            (Some(from), None) => push_scaled(stack, rows, from.into(), T::one() - sigma),
-            (_, Some(to)) => push_scaled(stack, rows, to.into(), T::one()),
-            (None, None) => Ok(()),
         }
     }
 }

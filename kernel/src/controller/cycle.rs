@@ -6,7 +6,7 @@ use nalgebra::{convert, RealField, SVector, Vector3, Vector6};
 
 use hal::{PlatformCommand, LEGS};
 
-use super::capacity::{MAX_ACTIVE, MAX_LEVELS};
+use super::capacity::{MAX_ACTIVE, MAX_LEVELS, MAX_TASK_ROWS};
 use super::config::{Consistency, TaskKind};
 use super::faults::{validate_frame, Fault, SafeOutput};
 use super::force_limit::HandLimits;
@@ -18,7 +18,7 @@ use super::layout::{Hand, JointGroup};
 use super::settings::ControllerSettings;
 use super::speed_barrier::{speed_barrier, InverseInertia, JointLimits};
 use super::state::{ControllerState, InertiaFactors, Workspace};
-use super::task_set::{evaluate, EvaluationContext, Scratch};
+use super::task_set::{evaluate, row_summary, EvaluationContext, Scratch};
 use super::trajectory::{JointTrajectory, PoseTrajectory};
 use crate::dynamics::{
     coriolis_transpose_velocity, coriolis_velocity_products, crba, forward_kinematics, gravity, kinematics,
@@ -257,8 +257,9 @@ impl<
             cartesian_damping: [Vector6::zeros(); 2],
         };
         for (index, entry) in self.state.hierarchy.entries().iter().enumerate() {
-            self.work.rows.clear();
-            evaluate(
+            // The task writes its rows into the stack's slots; `place` tags and weights them.
+            let mut rows = self.work.stack.task::<MAX_TASK_ROWS>();
+            let evaluated = evaluate(
                 entry.kind,
                 &EvaluationContext {
                     model: &self.settings.model,
@@ -273,18 +274,18 @@ impl<
                 },
                 &mut self.work.data,
                 &mut scratch,
-                &mut self.work.rows,
+                &mut rows,
                 &mut self.state.telemetry,
-            )?;
-            entry.push_rows(&mut self.work.stack, &self.work.rows).map_err(Fault::Hierarchy)?;
+            );
+            evaluated.map_err(|fault| rows.overflow().map_or(fault, Fault::Hierarchy))?;
             let t = &mut self.state.telemetry;
             if let (Some(kind), Some(activation), Some(norm)) =
                 (t.tasks.get_mut(index), t.task_activation.get_mut(index), t.task_torque_norm.get_mut(index))
             {
                 *kind = Some(entry.kind);
-                *activation = self.work.rows.rows().iter().fold(T::zero(), |a, r| a.max(r.activation));
-                *norm = sqrt(self.work.rows.torque().norm_squared());
+                (*activation, *norm) = row_summary(rows.rows());
             }
+            entry.place(rows).map_err(Fault::Hierarchy)?;
         }
         self.work.cartesian_damping = scratch.cartesian_damping;
         Ok(())

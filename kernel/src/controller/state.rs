@@ -6,7 +6,7 @@
 use nalgebra::{RealField, SMatrix, SVector, Vector3, Vector6};
 
 use super::active_hierarchy::ActiveHierarchy;
-use super::capacity::{MAX_LEVELS, MAX_ROWS, MAX_TASK_ROWS};
+use super::capacity::{MAX_LEVELS, MAX_ROWS};
 use super::config::ControllerConfig;
 use super::force_limit::ForceLimiter;
 use super::frames::ActuatorFrame;
@@ -22,7 +22,6 @@ use crate::model::{Data, Model};
 use crate::platform::admittance::Admittance;
 use crate::platform::avoidance::PlatformAvoidance;
 use crate::tasks::collision::{CollisionData, CollisionModel};
-use crate::tasks::TaskRows;
 
 /// The controller's state: everything one cycle leaves for the next (see the module docs).
 #[derive(Clone, Debug)]
@@ -96,10 +95,9 @@ pub(super) struct Workspace<
     pub(super) data: Data<T, N, B, F>,
     /// The collision geometry; `exact_within` follows the collision fields' emit distances.
     pub(super) collision_data: CollisionData<T, V, P>,
+    /// Every task's rows, written in place by the tasks (`Stack::task`).
     pub(super) stack: Stack<T, N, MAX_ROWS>,
     pub(super) projection: HierarchyData<T, N, MAX_ROWS, MAX_LEVELS>,
-    /// One task's rows.
-    pub(super) rows: TaskRows<T, N, MAX_TASK_ROWS>,
     /// The Cartesian damping force of each hand this cycle (task axes), outside the force limits.
     pub(super) cartesian_damping: PerHand<Vector6<T>>,
     /// The world-aligned TCP Jacobians of this cycle (contact-force limiter and Cartesian tasks).
@@ -142,7 +140,6 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
             collision_data,
             stack: Stack::new(),
             projection: HierarchyData::default(),
-            rows: TaskRows::new(),
             cartesian_damping: [Vector6::zeros(); 2],
             tcp_jacobians: [SMatrix::zeros(); 2],
             closed_loop: SMatrix::zeros(),

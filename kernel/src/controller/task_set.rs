@@ -14,6 +14,8 @@ use super::layout::{Hand, JointGroup, PerHand};
 use super::telemetry::Telemetry;
 use super::trajectory::{JointTrajectory, PoseTrajectory};
 use crate::dynamics::TreeFactorization;
+use crate::hierarchy::StackRow;
+use crate::math::sqrt;
 use crate::model::{Data, Model};
 use crate::tasks::cartesian_impedance::{
     cartesian_impedance_with_jacobian, AxisMask, CartesianImpedance, CartesianImpedanceConfig, StiffnessFrame,
@@ -25,7 +27,7 @@ use crate::tasks::end_stops::{end_stops, EndStop, EndStopConfig};
 use crate::tasks::joint_impedance::{joint_impedance, JointImpedance, JointImpedanceConfig, JointTarget};
 use crate::tasks::manipulability::{manipulability_avoidance, Manipulability, ManipulabilityConfig};
 use crate::tasks::torso_workspace::{torso_workspace, TorsoWorkspace};
-use crate::tasks::{TaskError, TaskRows};
+use crate::tasks::{RowSink, TaskError};
 
 /// Validated task objects built from the configuration.
 #[derive(Clone, Debug)]
@@ -189,7 +191,8 @@ pub(super) struct EvaluationContext<
     pub(super) tcp_jacobians: &'a PerHand<SMatrix<T, 6, N>>,
 }
 
-/// Appends the rows of one task to `rows` and records its telemetry.
+/// Appends the rows of one task to `rows` (the task's window of the stack) and records its
+/// telemetry.
 pub(super) fn evaluate<
     T: RealField + Copy,
     const N: usize,
@@ -202,7 +205,7 @@ pub(super) fn evaluate<
     cx: &EvaluationContext<'_, T, N, B, F, V, P>,
     data: &mut Data<T, N, B, F>,
     scratch: &mut Scratch<'_, T, N, V, P>,
-    rows: &mut TaskRows<T, N, MAX_TASK_ROWS>,
+    rows: &mut impl RowSink<T, N, MAX_TASK_ROWS>,
     telemetry: &mut Telemetry<T, N>,
 ) -> Result<(), Fault> {
     match kind {
@@ -272,4 +275,12 @@ pub(super) fn evaluate<
         }
     }
     Ok(())
+}
+
+/// The telemetry of one task's rows as the task emitted them (before the level weight): the
+/// largest activation and the norm of the torque `τ = Σ jᵀ f` of the rows used alone.
+pub(super) fn row_summary<T: RealField + Copy, const N: usize>(rows: &[StackRow<T, N>]) -> (T, T) {
+    let activation = rows.iter().fold(T::zero(), |a, r| a.max(r.row.activation));
+    let torque = rows.iter().fold(SVector::<T, N>::zeros(), |tau, r| tau + r.row.jacobian.transpose() * r.row.force);
+    (activation, sqrt(torque.norm_squared()))
 }

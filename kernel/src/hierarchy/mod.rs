@@ -2,7 +2,8 @@
 //! joint torque with a strict, continuous hierarchy, computed by a row-wise recursion whose
 //! only inversion is of a scalar (the remark after Table 4.3).
 //!
-//! - [`Stack`]: the rows of all tasks, each tagged with its priority level (0 = highest).
+//! - [`Stack`]: the rows of all tasks, each tagged with its priority level (0 = highest); the
+//!   stack owns the row storage, and a task writes its rows in place through a [`TaskWindow`].
 //! - [`project`]: the projection recursion; [`Recursion`] selects successive (4.3)–(4.7) or
 //!   augmented (4.8)–(4.13) projections (or none, for comparison), [`Weighting`] the
 //!   consistency: static `W = I` (Def. 4.1), dynamic `W = M(q)` (Def. 4.2, (4.29)), stiffness
@@ -27,5 +28,5 @@ mod transition;
 pub use config::{HierarchyConfig, Recursion, Shaping, Weighting};
 pub use error::HierarchyError;
 pub use projection::{project, HierarchyData, LevelDiagnostics, RowDiagnostics};
-pub use stack::{Stack, StackRow};
+pub use stack::{Stack, StackRow, TaskWindow};
 pub use transition::{push_scaled, push_transitioning, transition_weight};

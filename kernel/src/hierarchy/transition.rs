@@ -25,15 +25,8 @@ pub fn push_transitioning<T: RealField + Copy, const N: usize, const R: usize, c
         return Err(HierarchyError::NonFinite);
     }
     let sigma = transition_weight(progress);
-    let sides = [(from, T::one() - sigma), (to, sigma)];
-    let needed = sides.iter().filter(|(_, w)| *w > T::zero()).count() * rows.len();
-    if stack.rows().len() + needed > R {
-        return Err(HierarchyError::Capacity { capacity: R });
-    }
-    for (level, weight) in sides.into_iter().filter(|(_, w)| *w > T::zero()) {
-        push_scaled(stack, rows, level, weight)?;
-    }
-    Ok(())
+    let sides = [T::one() - sigma, sigma].iter().filter(|w| **w > T::zero()).count();
+    stack.copy_task(rows, sides * rows.len())?.place_transitioning(from, to, progress)
 }
 
 /// The cubic (4.68) weight of a transition's `progress ∈ [0, 1]`: 0 at the start, 1 at the end,
@@ -61,5 +54,5 @@ pub fn push_scaled<T: RealField + Copy, const N: usize, const R: usize, const Q:
     if weight <= T::zero() {
         return Ok(());
     }
-    stack.push_task(level, rows, Some(weight.min(T::one())))
+    stack.push_task(level, rows, Some(weight))
 }

@@ -16,7 +16,9 @@
 
 use nalgebra::{RealField, RowSVector, SVector};
 
-use super::{TaskError, TaskRow, TaskRows};
+#[cfg(test)]
+use super::TaskRows;
+use super::{RowSink, TaskError, TaskRow};
 use crate::model::JointDrive;
 
 use crate::math::switching::transition_activation;
@@ -198,7 +200,7 @@ pub fn end_stops<T: RealField + Copy, const N: usize, const R: usize>(
     stops: &[EndStop<T, N>],
     q: &SVector<T, N>,
     v: &SVector<T, N>,
-    rows: &mut TaskRows<T, N, R>,
+    rows: &mut impl RowSink<T, N, R>,
 ) -> Result<(), TaskError> {
     if !(crate::math::all_finite(q) && crate::math::all_finite(v)) {
         return Err(TaskError::NonFinite);

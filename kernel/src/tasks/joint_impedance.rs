@@ -3,7 +3,9 @@
 
 use nalgebra::{RealField, SVector};
 
-use super::{TaskError, TaskRows};
+#[cfg(test)]
+use super::TaskRows;
+use super::{RowSink, TaskError};
 #[cfg(test)]
 use {super::TaskRow, nalgebra::RowSVector};
 
@@ -119,7 +121,7 @@ pub fn joint_impedance<T: RealField + Copy, const N: usize, const R: usize>(
     q: &SVector<T, N>,
     v: &SVector<T, N>,
     target: &JointTarget<T, N>,
-    rows: &mut TaskRows<T, N, R>,
+    rows: &mut impl RowSink<T, N, R>,
 ) -> Result<(), TaskError> {
     let inputs = [q, v, &target.position, &target.velocity];
     if !inputs.iter().all(|x| crate::math::all_finite(*x)) {

@@ -45,6 +45,65 @@ impl<T: RealField + Copy, const N: usize> TaskRow<T, N> {
     }
 }
 
+/// Where a task appends its rows, at most `R` of them: an owned [`TaskRows`] list, or the
+/// task's window of the hierarchy stack ([`crate::hierarchy::TaskWindow`]), whose slots are the
+/// rows the projection reads (each row is written once, where it is used). [`Self::len`] and
+/// [`Self::truncate`] count the rows appended to this sink only. Every appended row is finite.
+pub trait RowSink<T: RealField + Copy, const N: usize, const R: usize> {
+    /// Number of rows appended.
+    fn len(&self) -> usize;
+
+    /// `true` if no row was appended.
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Appends a row; rejects non-finite rows and a full sink (the sink is unchanged then).
+    fn push(&mut self, row: TaskRow<T, N>) -> Result<(), TaskError>;
+
+    /// Appends a row built in place: `fill` receives the new slot as a zero row (zero Jacobian,
+    /// force, potential and activation) and writes what it needs. Rejects a full sink and a
+    /// non-finite result (the sink is unchanged then).
+    fn push_with(&mut self, fill: impl FnOnce(&mut TaskRow<T, N>)) -> Result<(), TaskError>;
+
+    /// Appends a row that `fill` writes completely in place — every Jacobian entry, the force,
+    /// the potential and the activation: the slot it receives holds an unspecified row (a zero
+    /// row in a [`TaskRows`], the slot's previous row in a stack window), so no zero row is
+    /// written first. `fill` returns the row's `j M⁻¹ jᵀ` over the inertia factor its task used
+    /// (the metric of the row's norm ratio with the inverse-inertia weighting, the squared norm
+    /// `σ₁²` of (4.70)), kept with the row when finite. Rejects a full sink and a non-finite
+    /// row (the sink is unchanged then).
+    fn push_with_metric(&mut self, fill: impl FnOnce(&mut TaskRow<T, N>) -> Option<T>) -> Result<(), TaskError>;
+
+    /// Keeps the first `len` rows appended (all if there are fewer).
+    fn truncate(&mut self, len: usize);
+}
+
+impl<T: RealField + Copy, const N: usize, const R: usize> RowSink<T, N, R> for TaskRows<T, N, R> {
+    fn len(&self) -> usize {
+        TaskRows::len(self)
+    }
+
+    #[inline]
+    fn push(&mut self, row: TaskRow<T, N>) -> Result<(), TaskError> {
+        TaskRows::push(self, row)
+    }
+
+    #[inline]
+    fn push_with(&mut self, fill: impl FnOnce(&mut TaskRow<T, N>)) -> Result<(), TaskError> {
+        TaskRows::push_with(self, fill)
+    }
+
+    #[inline]
+    fn push_with_metric(&mut self, fill: impl FnOnce(&mut TaskRow<T, N>) -> Option<T>) -> Result<(), TaskError> {
+        TaskRows::push_with_metric(self, fill)
+    }
+
+    fn truncate(&mut self, len: usize) {
+        TaskRows::truncate(self, len);
+    }
+}
+
 /// A fixed-capacity list of task rows (capacity `R`).
 ///
 /// A row may carry its `j M⁻¹ jᵀ` over the inertia factor its task used (the collision rows on

@@ -51,10 +51,11 @@
 //! whose potential share is still the unsaturated `½ e_i (K e)_i`. Clamping the spring force
 //! towards zero never adds energy to the virtual spring, and the damping only dissipates.
 
-use heapless::Vec;
-use nalgebra::{Matrix3, Matrix6, RealField, RowSVector, SMatrix, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{Matrix3, Matrix6, RealField, SMatrix, UnitQuaternion, Vector3, Vector6};
 
-use super::{TaskError, TaskRow, TaskRows};
+use super::{RowSink, TaskError};
+#[cfg(test)]
+use super::{TaskRow, TaskRows};
 use crate::dynamics::{frame_jacobian, DynamicsError, TreeFactorization};
 use crate::math::spatial::{skew, Placement};
 use crate::model::{Data, FrameId, Model};
@@ -334,7 +335,7 @@ pub fn cartesian_impedance<T: RealField + Copy, const N: usize, const B: usize, 
     data: &Data<T, N, B, F>,
     task: &CartesianImpedance<T>,
     target: &CartesianTarget<T>,
-    rows: &mut TaskRows<T, N, R>,
+    rows: &mut impl RowSink<T, N, R>,
 ) -> Result<CartesianReport<T>, TaskError> {
     evaluate(model, data, MassFactor::Dense, task, target, None, rows)
 }
@@ -357,7 +358,7 @@ pub fn cartesian_impedance_factored<
     mass: Option<&TreeFactorization<T, N>>,
     task: &CartesianImpedance<T>,
     target: &CartesianTarget<T>,
-    rows: &mut TaskRows<T, N, R>,
+    rows: &mut impl RowSink<T, N, R>,
 ) -> Result<CartesianReport<T>, TaskError> {
     evaluate(model, data, MassFactor::Tree(mass), task, target, None, rows)
 }
@@ -379,7 +380,7 @@ pub fn cartesian_impedance_with_jacobian<
     task: &CartesianImpedance<T>,
     target: &CartesianTarget<T>,
     jacobian: &SMatrix<T, 6, N>,
-    rows: &mut TaskRows<T, N, R>,
+    rows: &mut impl RowSink<T, N, R>,
 ) -> Result<CartesianReport<T>, TaskError> {
     evaluate(model, data, MassFactor::Tree(mass), task, target, Some(jacobian), rows)
 }
@@ -400,7 +401,7 @@ fn evaluate<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
     task: &CartesianImpedance<T>,
     target: &CartesianTarget<T>,
     world_jacobian: Option<&SMatrix<T, 6, N>>,
-    rows: &mut TaskRows<T, N, R>,
+    rows: &mut impl RowSink<T, N, R>,
 ) -> Result<CartesianReport<T>, TaskError> {
     let config = &task.config;
     let pose_finite = crate::math::all_finite(target.pose.rotation.matrix())
@@ -463,8 +464,10 @@ fn evaluate<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
 
     let half: T = nalgebra::convert(0.5);
     let mut saturated = [false; 6];
-    let mut pending: Vec<TaskRow<T, N>, 6> = Vec::new();
     let finite_jacobian = task_jacobian.as_slice().iter().all(|x| x.is_finite());
+    // Each row is written whole in place in its slot of `rows`; a non-finite row removes the
+    // rows pushed so far, so that `rows` is left unchanged.
+    let start = rows.len();
     for (axis, flag) in saturated.iter_mut().enumerate() {
         if !config.axes.contains(axis) {
             continue;
@@ -473,24 +476,19 @@ fn evaluate<T: RealField + Copy, const N: usize, const B: usize, const F: usize,
         let raw = -entry(&spring);
         let (lower, upper) = (entry(&config.force_lower), entry(&config.force_upper));
         *flag = raw < lower || raw > upper;
-        let mut row_jacobian = RowSVector::<T, N>::zeros();
-        for (x, column) in row_jacobian.as_mut_slice().iter_mut().zip(task_jacobian.as_slice().chunks_exact(6)) {
-            *x = column.get(axis).copied().unwrap_or_else(T::zero);
-        }
-        let row = TaskRow {
-            jacobian: row_jacobian,
-            force: raw.max(lower).min(upper) + entry(&damping_force),
-            potential: half * entry(&error) * entry(&spring),
-            activation: T::one(),
-        };
-        let finite = row.force.is_finite() && row.potential.is_finite() && finite_jacobian;
-        if !finite || pending.push(row).is_err() {
+        let pushed = rows.push_with_metric(|row| {
+            for (x, column) in row.jacobian.as_mut_slice().iter_mut().zip(task_jacobian.as_slice().chunks_exact(6)) {
+                *x = column.get(axis).copied().unwrap_or_else(T::zero);
+            }
+            row.force = raw.max(lower).min(upper) + entry(&damping_force);
+            row.potential = half * entry(&error) * entry(&spring);
+            row.activation = T::one();
+            None
+        });
+        if !finite_jacobian || pushed.is_err() {
+            rows.truncate(start);
             return Err(TaskError::NonFinite);
         }
-    }
-    // By reference: consuming a heapless vector drops its iterator through a slice index.
-    for row in &pending {
-        rows.push(*row)?;
     }
     Ok(CartesianReport { error, error_rate, unsaturated_force, damping_force, saturated, damping_fallback })
 }

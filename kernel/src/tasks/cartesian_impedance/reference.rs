@@ -2,7 +2,8 @@
 use super::*;
 use crate::dynamics::mass_matrix_cholesky;
 use crate::math::damping::{double_diagonalization, ReflectedInertia};
-use nalgebra::SVector;
+use heapless::Vec;
+use nalgebra::{RowSVector, SVector};
 
 struct TaskKinematics<T, const N: usize> {
     error: Vector6<T>,

@@ -30,7 +30,9 @@
 use nalgebra::{RealField, RowSVector, Vector3};
 
 use super::cartesian_impedance::AxisMask;
-use super::{TaskError, TaskRow, TaskRows};
+use super::{RowSink, TaskError};
+#[cfg(test)]
+use super::{TaskRow, TaskRows};
 use crate::dynamics::DynamicsError;
 use crate::math::cholesky::{cholesky_in_place, solve_lower_in_place, solve_lower_transpose_in_place};
 use crate::math::spatial::{angular, linear_at_point};
@@ -307,7 +309,7 @@ pub fn manipulability_avoidance<T: RealField + Copy, const N: usize, const B: us
     model: &Model<T, N, B, F>,
     data: &Data<T, N, B, F>,
     task: &Manipulability<T, N>,
-    rows: &mut TaskRows<T, N, R>,
+    rows: &mut impl RowSink<T, N, R>,
 ) -> Result<ManipulabilityReport<T>, TaskError> {
     if rows.len() >= R {
         return Err(TaskError::Capacity { capacity: R });
@@ -318,11 +320,12 @@ pub fn manipulability_avoidance<T: RealField + Copy, const N: usize, const B: us
     let activation = transition_activation(measure.value, c.full_activation, c.threshold);
     let rate = (measure.gradient * data.v).x;
     let two: T = nalgebra::convert(2.0);
-    rows.push(TaskRow {
-        jacobian: measure.gradient,
-        force: -two * c.stiffness * deficit - activation * c.damping * rate,
-        potential: c.stiffness * deficit * deficit,
-        activation,
+    rows.push_with_metric(|row| {
+        row.jacobian = measure.gradient;
+        row.force = -two * c.stiffness * deficit - activation * c.damping * rate;
+        row.potential = c.stiffness * deficit * deficit;
+        row.activation = activation;
+        None
     })?;
     Ok(ManipulabilityReport { manipulability: measure.value, singular: measure.singular })
 }

@@ -62,16 +62,21 @@ pub use boundary::{Boundary, RepulsionGains, BOUNDARIES};
 pub use dynamic_limits::{joint2_lines, load_torque, TorqueBand, TorqueLimits, TorqueLine, TorsoLoad};
 pub use kinematics::{direction, Arc, JointLine, Range, TorsoGeometry};
 
-use nalgebra::{Cholesky, Const, RealField, RowSVector, SMatrix, SVector, Vector2};
+use nalgebra::{Cholesky, Const, RealField, SMatrix, SVector, Vector2};
 
 use crate::dynamics::{InertiaFactor, TreeFactorization};
 
 use self::distance::ArcBoundary;
 use self::kinematics::{wrap_from, wrap_to_pi};
-use super::{TaskError, TaskRow, TaskRows};
+use super::{RowSink, TaskError};
 use crate::math::cholesky::solve_lower_in_place;
 use crate::math::sqrt;
 use crate::math::switching::transition_activation;
+#[cfg(test)]
+use {
+    super::{TaskRow, TaskRows},
+    nalgebra::RowSVector,
+};
 
 /// Everything the torso-workspace task needs. Validate with [`TorsoWorkspace::try_new`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -373,7 +378,7 @@ pub fn torso_workspace<'m, T: RealField + Copy, const N: usize, const R: usize>(
     q: &SVector<T, N>,
     v: &SVector<T, N>,
     inertia: impl Into<InertiaFactor<'m, T, N>>,
-    rows: &mut TaskRows<T, N, R>,
+    rows: &mut impl RowSink<T, N, R>,
 ) -> Result<TorsoWorkspaceReport<T>, TaskError> {
     if !(crate::math::all_finite(q) && crate::math::all_finite(v)) {
         return Err(TaskError::NonFinite);
@@ -403,44 +408,39 @@ pub fn torso_workspace<'m, T: RealField + Copy, const N: usize, const R: usize>(
     };
     let [w22, w23, w33] = block;
     let (v2, v3) = (v.get(i2).copied().unwrap_or_else(T::zero), v.get(i3).copied().unwrap_or_else(T::zero));
-    let mut new_rows =
-        [TaskRow { jacobian: RowSVector::zeros(), force: T::zero(), potential: T::zero(), activation: T::zero() };
-            BOUNDARIES];
-    for ((row, distance), gradient) in new_rows.iter_mut().zip(report.distances.iter()).zip(gradients.iter()) {
-        let Some(d) = *distance else { continue };
-        let local = gradient.transpose() * jt;
-        let (l2, l3) = (local.x, local.y);
-        let mut jacobian = RowSVector::<T, N>::zeros();
-        if let Some(a) = jacobian.get_mut(i2) {
-            *a = l2;
+    // Each row is built in place in its slot of `rows` (a boundary without a distance is the
+    // zero row); a failure removes the rows pushed so far, so that `rows` is left unchanged.
+    let start = rows.len();
+    for (distance, gradient) in report.distances.iter().zip(gradients.iter()) {
+        let pushed = rows.push_with(|row| {
+            let Some(d) = *distance else { return };
+            let local = gradient.transpose() * jt;
+            let (l2, l3) = (local.x, local.y);
+            if let Some(a) = row.jacobian.get_mut(i2) {
+                *a = l2;
+            }
+            if let Some(a) = row.jacobian.get_mut(i3) {
+                *a = l3;
+            }
+            let rate = l2 * v2 + l3 * v3;
+            // Damping 2ξ√(k m) ḋ with m = 1/(j M⁻¹ jᵀ): 2ξ√k ḋ/√(j M⁻¹ jᵀ). At a singular row
+            // (j → 0) both ḋ and √(j M⁻¹ jᵀ) vanish linearly; below the guard no damping.
+            let stiffness = gains.stiffness(d);
+            let mobility = sqrt((l2 * (l2 * w22 + l3 * w23) + l3 * (l2 * w23 + l3 * w33)).max(T::zero()));
+            let damping = crate::math::guarded_divide(
+                two * gains.damping_ratio * sqrt(stiffness) * rate,
+                mobility,
+                T::default_epsilon(),
+            )
+            .unwrap_or_else(T::zero);
+            row.force = gains.force(d) - damping;
+            row.potential = gains.potential(d);
+            row.activation = transition_activation(d, gains.activation_full, gains.activation_start);
+        });
+        if let Err(e) = pushed {
+            rows.truncate(start);
+            return Err(e);
         }
-        if let Some(a) = jacobian.get_mut(i3) {
-            *a = l3;
-        }
-        let rate = l2 * v2 + l3 * v3;
-        // Damping 2ξ√(k m) ḋ with m = 1/(j M⁻¹ jᵀ): 2ξ√k ḋ/√(j M⁻¹ jᵀ). At a singular row
-        // (j → 0) both ḋ and √(j M⁻¹ jᵀ) vanish linearly; below the guard no damping.
-        let stiffness = gains.stiffness(d);
-        let mobility = sqrt((l2 * (l2 * w22 + l3 * w23) + l3 * (l2 * w23 + l3 * w33)).max(T::zero()));
-        let damping = crate::math::guarded_divide(
-            two * gains.damping_ratio * sqrt(stiffness) * rate,
-            mobility,
-            T::default_epsilon(),
-        )
-        .unwrap_or_else(T::zero);
-        let force = gains.force(d) - damping;
-        let potential = gains.potential(d);
-        let activation = transition_activation(d, gains.activation_full, gains.activation_start);
-        // The row is zero outside (i2, i3): checking its two entries checks the row.
-        let finite =
-            force.is_finite() && potential.is_finite() && activation.is_finite() && l2.is_finite() && l3.is_finite();
-        if !finite {
-            return Err(TaskError::NonFinite);
-        }
-        *row = TaskRow { jacobian, force, potential, activation };
-    }
-    for row in new_rows {
-        rows.push(row)?;
     }
     Ok(report)
 }

@@ -14,7 +14,7 @@ use crate::math::sqrt;
 use crate::model::{Data, Model};
 use crate::tasks::collision::model::{CollisionData, CollisionModel};
 use crate::tasks::collision::volumes::Proximity;
-use crate::tasks::{TaskError, TaskRow, TaskRows};
+use crate::tasks::{RowSink, TaskError, TaskRow, TaskRows};
 
 /// The configuration- and velocity-dependent part of the pair rows of one cycle, shared by the
 /// collision fields that evaluate the same geometry (the strong and the weak field of Fig. 6.3):
@@ -373,7 +373,7 @@ pub fn collision_rows_shared<
     mass: impl Into<InertiaFactor<'m, T, N>>,
     parameters: &CollisionParameters<T>,
     cache: &mut PairRowCache<T, N, P, C>,
-    rows: &mut TaskRows<T, N, R>,
+    rows: &mut impl RowSink<T, N, R>,
 ) -> Result<CollisionReport<T>, TaskError> {
     let free = R.saturating_sub(rows.len());
     let limit = parameters.emit_distance();
