@@ -122,8 +122,8 @@ fn copy_row<T: Copy, const N: usize>(target: &mut [T; N], source: &[T; N]) {
 }
 
 /// The row of pair `pair` (as [`evaluate_pair`](super::evaluate_pair)`(..).row`, equal to rounding) written into
-/// `row`, which must be a zero row on entry (as [`TaskRows::push_with_metric`] gives it),
-/// without the pair's intermediate results: the row Jacobian, the inverse reflected masses and
+/// `row` (every entry: its previous contents do not matter, as [`RowSink::push_with_metric`]
+/// allows), without the pair's intermediate results: the row Jacobian, the inverse reflected masses and
 /// the distance rate from `cache`, or from [`pair_kinematics`] (then cached, the Jacobian
 /// written into the cache's entry in the same pass), the force law (3.10) of `parameters` and
 /// the damping constant of (3.23) in the closed form `c = 2 ξ √(k / (m_i⁻¹ + m_j⁻¹))` (see
@@ -164,6 +164,8 @@ fn pair_row_into<
         }
         None => {
             let (table, scratch) = work.get_or_insert_with(|| (SupportTable::new(model), PairScratch::new()));
+            // `pair_kinematics` accumulates the row over the pair's support paths only.
+            jacobian.fill(T::zero());
             let entry = cache.vacant();
             let cached = entry.is_some();
             let kinematics = pair_kinematics(
