@@ -403,6 +403,14 @@ pub fn columns() -> Vec<String> {
     columns
 }
 
+/// The joint positions and velocities the controller sees: the arm's sensors. On the realistic
+/// plant reading them also starts the control cycle (the last command becomes the torque set
+/// point, `crate::plant`), so a controller that bypassed them would never actuate.
+fn sense(sim: &mut ArmSim) -> Result<(SVector<f64, ARM_DOF>, SVector<f64, ARM_DOF>), String> {
+    let sample = JointTorqueInterface::<f64, ARM_DOF>::read(sim).map_err(|e| e.to_string())?;
+    Ok((SVector::from(sample.position), SVector::from(sample.velocity)))
+}
+
 /// State at the start of the recording: after [`SETTLE_S`] at the home pose's equilibria.
 struct Start {
     q: SVector<f64, ARM_DOF>,
@@ -418,7 +426,7 @@ fn settle(model: &ArmModel, tcp: FrameId, options: &RunOptions) -> Result<Start,
     let equilibrium = home + SVector::from(JOINT_EQUILIBRIUM_OFFSET);
     let mut controller = ArmHierarchy::new(model.clone(), tcp, start, equilibrium)?;
     run_loop(&mut sim, SETTLE_S, CONTROL_PERIOD_S, |sim, _| -> Result<(), String> {
-        let (q, v) = (*sim.q(), *sim.v());
+        let (q, v) = sense(sim)?;
         let torque = *controller.step(&q, &v)?;
         Ok(JointTorqueInterface::<f64, ARM_DOF>::write_torque(sim, &torque.into())?)
     })?;
@@ -447,7 +455,7 @@ fn record(
         if t >= STEP_TIME_S - 1e-9 {
             controller.target = stepped;
         }
-        let (q, v) = (*sim.q(), *sim.v());
+        let (q, v) = sense(sim)?;
         let torque = *controller.step(&q, &v)?;
         JointTorqueInterface::<f64, ARM_DOF>::write_torque(sim, &torque.into()).map_err(|e| e.to_string())?;
         let out = &controller.out;
