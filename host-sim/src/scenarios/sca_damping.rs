@@ -321,7 +321,7 @@ pub struct HoldMetrics {
     pub overshoot_m: f64,
     /// `d_eq − min d`: the rebound's amplitude (m).
     pub rebound_amplitude_m: f64,
-    /// Local minima of `d` deeper than 0.1 mm (plus the noise band, see [`hold_metrics`])
+    /// Local minima of `d` deeper than 0.1 mm (plus the noise band `3σ_x`, [`PlantEffects`])
     /// below `d_eq` (the first is the impact).
     pub minima: usize,
     /// Work the delay adds between the first two of those minima (J, [`PlantEffects`]).
