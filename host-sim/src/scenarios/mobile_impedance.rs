@@ -172,6 +172,8 @@ pub struct Sample {
     pub torque_ratio: f64,
     /// Coupling torque `M_qr r̈ + C_qr ṙ` at torso joint 2 (Nm).
     pub coupling_torso2: f64,
+    /// Power of the realistic plant's joint friction `q̇ᵀ τ_f` (W, ≤ 0; zero on the ideal plant).
+    pub friction_power_w: f64,
 }
 
 /// The record of one experiment.
@@ -298,6 +300,7 @@ pub fn run(experiment: &Experiment, options: &RunOptions, label: &str) -> Result
             tcp_x: [tcp.x, desired.translation.vector.x],
             torque_ratio: t.torque_ratio,
             coupling_torso2: t.coupling.get(torso2).copied().unwrap_or(f64::NAN),
+            friction_power_w: sim.upper_v().dot(&sim.friction_torque()),
         });
         if t.storage.total.is_nan() || t.storage.total > experiment.stop_energy_j {
             return Err(Stop::Emergency { t_s: info.time_s });
@@ -337,6 +340,12 @@ impl From<SimError> for Stop {
             other => Self::Failed(other.to_string()),
         }
     }
+}
+
+/// Energy the realistic plant's joint friction dissipated over `run` (J, `−∫ q̇ᵀ τ_f dt` at the
+/// control samples; zero on the ideal plant).
+pub fn friction_dissipated_j(run: &Run) -> f64 {
+    0.0 - run.samples.iter().map(|s| s.friction_power_w).sum::<f64>() * CONTROL_PERIOD_S
 }
 
 /// Metrics of one run of the trajectory experiment.
@@ -452,6 +461,7 @@ pub fn evaluate(on: &Run, off: &Run) -> Result<Outcome, String> {
             .metric(&format!("{tag}_final_error_m"), m.final_error_m)
             .metric(&format!("{tag}_max_base_x_m"), m.max_base_x_m)
             .metric(&format!("{tag}_rate_mismatch"), m.rate_mismatch)
+            .metric(&format!("{tag}_friction_dissipated_j"), friction_dissipated_j(r))
             .metric(&format!("{tag}_max_tau_ratio"), m.torque_ratio)
             .value(&format!("{tag}_saturated_physics_steps"), r.saturated_steps)
             .value(&format!("{tag}_passivity_latched"), r.samples.iter().any(|s| s.latched));

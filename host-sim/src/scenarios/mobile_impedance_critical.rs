@@ -17,7 +17,7 @@
 
 use nalgebra::Vector3;
 
-use super::mobile_impedance::{critical_admittance, run, Disturbance, Experiment, Run, Sample};
+use super::mobile_impedance::{critical_admittance, friction_dissipated_j, run, Disturbance, Experiment, Run, Sample};
 use super::{Outcome, RunOptions};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
 use crate::sim::DEFAULT_PHYSICS_STEP_S;
@@ -135,6 +135,7 @@ pub fn evaluate(on: &Run, off: &Run) -> Result<Outcome, String> {
             .metric(&format!("{tag}_settle_after_push_s"), m.settle_s)
             .metric(&format!("{tag}_peak_energy_j"), m.peak_energy_j)
             .metric(&format!("{tag}_push_energy_j"), m.push_energy_j)
+            .metric(&format!("{tag}_friction_dissipated_j"), friction_dissipated_j(r))
             .metric(&format!("{tag}_max_tcp_deviation_m"), m.max_deviation_m)
             .metric(&format!("{tag}_max_base_x_m"), m.max_base_x_m)
             .metric(&format!("{tag}_max_tau_ratio"), m.torque_ratio)

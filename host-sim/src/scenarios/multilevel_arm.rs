@@ -45,6 +45,19 @@
 //!   ratio of the peaks is claimed below [`TAU_MU_RATIO_BOUND`] (thesis 0.063);
 //! - without `τ_μ` "The behaviors are very similar": every `S_i` deviates by less than
 //!   [`ON_OFF_DEVIATION_BOUND`] of its peak.
+//!
+//! # On the realistic plant
+//! The controller reads the arm through its sensors (`JointTorqueInterface::read`, which also
+//! starts the plant's control cycle). Two effects of the plant enter the claims, computed from
+//! its parameters along the run (`PlantShares`; both zero on the ideal plant, whose claims are
+//! the ones above):
+//! - the sampled `S₁` is computed from noisy velocities: its kinetic part moves by
+//!   `σ_v ‖Σ λ v J̄_row‖` (level-1 rows), so a rise between two samples may exceed the
+//!   zero-order-hold tolerance by twice its `3 σ` (the largest `σ` after the step);
+//! - the joint friction holds a static spring force: at rest each level-1..3 row's force
+//!   balances `z τ_f`, so the static residual (5.68) the friction can hold is
+//!   `√(Σ_rows (Σ_j |z_j| b_j)² / λ)` with `b = τ_c + d |q̇|`; the residual tolerances of `A₂`
+//!   and of level 3's minimum are widened by it (the kinetic tolerance is not).
 
 use fixtures::justin;
 use hal::JointTorqueInterface;
@@ -64,7 +77,7 @@ use kernel::tasks::TaskRows;
 use nalgebra::{Matrix3, RowSVector, SMatrix, SVector, Translation3, Unit, UnitQuaternion, Vector3, Vector6};
 
 use super::multilevel_planar::{column, largest_rise, peak, points};
-use super::{joint_columns, Outcome, RunOptions};
+use super::{joint_columns, Outcome, RunOptions, PLANT_SEED};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
 use crate::replay::Robot;
 use crate::sim::{run_loop, SimConfig, Simulator, CONTROL_PERIOD_S};
@@ -403,6 +416,14 @@ pub fn columns() -> Vec<String> {
     columns
 }
 
+/// The joint positions and velocities the controller sees: the arm's sensors. On the realistic
+/// plant reading them also starts the control cycle (the last command becomes the torque set
+/// point, `crate::plant`), so a controller that bypassed them would never actuate.
+fn sense(sim: &mut ArmSim) -> Result<(SVector<f64, ARM_DOF>, SVector<f64, ARM_DOF>), String> {
+    let sample = JointTorqueInterface::<f64, ARM_DOF>::read(sim).map_err(|e| e.to_string())?;
+    Ok((SVector::from(sample.position), SVector::from(sample.velocity)))
+}
+
 /// State at the start of the recording: after [`SETTLE_S`] at the home pose's equilibria.
 struct Start {
     q: SVector<f64, ARM_DOF>,
@@ -418,12 +439,54 @@ fn settle(model: &ArmModel, tcp: FrameId, options: &RunOptions) -> Result<Start,
     let equilibrium = home + SVector::from(JOINT_EQUILIBRIUM_OFFSET);
     let mut controller = ArmHierarchy::new(model.clone(), tcp, start, equilibrium)?;
     run_loop(&mut sim, SETTLE_S, CONTROL_PERIOD_S, |sim, _| -> Result<(), String> {
-        let (q, v) = (*sim.q(), *sim.v());
+        let (q, v) = sense(sim)?;
         let torque = *controller.step(&q, &v)?;
         Ok(JointTorqueInterface::<f64, ARM_DOF>::write_torque(sim, &torque.into())?)
     })?;
     let energies = sim.energies().map_err(|e| e.to_string())?;
     Ok(Start { q: *sim.q(), v: *sim.v(), kinetic_j: energies.kinetic })
+}
+
+/// What the realistic plant's sensors and friction add to the storage functions along a run
+/// (module docs, "On the realistic plant"); zero on the ideal plant.
+#[derive(Clone, Debug, Default, PartialEq)]
+struct PlantShares {
+    /// Largest standard deviation (J) that the velocity noise gives the sampled `S₁` after the
+    /// step: `σ_v ‖Σ_rows λ v J̄_row‖` over the level-1 rows (the gradient of `T₁ = ½ Σ λ v²`
+    /// along `q̇`, times the noise of each joint velocity).
+    s1_noise_j: f64,
+    /// Per level, the static residual the joint friction can hold at the last sample:
+    /// `√(Σ_rows (Σ_j |z_j| b_j)² / λ)` with `b = τ_c + d |q̇|` the plant's friction bound.
+    friction_residual: [f64; 3],
+}
+
+impl PlantShares {
+    /// The shares at one cycle of `out` with velocity noise `sigma_v` and friction bound `b`
+    /// (the noise share only after the step).
+    fn update(
+        &mut self,
+        out: &MultilevelData<f64, ARM_DOF, 3>,
+        sigma_v: f64,
+        b: &SVector<f64, ARM_DOF>,
+        stepped: bool,
+    ) {
+        let decomposition = &out.decomposition;
+        if stepped {
+            let gradient = decomposition
+                .level_rows(0)
+                .iter()
+                .fold(RowSVector::<f64, ARM_DOF>::zeros(), |g, row| g + row.jacobian * (row.inertia * row.velocity));
+            self.s1_noise_j = self.s1_noise_j.max(sigma_v * gradient.norm());
+        }
+        for (level, residual) in self.friction_residual.iter_mut().enumerate() {
+            *residual = decomposition
+                .level_rows(level)
+                .iter()
+                .map(|row| row.basis.abs().dot(&b.transpose()).powi(2) / row.inertia)
+                .sum::<f64>()
+                .sqrt();
+        }
+    }
 }
 
 /// One recorded run from the settled state, with `τ_μ` on or off.
@@ -433,7 +496,7 @@ fn record(
     start: &Start,
     decoupling: bool,
     options: &RunOptions,
-) -> Result<TimeSeries, String> {
+) -> Result<(TimeSeries, PlantShares), String> {
     let mut sim: ArmSim = options.simulator(model.clone(), SimConfig::default())?;
     sim.set_state(arm_home(), SVector::zeros()).map_err(|e| e.to_string())?;
     let home_pose = sim.frame_placement(tcp).map_err(|e| e.to_string())?;
@@ -443,13 +506,17 @@ fn record(
     controller.config.coriolis_decoupling = decoupling;
     let stepped = stepped_target(&home_pose);
     let mut series = TimeSeries::new(columns());
+    let velocity_noise = options.plant_model(PLANT_SEED).map_or(0.0, |m| m.velocity_noise_rad_s);
+    let mut shares = PlantShares::default();
     let mut cycle = |sim: &mut ArmSim, t: f64| -> Result<Vec<f64>, String> {
-        if t >= STEP_TIME_S - 1e-9 {
+        let after_step = t >= STEP_TIME_S - 1e-9;
+        if after_step {
             controller.target = stepped;
         }
-        let (q, v) = (*sim.q(), *sim.v());
+        let (q, v) = sense(sim)?;
         let torque = *controller.step(&q, &v)?;
         JointTorqueInterface::<f64, ARM_DOF>::write_torque(sim, &torque.into()).map_err(|e| e.to_string())?;
+        shares.update(&controller.out, velocity_noise, &sim.friction_torque_bound(), after_step);
         let out = &controller.out;
         let errors = controller.errors;
         let mut row = vec![t];
@@ -474,7 +541,7 @@ fn record(
         series.push(cycle(sim, info.time_s)?)
     })?;
     options.progress.finish();
-    Ok(series)
+    Ok((series, shares))
 }
 
 /// Largest `|x|` over the columns `<prefix>.1 … <prefix>.7`.
@@ -508,12 +575,12 @@ fn rising_intervals(t: &[f64], s: &[f64], threshold: f64) -> Vec<(f64, f64)> {
 pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
     let (model, tcp) = right_arm_model()?;
     let start = settle(&model, tcp, &options.silent())?;
-    let series = record(&model, tcp, &start, true, options)?;
-    let without = record(&model, tcp, &start, false, &options.silent())?;
+    let (series, shares) = record(&model, tcp, &start, true, options)?;
+    let (without, _) = record(&model, tcp, &start, false, &options.silent())?;
     let mut summary = Summary::new(NAME);
     summary.metric("settled_kinetic_energy_j", start.kinetic_j).metric("duration_s", DURATION_S);
-    storage_claims(&mut summary, &series)?;
-    constrained_minimum_claims(&mut summary, &series)?;
+    storage_claims(&mut summary, &series, &shares)?;
+    constrained_minimum_claims(&mut summary, &series, &shares)?;
     decoupling_claims(&mut summary, &series, &without)?;
     let figures = figures(&series, &without)?;
     Ok(Outcome { summary, series, figures })
@@ -521,7 +588,7 @@ pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
 
 /// Level 1 and 2 storage: Ṡ₁ ≤ 0 after the step (model-based and sampled); S2 converges,
 /// possibly after temporary rises.
-fn storage_claims(summary: &mut Summary, series: &TimeSeries) -> Result<(), String> {
+fn storage_claims(summary: &mut Summary, series: &TimeSeries, shares: &PlantShares) -> Result<(), String> {
     let t = column(series, "t")?;
     let after = |values: &[f64]| -> Vec<f64> {
         t.iter().zip(values).filter(|(time, _)| **time >= STEP_TIME_S).map(|(_, v)| *v).collect()
@@ -530,14 +597,19 @@ fn storage_claims(summary: &mut Summary, series: &TimeSeries) -> Result<(), Stri
     let s1_peak = s1.iter().copied().fold(0.0, f64::max);
     let sdot1_max = after(&column(series, "Sdot1")?).into_iter().fold(f64::NEG_INFINITY, f64::max);
     let s1_rise = largest_rise(&t, &s1, STEP_TIME_S + 1e-9);
+    // A rise between two samples: the noise can move each end by 3 σ.
+    let noise = 6.0 * shares.s1_noise_j;
+    let noise_note =
+        if noise > 0.0 { format!(" + the velocity noise's 2 × 3 σ {noise:.2e} J") } else { String::new() };
     summary
         .metric("s1_peak_j", s1_peak)
         .metric("sdot1_max_after_step_w", sdot1_max)
-        .metric("s1_largest_rise_after_step_j", s1_rise);
+        .metric("s1_largest_rise_after_step_j", s1_rise)
+        .metric("s1_noise_sigma_max_j", shares.s1_noise_j);
     summary.claim(&format!("model-based Ṡ1 ≤ 0 after the step (max {sdot1_max:.2e} W)"), sdot1_max <= 1e-9);
     summary.claim(
-        &format!("sampled S1 does not rise after the step (largest rise {s1_rise:.2e} J ≤ {S1_RISE_TOLERANCE_REL} × {s1_peak:.3} J)"),
-        s1_rise <= S1_RISE_TOLERANCE_REL * s1_peak,
+        &format!("sampled S1 does not rise after the step (largest rise {s1_rise:.2e} J ≤ {S1_RISE_TOLERANCE_REL} × {s1_peak:.3} J{noise_note})"),
+        s1_rise <= S1_RISE_TOLERANCE_REL * s1_peak + noise,
     );
     let s2 = column(series, "S2")?;
     let s2_peak = s2.iter().copied().fold(0.0, f64::max);
@@ -562,11 +634,25 @@ fn storage_claims(summary: &mut Summary, series: &TimeSeries) -> Result<(), Stri
 }
 
 /// Level 3 ends at a constrained minimum.
-fn constrained_minimum_claims(summary: &mut Summary, series: &TimeSeries) -> Result<(), String> {
+fn constrained_minimum_claims(summary: &mut Summary, series: &TimeSeries, shares: &PlantShares) -> Result<(), String> {
     let last = |name: &str| column(series, name).map(|v| v.last().copied().unwrap_or(f64::NAN));
     let (v3_final, t3_final, residual3_final) = (last("V3")?, last("T3")?, last("residual3")?);
     let residual3_peak = peak(&column(series, "residual3")?);
-    let in_a2 = last("in_A2")? > 0.5;
+    let [friction1, friction2, friction3] = shares.friction_residual;
+    // (5.63) with the residual tolerance widened by what the friction holds (zero on the ideal
+    // plant, where this is the kernel's own membership).
+    let tolerances = MultilevelConfig::<f64>::default();
+    let at_rest_within = |level: usize, friction: f64| -> Result<bool, String> {
+        Ok(last(&format!("T{level}"))? <= tolerances.kinetic_tolerance
+            && last(&format!("residual{level}"))? <= tolerances.residual_tolerance + friction)
+    };
+    let in_a2 = last("in_A2")? > 0.5 || (at_rest_within(1, friction1)? && at_rest_within(2, friction2)?);
+    summary.value("friction_residual_final", shares.friction_residual.to_vec());
+    let friction_note = if friction3 > 0.0 {
+        format!("; residual tolerances widened by what friction holds: {friction1:.2}, {friction2:.2}, {friction3:.2}")
+    } else {
+        String::new()
+    };
     summary
         .metric("v3_final_j", v3_final)
         .metric("kinetic3_final_j", t3_final)
@@ -578,9 +664,9 @@ fn constrained_minimum_claims(summary: &mut Summary, series: &TimeSeries) -> Res
         .value("in_a2_at_end", in_a2);
     summary.claim(
         &format!(
-            "level 3 at a constrained minimum: in A2 {in_a2}, kinetic {t3_final:.1e} J, residual {residual3_final:.1e} (peak {residual3_peak:.2}), V3 = {v3_final:.3} J > 0"
+            "level 3 at a constrained minimum: in A2 {in_a2}, kinetic {t3_final:.1e} J, residual {residual3_final:.1e} (peak {residual3_peak:.2}), V3 = {v3_final:.3} J > 0{friction_note}"
         ),
-        in_a2 && t3_final < 1e-4 && residual3_final < 0.01 * residual3_peak && v3_final > 0.1,
+        in_a2 && t3_final < 1e-4 && residual3_final < 0.01 * residual3_peak + friction3 && v3_final > 0.1,
     );
     Ok(())
 }
