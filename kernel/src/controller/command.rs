@@ -261,3 +261,57 @@ pub fn encode_command<'b, T: Serialize>(
 pub fn decode_command<T: for<'de> Deserialize<'de>>(bytes: &[u8]) -> Result<Command<T>, CommandError> {
     postcard::from_bytes(bytes).map_err(|_| CommandError::Decode)
 }
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, reason = "tests")]
+    use super::{encode_command, Command, Pose};
+    use crate::controller::config::{CartesianParameters, TaskKind, TaskSpec};
+    use crate::controller::layout::{Hand, JointGroup};
+
+    fn pose() -> Pose<f32> {
+        Pose { position: [0.5, -0.25, 1.0], orientation: [1.0, 0.0, 0.0, 0.0] }
+    }
+
+    /// Justin's commands on the wire, pinned byte for byte: the arm is one byte (0 right, 1 left)
+    /// in the command and in the task kinds of a hierarchy.
+    #[test]
+    fn justin_commands_keep_their_bytes() {
+        let hierarchy = [
+            TaskSpec { kind: TaskKind::CartesianImpedance(Hand::Left), level: 0 },
+            TaskSpec { kind: TaskKind::SingularityAvoidance(Hand::Right), level: 1 },
+            TaskSpec { kind: TaskKind::JointImpedance(JointGroup::Arm(Hand::Left)), level: 2 },
+            TaskSpec { kind: TaskKind::JointDamping(JointGroup::UpperBody), level: 2 },
+        ];
+        let parameters = CartesianParameters {
+            translational_stiffness: [1000.0_f32, 2000.0, 3000.0],
+            rotational_stiffness: [10.0, 20.0, 30.0],
+            damping_ratio: 0.7,
+            force_lower: [f32::NEG_INFINITY, -5.0, -5.0, -1.0, -1.0, -1.0],
+            force_upper: [10.0, 5.0, 5.0, 1.0, 1.0, f32::INFINITY],
+        };
+        let commands: [(Command<f32>, &str); 4] = [
+            (Command::SetHierarchy(hierarchy.iter().copied().collect()), "000400010002000105020102060302"),
+            (Command::SetCartesian { hand: Hand::Left, parameters }, "010100007a440000fa4400803b45000020410000a0410000f0413333333f000080ff0000a0c00000a0c0000080bf000080bf000080bf000020410000a0400000a0400000803f0000803f0000807f"),
+            (
+                Command::TcpGoal { hand: Hand::Right, pose: pose(), duration_s: 2.0 },
+                "04000000003f000080be0000803f0000803f00000000000000000000000000000040",
+            ),
+            (
+                Command::TcpSample {
+                    hand: Hand::Left,
+                    pose: pose(),
+                    linear_velocity: [0.1, 0.0, 0.0],
+                    angular_velocity: [0.0, 0.0, 0.5],
+                },
+                "05010000003f000080be0000803f0000803f000000000000000000000000cdcccc3d000000000000000000000000000000000000003f",
+            ),
+        ];
+        for (command, expected) in commands {
+            let mut buffer = [0_u8; 256];
+            let bytes = encode_command(&command, &mut buffer).unwrap();
+            let hex: std::string::String = bytes.iter().map(|b| std::format!("{b:02x}")).collect();
+            assert_eq!(hex, expected, "{command:?}");
+        }
+    }
+}
