@@ -303,7 +303,18 @@ impl<
 
     /// Admittance (5.1) driven by the platform rows of `τ`, then the ICR avoidance loop.
     /// Returns `ṙ_des`, the commanded `r̈` and the leg rates, all limited.
+    /// A fixed base (no platform axis in the layout) runs neither: the platform command is zero.
     fn platform_command(&mut self, frame: &SensorFrame<T, U>, dt: T) -> Result<PlatformStep<T>, Fault> {
+        if self.settings.config.layout.platform.axes().iter().all(|axis| axis.coordinate().is_none()) {
+            let t = &mut self.state.telemetry;
+            t.saturation = Saturation::none();
+            (t.virtual_force, t.base_acceleration, t.icr_repelling) = (Vector3::zeros(), Vector3::zeros(), false);
+            return Ok(PlatformStep {
+                velocity: Vector3::zeros(),
+                acceleration: Vector3::zeros(),
+                leg_rates: [T::zero(); LEGS],
+            });
+        }
         let platform = &self.settings.config.platform;
         let mut force = Vector3::zeros();
         for ((axis, f), deadband) in

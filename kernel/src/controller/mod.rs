@@ -242,7 +242,7 @@ use crate::tasks::collision::{CollisionData, CollisionModel};
 ///     TaskSpec { kind: TaskKind::CollisionAvoidance(Field::Strong), level: 0 },
 ///     TaskSpec { kind: TaskKind::JointImpedance(JointGroup::UpperBody), level: 1 },
 /// ];
-/// let mut controller = Controller::<f64, 5, 5, 2, 2, 2, 1>::try_new(model, collision, config, &hierarchy).unwrap();
+/// let mut controller = Controller::<f64, 5, 5, 2, 2, 2, 1, 2>::try_new(model, collision, config, &hierarchy).unwrap();
 ///
 /// // One cycle with the arms horizontal and everything at rest.
 /// let frame = SensorFrame {
