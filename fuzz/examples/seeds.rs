@@ -4,7 +4,7 @@
 
 use fixtures::justin::whole_body;
 use heapless::Vec;
-use kernel::controller::config::{CollisionFieldParameters, Consistency, Field, Hand, JointGroup};
+use kernel::controller::config::{ArmId, CollisionFieldParameters, Consistency, Field, JointGroup};
 use kernel::controller::messages::{encode_command, Command, Pose};
 use serde::Serialize;
 use std::fs;
@@ -14,8 +14,8 @@ fn commands<T: nalgebra::RealField + Copy>() -> [Command<T>; 7] {
     let c = nalgebra::convert::<f64, T>;
     let pose = Pose { position: [c(0.6), c(-0.3), c(1.0)], orientation: [c(1.0), c(0.0), c(0.0), c(0.0)] };
     [
-        Command::SetHierarchy(Vec::from_slice(&whole_body::fig_6_3_hierarchy(Hand::Left)).unwrap_or_default()),
-        Command::SetCartesian { hand: Hand::Right, parameters: whole_body::chapter_6_cartesian() },
+        Command::SetHierarchy(Vec::from_slice(&whole_body::fig_6_3_hierarchy(ArmId::LEFT)).unwrap_or_default()),
+        Command::SetCartesian { hand: ArmId::RIGHT, parameters: whole_body::chapter_6_cartesian() },
         Command::SetCollisionField {
             field: Field::Weak,
             parameters: CollisionFieldParameters {
@@ -27,10 +27,10 @@ fn commands<T: nalgebra::RealField + Copy>() -> [Command<T>; 7] {
             },
         },
         Command::SetConsistency(Consistency::Static),
-        Command::TcpGoal { hand: Hand::Left, pose, duration_s: c(1.5) },
-        Command::TcpSample { hand: Hand::Right, pose, linear_velocity: [c(0.1); 3], angular_velocity: [c(0.0); 3] },
+        Command::TcpGoal { hand: ArmId::LEFT, pose, duration_s: c(1.5) },
+        Command::TcpSample { hand: ArmId::RIGHT, pose, linear_velocity: [c(0.1); 3], angular_velocity: [c(0.0); 3] },
         Command::JointGoal {
-            group: JointGroup::ALL[0],
+            group: JointGroup::Platform,
             values: Vec::from_slice(&[c(0.1), c(-0.2), c(0.3)]).unwrap_or_default(),
             duration_s: c(2.0),
         },

@@ -5,7 +5,7 @@
 use arbitrary::{Result, Unstructured};
 use fixtures::justin::{self, collision, whole_body};
 use hal::{JointSample, PlatformSample};
-use kernel::controller::config::Hand;
+use kernel::controller::config::ArmId;
 use kernel::controller::{SensorFrame, PLATFORM_DOF};
 use nalgebra::RealField;
 use std::sync::OnceLock;
@@ -21,7 +21,7 @@ pub fn started<T: RealField + Copy>() -> Box<JustinController<T>> {
     let model = justin::model::<T>().expect("Justin's model builds");
     let collision = collision::collision_model(&model).expect("Justin's collision model builds");
     let config = whole_body::controller_config::<T>().expect("Justin's configuration is valid");
-    let hierarchy = whole_body::fig_6_3_hierarchy(Hand::Right);
+    let hierarchy = whole_body::fig_6_3_hierarchy(ArmId::RIGHT);
     let mut controller =
         Box::new(JustinController::<T>::try_new(model, collision, config, &hierarchy).expect("the controller builds"));
     controller.step(&home_frame(1));

@@ -111,7 +111,7 @@ fn narrow_volume(volume: &SweptSphere<f64>) -> SweptSphere<f32> {
 #[cfg(test)]
 #[allow(clippy::indexing_slicing, reason = "test")]
 mod tests {
-    use kernel::controller::config::{CartesianParameters, Hand};
+    use kernel::controller::config::{ArmId, CartesianParameters};
     use kernel::controller::messages::Command;
 
     use super::narrow_command;
@@ -135,8 +135,8 @@ mod tests {
         };
         assert_eq!((expected.force_lower[0], expected.force_upper[1]), (f32::NEG_INFINITY, f32::INFINITY));
         assert_eq!(
-            narrow_command(&Command::SetCartesian { hand: Hand::Left, parameters }),
-            Ok(Command::SetCartesian { hand: Hand::Left, parameters: expected })
+            narrow_command(&Command::SetCartesian { hand: ArmId::LEFT, parameters }),
+            Ok(Command::SetCartesian { hand: ArmId::LEFT, parameters: expected })
         );
     }
 }

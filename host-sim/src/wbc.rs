@@ -12,10 +12,11 @@
 
 use fixtures::justin::{self, collision, whole_body};
 use hal::{JointTorqueInterface, PlatformVelocityInterface};
-use kernel::controller::config::{ControllerConfig, Hand, TaskKind, TaskSpec, MAX_LEVELS};
+use kernel::controller::config::{ArmId, ControllerConfig, TaskKind, TaskSpec, MAX_LEVELS};
 use kernel::controller::faults::SafeOutput;
 use kernel::controller::messages::Command;
 use kernel::controller::{ActuatorFrame, SensorFrame};
+use kernel::tasks::cartesian_impedance::CartesianTarget;
 use kernel::tasks::collision::SweptSphere;
 use nalgebra::{RealField, SVector};
 
@@ -150,7 +151,9 @@ impl ConfigChanges {
     pub const NONE: Self = Self { free_base_axes: [true; 3] };
 
     /// [`whole_body::controller_config`] in `T` with these changes.
-    pub fn config<T: RealField + Copy>(self) -> Result<ControllerConfig<T, { justin::N }>, String> {
+    pub fn config<T: RealField + Copy>(
+        self,
+    ) -> Result<ControllerConfig<T, { justin::N }, { whole_body::ARMS }>, String> {
         let mut config = whole_body::controller_config::<T>().map_err(|e| format!("config: {e}"))?;
         config.platform.admittance.free_axes = self.free_base_axes;
         Ok(config)
@@ -170,7 +173,7 @@ pub fn whole_body_controller<T: RealField + Copy>(
 /// [`whole_body_controller`] with the configuration `config`.
 fn controller_with_config<T: RealField + Copy>(
     environment: &[SweptSphere<T>],
-    config: ControllerConfig<T, { justin::N }>,
+    config: ControllerConfig<T, { justin::N }, { whole_body::ARMS }>,
     hierarchy: &[TaskSpec],
 ) -> Result<justin::whole_body::WholeBodyController<T, VOLUMES, PAIRS>, String> {
     if environment.len() > MAX_ENVIRONMENT {
@@ -211,11 +214,11 @@ pub fn rig(
 /// realistic plant ([`crate::plant::PlantModel::justin`]) the floor at Justin's home pose is
 /// about 15 Nm (README `--plant`).
 fn above_sensor_noise(
-    mut config: ControllerConfig<f64, { justin::N }>,
+    mut config: ControllerConfig<f64, { justin::N }, { whole_body::ARMS }>,
     model: &kernel::model::Model<f64, { justin::N }, { justin::BODIES }, { justin::FRAMES }>,
     q0: &SVector<f64, { justin::N }>,
     plant: Option<crate::plant::PlantModel>,
-) -> Result<ControllerConfig<f64, { justin::N }>, String> {
+) -> Result<ControllerConfig<f64, { justin::N }, { whole_body::ARMS }>, String> {
     let Some(plant) = plant else { return Ok(config) };
     let mut data = kernel::model::Data::new(model);
     kernel::dynamics::forward_kinematics(model, &mut data, q0, &SVector::zeros()).map_err(|e| e.to_string())?;
@@ -246,7 +249,7 @@ fn firmware_for(
 
 /// The default rig of Ch. 6: Justin at its home pose, the configuration of
 /// [`whole_body::controller_config`] and the Fig. 6.3 hierarchy for `hand`.
-pub fn chapter_6_rig(hand: Hand, environment: &[SweptSphere<f64>], options: &RunOptions) -> Result<Rig, String> {
+pub fn chapter_6_rig(hand: ArmId, environment: &[SweptSphere<f64>], options: &RunOptions) -> Result<Rig, String> {
     rig(&justin::home_configuration(), environment, ConfigChanges::NONE, &whole_body::fig_6_3_hierarchy(hand), options)
 }
 
@@ -258,8 +261,8 @@ pub fn columns() -> Vec<String> {
     columns.extend(crate::scenarios::pose_error_columns(1));
     columns.extend((0..MAX_LEVELS).map(|l| format!("S{l}")));
     columns.extend((0..MAX_LEVELS).map(|l| format!("dS{l}")));
-    columns.extend(TaskKind::ALL.map(|k| format!("a.{}", k.name())));
-    columns.extend(TaskKind::ALL.map(|k| format!("tn.{}", k.name())));
+    columns.extend(TaskKind::all::<{ whole_body::ARMS }>().iter().map(|k| format!("a.{}", k.name())));
+    columns.extend(TaskKind::all::<{ whole_body::ARMS }>().iter().map(|k| format!("tn.{}", k.name())));
     columns.extend(
         [
             "vcmd.x",
@@ -347,8 +350,8 @@ impl Rig {
                 .find(|(k, _)| **k == Some(kind))
                 .map_or(0.0, |(_, v)| *v)
         };
-        row.extend(TaskKind::ALL.map(|k| entry(k, &t.task_activation)));
-        row.extend(TaskKind::ALL.map(|k| entry(k, &t.task_torque_norm)));
+        row.extend(TaskKind::all::<{ whole_body::ARMS }>().iter().map(|k| entry(*k, &t.task_activation)));
+        row.extend(TaskKind::all::<{ whole_body::ARMS }>().iter().map(|k| entry(*k, &t.task_torque_norm)));
         row.extend(output.platform.velocity.iter());
         row.extend(t.virtual_force.iter());
         row.extend(output.platform.leg_rates.iter());
@@ -372,6 +375,11 @@ impl Rig {
             row.extend(self.external_force(frame, info.time_s)?.iter());
         }
         Ok(row)
+    }
+
+    /// The host controller's current TCP target of `arm`.
+    pub fn tcp_target(&self, arm: ArmId) -> Result<CartesianTarget<f64>, String> {
+        self.controller.tcp_target(arm).ok_or_else(|| format!("no arm {arm:?}"))
     }
 
     /// Applies a planner command to the host `f64` controller and to the driver.

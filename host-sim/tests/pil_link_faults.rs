@@ -16,7 +16,7 @@ use hal::{JointTorqueInterface, PlatformVelocityInterface};
 use host_sim::pil::{rig_setup, sensor_message, setup_chunks, Firmware, Target};
 use host_sim::scenarios::RunOptions;
 use host_sim::wbc::{chapter_6_rig, Rig};
-use kernel::controller::config::{Hand, TaskKind, TaskSpec};
+use kernel::controller::config::{ArmId, TaskKind, TaskSpec};
 use kernel::controller::faults::SafeOutput;
 use kernel::controller::SensorFrame;
 use kernel::tasks::collision::{Core, SweptSphere};
@@ -52,8 +52,8 @@ fn bad_link_input_gives_a_typed_fault_and_the_safe_output() {
     // The only thread of this test binary that touches the environment.
     std::env::set_var("PIL_TIMEOUT_S", "3");
     let mut firmware = Firmware::start(Target::CortexM7).unwrap();
-    let mut rig = chapter_6_rig(Hand::Right, &[], &RunOptions::default()).unwrap();
-    firmware.configure(&rig_setup(&[], [true; 3], &whole_body::fig_6_3_hierarchy(Hand::Right)).unwrap()).unwrap();
+    let mut rig = chapter_6_rig(ArmId::RIGHT, &[], &RunOptions::default()).unwrap();
+    firmware.configure(&rig_setup(&[], [true; 3], &whole_body::fig_6_3_hierarchy(ArmId::RIGHT)).unwrap()).unwrap();
 
     let normal = firmware.step(&frame(&mut rig, 1)).unwrap();
     assert_eq!(normal.mode, SafeOutput::Normal);
@@ -127,7 +127,7 @@ fn two_chunk_setup() -> RigSetup {
             SweptSphere { core: Core::Triangle(corners), radius: 0.01 }
         })
         .collect();
-    rig_setup(&triangles, [true; 3], &whole_body::fig_6_3_hierarchy(Hand::Right)).unwrap()
+    rig_setup(&triangles, [true; 3], &whole_body::fig_6_3_hierarchy(ArmId::RIGHT)).unwrap()
 }
 
 /// Sends `chunks` as setup frames.
@@ -148,7 +148,7 @@ fn assert_unconfigured(answer: &ActuatorMsg, cycle: u64) {
 #[ignore = "needs qemu-system-arm and the firmware build (run by .ci/test.sh)"]
 fn bad_setup_input_gives_a_typed_fault_and_no_controller() {
     let mut firmware = Firmware::start(Target::CortexM7).unwrap();
-    let mut rig = chapter_6_rig(Hand::Right, &[], &RunOptions::default()).unwrap();
+    let mut rig = chapter_6_rig(ArmId::RIGHT, &[], &RunOptions::default()).unwrap();
     let setup = two_chunk_setup();
     let (chunks, checksum) = setup_chunks(&setup).unwrap();
     assert!(chunks.len() >= 2, "{} chunks", chunks.len());

@@ -10,7 +10,7 @@ use std::time::Duration;
 use host_sim::pil::Target;
 use host_sim::scenarios::RunOptions;
 use host_sim::wbc::chapter_6_rig;
-use kernel::controller::config::Hand;
+use kernel::controller::config::ArmId;
 
 #[test]
 #[ignore = "needs qemu-system-arm and the firmware build (run by .ci/test.sh)"]
@@ -21,7 +21,7 @@ fn the_firmware_controls_the_robot_like_the_host_controller() {
     assert!(std::process::Command::new("bash").arg(script).arg(&plugin).status().unwrap().success());
     std::env::set_var("PIL_PLUGIN", &plugin);
     let options = RunOptions { pil: Some(Target::CortexM7), ..RunOptions::default() };
-    let mut rig = chapter_6_rig(Hand::Right, &[], &options).unwrap();
+    let mut rig = chapter_6_rig(ArmId::RIGHT, &[], &options).unwrap();
     let series = rig.run(0.3, |_, _| Ok(())).unwrap();
     assert_eq!(series.rows().len(), 300);
     assert_eq!(rig.faulty_cycles, 0);

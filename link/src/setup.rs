@@ -217,7 +217,7 @@ mod tests {
     extern crate std;
     use std::vec::Vec;
 
-    use kernel::controller::config::{Field, Hand, TaskKind};
+    use kernel::controller::config::{ArmId, Field, TaskKind};
 
     use super::*;
 
@@ -225,10 +225,13 @@ mod tests {
         let wall =
             Volume { core: VolumeCore::Triangle([[1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [1.0, 0.0, 1.0]]), radius: 0.01 };
         let mut hierarchy = heapless::Vec::new();
-        for (level, kind) in
-            [TaskKind::EndStops, TaskKind::CollisionAvoidance(Field::Strong), TaskKind::CartesianImpedance(Hand::Right)]
-                .into_iter()
-                .enumerate()
+        for (level, kind) in [
+            TaskKind::EndStops,
+            TaskKind::CollisionAvoidance(Field::Strong),
+            TaskKind::CartesianImpedance(ArmId::RIGHT),
+        ]
+        .into_iter()
+        .enumerate()
         {
             hierarchy.push(TaskSpec { kind, level: level as u8 }).unwrap();
         }

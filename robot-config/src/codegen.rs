@@ -3,9 +3,9 @@
 //! `pub mod singularity { pub const STIFFNESS: f64 = 200000.0; }`). Floats print as the
 //! shortest literal that reads back to the same `f64`, so the compiled values equal the
 //! file's exactly. A hierarchy's `levels` become `[TaskSpec; n]` (level 0 first), `hands`
-//! become `[Hand; n]`.
+//! become `[ArmId; n]`.
 
-use kernel::controller::config::{Hand, JointGroup, TaskKind};
+use kernel::controller::config::{ArmId, JointGroup, TaskKind};
 use std::fmt::Write as _;
 use toml::{Table, Value};
 
@@ -57,7 +57,7 @@ fn constant(key: &str, value: &Value) -> Result<(String, String), String> {
         ("hands", _) => {
             let hands: Vec<HandName> = value.clone().try_into().map_err(|e: toml::de::Error| e.to_string())?;
             let hands: Vec<String> = hands.into_iter().map(|h| hand(h.0)).collect();
-            Ok((format!("[{CONFIG}::Hand; {}]", hands.len()), format!("[{}]", hands.join(", "))))
+            Ok((format!("[{CONFIG}::ArmId; {}]", hands.len()), format!("[{}]", hands.join(", "))))
         }
         (_, Value::Array(items)) => {
             let elements = items.iter().map(|item| constant(key, item)).collect::<Result<Vec<_>, _>>()?;
@@ -105,8 +105,8 @@ fn joint_group(group: JointGroup) -> String {
     }
 }
 
-fn hand(h: Hand) -> String {
-    format!("{CONFIG}::Hand::{h:?}")
+fn hand(arm: ArmId) -> String {
+    format!("{CONFIG}::ArmId({})", arm.0)
 }
 
 #[cfg(test)]
@@ -123,11 +123,11 @@ mod tests {
 
     #[test]
     fn task_kinds_print_as_kernel_paths() {
-        let kind = TaskKind::JointImpedance(JointGroup::Arm(Hand::Left));
+        let kind = TaskKind::JointImpedance(JointGroup::Arm(ArmId::LEFT));
         assert_eq!(
             task_kind(kind),
             "::kernel::controller::config::TaskKind::JointImpedance(::kernel::controller::config::JointGroup::Arm(\
-             ::kernel::controller::config::Hand::Left))"
+             ::kernel::controller::config::ArmId(1)))"
         );
     }
 }

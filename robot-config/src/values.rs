@@ -1,7 +1,7 @@
 //! The value types of the file: each refuses a bad value while it is read, so the error
 //! carries the key and the line.
 
-use kernel::controller::config::{Hand, TaskKind, MAX_LEVELS, MAX_TASKS};
+use kernel::controller::config::{ArmId, TaskKind, MAX_LEVELS, MAX_TASKS};
 use serde::de::Error as _;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
@@ -55,26 +55,27 @@ impl Serialize for TaskName {
 impl<'de> Deserialize<'de> for TaskName {
     fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
         let name = String::deserialize(deserializer)?;
-        match TaskKind::ALL.into_iter().find(|kind| kind.name() == name) {
-            Some(kind) => Ok(Self(kind)),
+        let all = TaskKind::all::<ARMS>();
+        match all.iter().find(|kind| kind.name() == name) {
+            Some(kind) => Ok(Self(*kind)),
             None => {
-                let known: Vec<&str> = TaskKind::ALL.iter().map(|kind| kind.name()).collect();
+                let known: Vec<&str> = all.iter().map(|kind| kind.name()).collect();
                 Err(D::Error::custom(format!("unknown task `{name}` (known: {})", known.join(", "))))
             }
         }
     }
 }
 
-/// A TCP by its hand: `right` or `left`.
+/// The arms a configuration file names: two, Justin's right and left ([`ArmId::name`]).
+pub const ARMS: usize = 2;
+
+/// A TCP by its arm's name ([`ArmId::name`]): `right` or `left`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct HandName(pub Hand);
+pub struct HandName(pub ArmId);
 
 impl HandName {
     fn name(self) -> &'static str {
-        match self.0 {
-            Hand::Right => "right",
-            Hand::Left => "left",
-        }
+        self.0.name()
     }
 }
 
@@ -87,7 +88,7 @@ impl Serialize for HandName {
 impl<'de> Deserialize<'de> for HandName {
     fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
         let name = String::deserialize(deserializer)?;
-        match Hand::BOTH.into_iter().map(HandName).find(|hand| hand.name() == name) {
+        match ArmId::all::<ARMS>().into_iter().map(HandName).find(|hand| hand.name() == name) {
             Some(hand) => Ok(hand),
             None => Err(D::Error::custom(format!("unknown hand `{name}` (known: right, left)"))),
         }

@@ -7,7 +7,7 @@
     reason = "tests: a failure is a test failure"
 )]
 
-use kernel::controller::config::{Hand, TaskKind};
+use kernel::controller::config::{ArmId, TaskKind};
 use robot_config::parse;
 
 const ORIGIN: &str = "justin/config.toml";
@@ -48,7 +48,7 @@ fn justins_file_holds_the_thesis_values() {
     assert_eq!(config.cartesian.damping_ratio.0, 0.7);
     let fig_6_3: Vec<(usize, TaskKind)> = config.hierarchy.fig_6_3.levels.tasks().collect();
     assert_eq!(fig_6_3.len(), 9);
-    assert_eq!(fig_6_3[1], (0, TaskKind::CartesianImpedance(Hand::Right)));
+    assert_eq!(fig_6_3[1], (0, TaskKind::CartesianImpedance(ArmId::RIGHT)));
     assert_eq!(fig_6_3.iter().filter(|(level, _)| *level == 1).count(), 7);
     let names: Vec<&str> = config.service_tasks.keys().map(String::as_str).collect();
     assert_eq!(names, ["clean_mug", "sweep_floor", "wipe_window"]);
@@ -143,13 +143,14 @@ fn a_duplicate_task_is_refused() {
 
 #[test]
 fn more_levels_or_tasks_than_the_kernel_holds_overflow() {
-    let nine_levels: Vec<String> = TaskKind::ALL.iter().take(9).map(|kind| format!("[\"{}\"]", kind.name())).collect();
+    let nine_levels: Vec<String> =
+        TaskKind::all::<2>().iter().take(9).map(|kind| format!("[\"{}\"]", kind.name())).collect();
     assert_eq!(
         error_with_fig_6_3_levels(&format!("[{}]", nine_levels.join(", "))),
         format!("justin/config.toml:{}: hierarchy.fig_6_3.levels: level overflow: 9 levels, the kernel holds 8 (MAX_LEVELS)", line_of("[hierarchy.fig_6_3]") + 1)
     );
     let seventeen_tasks: Vec<String> =
-        TaskKind::ALL.iter().take(17).map(|kind| format!("\"{}\"", kind.name())).collect();
+        TaskKind::all::<2>().iter().take(17).map(|kind| format!("\"{}\"", kind.name())).collect();
     assert_eq!(
         error_with_fig_6_3_levels(&format!("[[{}]]", seventeen_tasks.join(", "))),
         format!("justin/config.toml:{}: hierarchy.fig_6_3.levels: level overflow: 17 tasks, the kernel holds 16 (MAX_TASKS)", line_of("[hierarchy.fig_6_3]") + 1)
@@ -193,6 +194,6 @@ fn a_stiffness_edited_in_the_file_is_the_compiled_constant() {
     assert!(code.contains("pub const FORCE_UPPER: [f64; 3] = [10.0, f64::INFINITY, f64::INFINITY];"));
     assert!(code.contains("pub const REGULARISATION: f64 = 0.0001;"));
     assert!(code.contains(
-        "pub const HANDS: [::kernel::controller::config::Hand; 1] = [::kernel::controller::config::Hand::Right];"
+        "pub const HANDS: [::kernel::controller::config::ArmId; 1] = [::kernel::controller::config::ArmId(0)];"
     ));
 }

@@ -14,6 +14,8 @@ mod dynamics_properties;
 #[cfg(test)]
 mod dynamics_reference;
 #[cfg(test)]
+mod fixed_base;
+#[cfg(test)]
 mod fixtures_models;
 #[cfg(test)]
 mod hierarchy;

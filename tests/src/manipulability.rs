@@ -7,7 +7,7 @@
 #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "test code")]
 
 use fixtures::justin::{self, whole_body, JustinModel, N};
-use kernel::controller::config::{Hand, JointGroup};
+use kernel::controller::config::{ArmId, JointGroup};
 use kernel::dynamics::{forward_kinematics, frame_jacobian, frame_jacobian_derivative};
 use kernel::model::FrameId;
 use kernel::tasks::cartesian_impedance::AxisMask;
@@ -23,7 +23,7 @@ fn selections() -> std::vec::Vec<(FrameId, AxisMask, [bool; N])> {
     let config = whole_body::controller_config::<f64>().unwrap();
     let mut out = std::vec::Vec::new();
     for rows in [config.singularity.rows, AxisMask::ALL] {
-        for hand in [Hand::Right, Hand::Left] {
+        for hand in [ArmId::RIGHT, ArmId::LEFT] {
             out.push((config.layout.tcp[hand.index()], rows, config.layout.coordinates(JointGroup::Arm(hand))));
         }
     }

@@ -38,7 +38,7 @@ use hal::{JointSample, JointTorqueInterface, PlatformSample, PlatformVelocityInt
 use host_sim::scenarios::RunOptions;
 use host_sim::sim::CONTROL_PERIOD_S;
 use host_sim::wbc;
-use kernel::controller::config::{ControllerConfig, Field, Hand, JointGroup, TaskKind, TaskSpec, MAX_LEVELS};
+use kernel::controller::config::{ArmId, ControllerConfig, Field, JointGroup, TaskKind, TaskSpec, MAX_LEVELS};
 use kernel::controller::faults::{Fault, SafeOutput};
 use kernel::controller::messages::{decode_command, encode_command, Command, CommandError, Pose};
 use kernel::controller::{Controller, SensorFrame, PLATFORM_DOF};
@@ -78,7 +78,7 @@ fn c<T: Float>(x: f64) -> T {
 
 /// The Justin controller of Ch. 6 (Fig. 6.3 hierarchy, right hand), boxed (it is large).
 fn controller<T: Float>() -> Box<Justin<T>> {
-    controller_with(&whole_body::fig_6_3_hierarchy(Hand::Right))
+    controller_with(&whole_body::fig_6_3_hierarchy(ArmId::RIGHT))
 }
 
 fn controller_with<T: Float>(hierarchy: &[TaskSpec]) -> Box<Justin<T>> {
@@ -188,8 +188,8 @@ fn moving<T: Float>() -> (Box<Justin<T>>, Stream<T>) {
     let mut controller = controller::<T>();
     let mut stream = Stream::new();
     stream.valid(&mut controller, 1);
-    let goal = shifted_goal(controller.tcp_target(Hand::Right).pose, [0.25, 0.0, 0.0]);
-    controller.apply(&Command::TcpGoal { hand: Hand::Right, pose: goal, duration_s: T::zero() }).unwrap();
+    let goal = shifted_goal(controller.tcp_target(ArmId::RIGHT).unwrap().pose, [0.25, 0.0, 0.0]);
+    controller.apply(&Command::TcpGoal { hand: ArmId::RIGHT, pose: goal, duration_s: T::zero() }).unwrap();
     stream.valid(&mut controller, 300);
     let velocity = controller.output().platform.velocity;
     assert!(velocity.iter().any(|v| v.to_f64().abs() > 0.05), "the platform should move: {velocity:?}");
@@ -226,7 +226,7 @@ fn case<T: Float>(
 /// safe-output property checked each cycle), then valid frames again.
 fn check_fault<T: Float>(row: &Case<T>) {
     let (mut controller, mut stream) = moving::<T>();
-    let config: ControllerConfig<T, N> = *controller.config();
+    let config: ControllerConfig<T, N, { whole_body::ARMS }> = *controller.config();
     let effort = controller.model().limits.effort;
     let dt = config.period_s;
     let brake_after = config.input_limits.brake_after_cycles;
@@ -544,7 +544,7 @@ fn the_f32_controller_runs_without_fault_at_home_and_agrees_with_f64() {
 
 /// Checks the guard invariants of one normal cycle against the previous output.
 fn check_guards<T: Float, const V: usize, const P: usize>(
-    controller: &Controller<T, N, { justin::BODIES }, { justin::FRAMES }, U, V, P>,
+    controller: &Controller<T, N, { justin::BODIES }, { justin::FRAMES }, U, V, P, { whole_body::ARMS }>,
     previous: &[T; U],
     previous_base: &[T; 3],
     what: &str,
@@ -588,8 +588,8 @@ fn huge_goal_step_on_frames<T: Float>() {
     let mut controller = controller::<T>();
     let mut stream = Stream::<T>::new();
     stream.valid(&mut controller, 10);
-    let goal = shifted_goal(controller.tcp_target(Hand::Right).pose, [3.0, -2.0, 1.0]);
-    controller.apply(&Command::TcpGoal { hand: Hand::Right, pose: goal, duration_s: T::zero() }).unwrap();
+    let goal = shifted_goal(controller.tcp_target(ArmId::RIGHT).unwrap().pose, [3.0, -2.0, 1.0]);
+    controller.apply(&Command::TcpGoal { hand: ArmId::RIGHT, pose: goal, duration_s: T::zero() }).unwrap();
     let (mut rate_limited, mut level_scaled, mut lower_off_higher_scaled) = (0, 0, 0);
     for k in 0..600 {
         let (previous, base) = (controller.output().torque, controller.output().platform.velocity);
@@ -622,14 +622,14 @@ fn a_huge_goal_step_stays_within_the_limits_in_f32() {
 /// The same in closed loop with the simulator: 1.5 m goal step of the right TCP.
 #[test]
 fn a_huge_goal_step_in_closed_loop_stays_within_the_limits() {
-    let mut rig = wbc::chapter_6_rig(Hand::Right, &[], &RunOptions::default()).unwrap();
+    let mut rig = wbc::chapter_6_rig(ArmId::RIGHT, &[], &RunOptions::default()).unwrap();
     let mut previous = ([0.0; U], [0.0; 3]);
     let (mut saturated, mut held) = (0, 0);
     rig.run(2.0, |rig, info| {
         if info.cycle == 0 {
-            let goal = shifted_goal(rig.controller.tcp_target(Hand::Right).pose, [0.8, 0.4, -0.3]);
+            let goal = shifted_goal(rig.controller.tcp_target(ArmId::RIGHT).unwrap().pose, [0.8, 0.4, -0.3]);
             rig.controller
-                .apply(&Command::TcpGoal { hand: Hand::Right, pose: goal, duration_s: 0.0 })
+                .apply(&Command::TcpGoal { hand: ArmId::RIGHT, pose: goal, duration_s: 0.0 })
                 .map_err(|e| e.to_string())?;
         } else {
             // The step may drive a joint beyond its velocity limit: the safe output takes over
@@ -657,7 +657,7 @@ fn a_huge_goal_step_in_closed_loop_stays_within_the_limits() {
 /// frames; the robot holds, stays finite and collision-free, and resumes.
 #[test]
 fn faults_in_closed_loop_hold_the_robot_and_recover() {
-    let mut rig = wbc::chapter_6_rig(Hand::Right, &[], &RunOptions::default()).unwrap();
+    let mut rig = wbc::chapter_6_rig(ArmId::RIGHT, &[], &RunOptions::default()).unwrap();
     let mut cycle = 0_u64;
     let mut modes = Vec::new();
     for k in 0..2500_u64 {
@@ -670,8 +670,8 @@ fn faults_in_closed_loop_hold_the_robot_and_recover() {
             joints.velocity[3] = f64::NAN;
         }
         if k == 100 {
-            let goal = shifted_goal(rig.controller.tcp_target(Hand::Right).pose, [0.2, 0.1, 0.0]);
-            rig.controller.apply(&Command::TcpGoal { hand: Hand::Right, pose: goal, duration_s: 0.5 }).unwrap();
+            let goal = shifted_goal(rig.controller.tcp_target(ArmId::RIGHT).unwrap().pose, [0.2, 0.1, 0.0]);
+            rig.controller.apply(&Command::TcpGoal { hand: ArmId::RIGHT, pose: goal, duration_s: 0.5 }).unwrap();
         }
         let out = *rig.controller.step(&SensorFrame { joints, platform });
         assert!(out.torque.iter().all(|t| t.is_finite()));
@@ -707,7 +707,7 @@ fn faults_in_closed_loop_hold_the_robot_and_recover() {
 #[derive(Debug, PartialEq)]
 struct Snapshot<T: Float> {
     hierarchy: Vec<TaskSpec>,
-    config: ControllerConfig<T, N>,
+    config: ControllerConfig<T, N, { whole_body::ARMS }>,
     targets: [kernel::tasks::cartesian_impedance::CartesianTarget<T>; 2],
     in_transition: bool,
 }
@@ -716,7 +716,7 @@ fn snapshot<T: Float>(controller: &Justin<T>) -> Snapshot<T> {
     Snapshot {
         hierarchy: controller.hierarchy().collect(),
         config: *controller.config(),
-        targets: [controller.tcp_target(Hand::Right), controller.tcp_target(Hand::Left)],
+        targets: [controller.tcp_target(ArmId::RIGHT).unwrap(), controller.tcp_target(ArmId::LEFT).unwrap()],
         in_transition: controller.in_transition(),
     }
 }
@@ -741,13 +741,13 @@ fn invalid_commands_are_rejected<T: Float>() {
     let pose = Pose { position: [c(0.5), c(-0.3), c(1.0)], orientation: [T::one(), T::zero(), T::zero(), T::zero()] };
     rejected(
         &mut controller,
-        &Command::TcpGoal { hand: Hand::Right, pose, duration_s: T::one() },
+        &Command::TcpGoal { hand: ArmId::RIGHT, pose, duration_s: T::one() },
         CommandError::NotStarted,
     );
     let zero = [T::zero(); 3];
     rejected(
         &mut controller,
-        &Command::TcpSample { hand: Hand::Left, pose, linear_velocity: zero, angular_velocity: zero },
+        &Command::TcpSample { hand: ArmId::LEFT, pose, linear_velocity: zero, angular_velocity: zero },
         CommandError::NotStarted,
     );
     let torso = [T::zero(); 3];
@@ -759,7 +759,7 @@ fn invalid_commands_are_rejected<T: Float>() {
     let set = |change: fn(&mut kernel::controller::config::CartesianParameters<T>)| {
         let mut parameters = base;
         change(&mut parameters);
-        Command::SetCartesian { hand: Hand::Right, parameters }
+        Command::SetCartesian { hand: ArmId::RIGHT, parameters }
     };
     rejected(
         &mut controller,
@@ -791,12 +791,12 @@ fn invalid_commands_are_rejected<T: Float>() {
     );
 
     // Hierarchies.
-    let mut specs = whole_body::fig_6_3_hierarchy(Hand::Right);
+    let mut specs = whole_body::fig_6_3_hierarchy(ArmId::RIGHT);
     specs[3].level = u8::try_from(MAX_LEVELS).unwrap();
     rejected(&mut controller, &set_hierarchy(&specs), CommandError::LevelOverflow { level: 8 });
     specs[3].level = 255;
     rejected(&mut controller, &set_hierarchy(&specs), CommandError::LevelOverflow { level: 255 });
-    let mut specs = whole_body::fig_6_3_hierarchy(Hand::Right).to_vec();
+    let mut specs = whole_body::fig_6_3_hierarchy(ArmId::RIGHT).to_vec();
     specs.push(TaskSpec { kind: TaskKind::EndStops, level: 2 });
     rejected(&mut controller, &set_hierarchy(&specs), CommandError::DuplicateTask);
 
@@ -808,7 +808,7 @@ fn invalid_commands_are_rejected<T: Float>() {
     );
     rejected(
         &mut controller,
-        &joint_goal(JointGroup::Arm(Hand::Left), &[T::zero(); 17], T::one()),
+        &joint_goal(JointGroup::Arm(ArmId::LEFT), &[T::zero(); 17], T::one()),
         CommandError::WrongLength { expected: 7, received: 17 },
     );
     let mut nan_values = torso;
@@ -823,36 +823,36 @@ fn invalid_commands_are_rejected<T: Float>() {
         &joint_goal(JointGroup::Torso, &torso, c(-1.0)),
         CommandError::OutOfRange { field: "duration_s" },
     );
-    let goal = shifted_goal(controller.tcp_target(Hand::Right).pose, [0.1, 0.0, 0.0]);
+    let goal = shifted_goal(controller.tcp_target(ArmId::RIGHT).unwrap().pose, [0.1, 0.0, 0.0]);
     let mut bad = goal;
     bad.orientation = [c(2.0), T::zero(), T::zero(), T::zero()];
     rejected(
         &mut controller,
-        &Command::TcpGoal { hand: Hand::Right, pose: bad, duration_s: T::one() },
+        &Command::TcpGoal { hand: ArmId::RIGHT, pose: bad, duration_s: T::one() },
         CommandError::OutOfRange { field: "orientation" },
     );
     bad.orientation = [T::zero(); 4];
     rejected(
         &mut controller,
-        &Command::TcpGoal { hand: Hand::Left, pose: bad, duration_s: T::one() },
+        &Command::TcpGoal { hand: ArmId::LEFT, pose: bad, duration_s: T::one() },
         CommandError::OutOfRange { field: "orientation" },
     );
     let mut bad = goal;
     bad.position[2] = inf();
     rejected(
         &mut controller,
-        &Command::TcpGoal { hand: Hand::Right, pose: bad, duration_s: T::one() },
+        &Command::TcpGoal { hand: ArmId::RIGHT, pose: bad, duration_s: T::one() },
         CommandError::NonFinite { field: "position" },
     );
     rejected(
         &mut controller,
-        &Command::TcpGoal { hand: Hand::Right, pose: goal, duration_s: nan() },
+        &Command::TcpGoal { hand: ArmId::RIGHT, pose: goal, duration_s: nan() },
         CommandError::NonFinite { field: "duration_s" },
     );
     rejected(
         &mut controller,
         &Command::TcpSample {
-            hand: Hand::Right,
+            hand: ArmId::RIGHT,
             pose: goal,
             linear_velocity: [nan(), T::zero(), T::zero()],
             angular_velocity: zero,
@@ -861,13 +861,13 @@ fn invalid_commands_are_rejected<T: Float>() {
     );
 
     // A hierarchy change during a transition.
-    let mut moved = whole_body::fig_6_3_hierarchy(Hand::Right);
+    let mut moved = whole_body::fig_6_3_hierarchy(ArmId::RIGHT);
     moved[6].level = 0;
     controller.apply(&set_hierarchy(&moved)).unwrap();
     assert!(controller.in_transition());
     rejected(
         &mut controller,
-        &set_hierarchy(&whole_body::fig_6_3_hierarchy(Hand::Right)),
+        &set_hierarchy(&whole_body::fig_6_3_hierarchy(ArmId::RIGHT)),
         CommandError::TransitionInProgress,
     );
     // The controller still steps normally.
@@ -904,12 +904,12 @@ fn commands_roundtrip_through_bytes_and_apply() {
     let mut parameters = controller.config().cartesian[0];
     parameters.translational_stiffness = [300.0, 400.0, 800.0];
     parameters.force_upper[0] = 10.0;
-    let goal = shifted_goal(controller.tcp_target(Hand::Left).pose, [0.05, 0.0, 0.02]);
-    let mut moved = whole_body::fig_6_3_hierarchy(Hand::Right);
+    let goal = shifted_goal(controller.tcp_target(ArmId::LEFT).unwrap().pose, [0.05, 0.0, 0.02]);
+    let mut moved = whole_body::fig_6_3_hierarchy(ArmId::RIGHT);
     moved[4].level = 2;
     let commands = [
-        Command::SetCartesian { hand: Hand::Right, parameters },
-        Command::TcpGoal { hand: Hand::Left, pose: goal, duration_s: 0.5 },
+        Command::SetCartesian { hand: ArmId::RIGHT, parameters },
+        Command::TcpGoal { hand: ArmId::LEFT, pose: goal, duration_s: 0.5 },
         Command::JointGoal {
             group: JointGroup::Torso,
             values: [0.0, 0.1, -0.1].into_iter().collect(),
@@ -929,11 +929,11 @@ fn commands_roundtrip_through_bytes_and_apply() {
     }
     assert_eq!(controller.config().cartesian[0], parameters);
     assert_eq!(controller.hierarchy().collect::<Vec<_>>(), moved.to_vec());
-    let target = controller.tcp_target(Hand::Left).pose.translation.vector;
+    let target = controller.tcp_target(ArmId::LEFT).unwrap().pose.translation.vector;
     let start = Vector3::from(goal.position) - Vector3::new(0.05, 0.0, 0.02);
     assert!((target - start).norm() < 1e-12, "the goal starts from the current target");
     stream.valid(&mut controller, 600);
-    let target = controller.tcp_target(Hand::Left).pose.translation.vector;
+    let target = controller.tcp_target(ArmId::LEFT).unwrap().pose.translation.vector;
     assert!((target - Vector3::from(goal.position)).norm() < 1e-9, "the goal is reached after its duration");
 }
 
@@ -942,7 +942,7 @@ fn commands_roundtrip_through_bytes_and_apply() {
 /// change of any joint torque between consecutive cycles during the transition and the torque
 /// at its end.
 fn blend_run(hierarchy: Option<&[TaskSpec]>) -> (f64, SVector<f64, U>) {
-    let mut rig = wbc::chapter_6_rig(Hand::Right, &[], &RunOptions::default()).unwrap();
+    let mut rig = wbc::chapter_6_rig(ArmId::RIGHT, &[], &RunOptions::default()).unwrap();
     let change_at = 1500;
     let transition = (rig.controller.config().transition_s * 1000.0).round() as u64;
     let mut previous = SVector::<f64, U>::zeros();
@@ -978,7 +978,7 @@ fn blend_run(hierarchy: Option<&[TaskSpec]>) -> (f64, SVector<f64, U>) {
 /// same run without the change plus 2 % of the total change (an abrupt switch: 100 %).
 #[test]
 fn a_hierarchy_change_blends_continuously() {
-    let mut moved = whole_body::fig_6_3_hierarchy(Hand::Right);
+    let mut moved = whole_body::fig_6_3_hierarchy(ArmId::RIGHT);
     moved[6].level = 0; // torso impedance
     moved[1].level = 1; // Cartesian impedance below it
     let (step, end) = blend_run(Some(&moved));
@@ -1018,11 +1018,11 @@ fn an_f32_goal_with_the_current_orientation_is_finite() {
     let mut controller = controller::<f32>();
     let mut stream = Stream::<f32>::new();
     stream.valid(&mut controller, 1);
-    let target = controller.tcp_target(Hand::Right).pose;
+    let target = controller.tcp_target(ArmId::RIGHT).unwrap().pose;
     let p = target.translation.vector;
     let quaternion = UnitQuaternion::from_rotation_matrix(&target.rotation);
     let pose =
         Pose { position: [p.x + 0.1, p.y, p.z], orientation: [quaternion.w, quaternion.i, quaternion.j, quaternion.k] };
-    controller.apply(&Command::TcpGoal { hand: Hand::Right, pose, duration_s: 0.5 }).unwrap();
+    controller.apply(&Command::TcpGoal { hand: ArmId::RIGHT, pose, duration_s: 0.5 }).unwrap();
     stream.valid(&mut controller, 10);
 }

@@ -19,7 +19,7 @@
 use fixtures::justin::{self, collision as jc, whole_body};
 use hal::{JointSample, PlatformSample};
 use kernel::controller::config::{
-    CartesianParameters, CollisionFieldParameters, Field, Hand, JointGroup, TaskKind, TaskSpec,
+    ArmId, CartesianParameters, CollisionFieldParameters, Field, JointGroup, TaskKind, TaskSpec,
 };
 use kernel::controller::messages::{encode_command, Command, Pose};
 use kernel::controller::{SensorFrame, PLATFORM_DOF};
@@ -119,14 +119,14 @@ fn frame_spec() -> impl Strategy<Value = FrameSpec> {
 
 /// Any joint group.
 fn joint_group() -> impl Strategy<Value = JointGroup> {
-    prop::sample::select(JointGroup::ALL.to_vec())
+    prop::sample::select(JointGroup::all::<2>().to_vec())
 }
 
 fn task_kind() -> impl Strategy<Value = TaskKind> {
-    let hand = prop_oneof![Just(Hand::Right), Just(Hand::Left)];
+    let hand = prop_oneof![Just(ArmId::RIGHT), Just(ArmId::LEFT)];
     (0..8_u8, hand, joint_group()).prop_map(|(k, hand, group)| match k {
         0 => TaskKind::CartesianImpedance(hand),
-        1 => TaskKind::CollisionAvoidance(if hand == Hand::Right { Field::Strong } else { Field::Weak }),
+        1 => TaskKind::CollisionAvoidance(if hand == ArmId::RIGHT { Field::Strong } else { Field::Weak }),
         2 => TaskKind::SingularityAvoidance(hand),
         3 => TaskKind::EndStops,
         4 => TaskKind::TorsoWorkspace,
@@ -144,8 +144,8 @@ fn array<const K: usize>(s: impl Strategy<Value = f64> + Clone) -> impl Strategy
     prop::collection::vec(s, K).prop_map(|v| core::array::from_fn(|i| v[i]))
 }
 
-fn hand() -> impl Strategy<Value = Hand> {
-    prop_oneof![Just(Hand::Right), Just(Hand::Left)]
+fn hand() -> impl Strategy<Value = ArmId> {
+    prop_oneof![Just(ArmId::RIGHT), Just(ArmId::LEFT)]
 }
 
 /// Random commands, valid and invalid. Positions are offsets from the home TCPs (added when
@@ -256,7 +256,7 @@ fn controller<T: Float>() -> Box<Justin<T>> {
     let model = justin::model::<T>().unwrap();
     let collision = jc::collision_model(&model).unwrap();
     let config = whole_body::controller_config::<T>().unwrap();
-    Box::new(Justin::<T>::try_new(model, collision, config, &whole_body::fig_6_3_hierarchy(Hand::Right)).unwrap())
+    Box::new(Justin::<T>::try_new(model, collision, config, &whole_body::fig_6_3_hierarchy(ArmId::RIGHT)).unwrap())
 }
 
 fn build_frame<T: Float>(spec: &FrameSpec, last: &mut u64) -> SensorFrame<T, U> {
@@ -306,7 +306,7 @@ fn build_frame<T: Float>(spec: &FrameSpec, last: &mut u64) -> SensorFrame<T, U> 
 
 /// Shifts a command's TCP positions from offsets to world positions near the home TCPs.
 fn located(command: &Command<f64>) -> Command<f64> {
-    let tcp = |hand: Hand| if hand == Hand::Right { [0.6, -0.3, 1.0] } else { [0.6, 0.3, 1.0] };
+    let tcp = |hand: ArmId| if hand == ArmId::RIGHT { [0.6, -0.3, 1.0] } else { [0.6, 0.3, 1.0] };
     let mut command = command.clone();
     match &mut command {
         Command::TcpGoal { hand, pose, .. } | Command::TcpSample { hand, pose, .. } => {

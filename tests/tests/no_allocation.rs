@@ -313,7 +313,7 @@ fn multilevel_control_does_not_allocate() {
 fn run_controller<T: kernel::controller::messages::WireScalar>() -> usize {
     use hal::{JointSample, PlatformSample};
     use justin::whole_body;
-    use kernel::controller::config::Hand;
+    use kernel::controller::config::ArmId;
     use kernel::controller::messages::{decode_command, encode_command, Command, Pose};
     use kernel::controller::{Controller, SensorFrame};
 
@@ -329,7 +329,8 @@ fn run_controller<T: kernel::controller::messages::WireScalar>() -> usize {
             { justin::UPPER_DOF },
             { justin::collision::VOLUMES },
             { justin::collision::PAIRS },
-        >::try_new(model, collision, config, &whole_body::fig_6_3_hierarchy(Hand::Right))
+            { whole_body::ARMS },
+        >::try_new(model, collision, config, &whole_body::fig_6_3_hierarchy(ArmId::RIGHT))
         .unwrap(),
     );
     let q = justin::home_configuration::<T>();
@@ -349,7 +350,7 @@ fn run_controller<T: kernel::controller::messages::WireScalar>() -> usize {
     };
     controller.step(&frame(1, T::zero()));
     let goal = Command::TcpGoal {
-        hand: Hand::Right,
+        hand: ArmId::RIGHT,
         pose: Pose {
             position: [nalgebra::convert(0.6), nalgebra::convert(-0.2), nalgebra::convert(0.9)],
             orientation: [T::one(), T::zero(), T::zero(), T::zero()],

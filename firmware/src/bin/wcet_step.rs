@@ -1,7 +1,7 @@
 //! WCET measurement image of the full controller step (issue 8): exact per-call instruction
 //! counts and stack high-water marks of `Controller::step` of the Justin controller
 //! (`whole_body::controller_config` with the "Clean the mug!" force limits on both TCPs,
-//! `fig_6_3_hierarchy(Hand::Right)`, all 214 pairs).
+//! `fig_6_3_hierarchy(ArmId::RIGHT)`, all 214 pairs).
 //!
 //! One region, `wcet_step`, bracketed by `dbg #0` / `dbg #1` (the TCG plugin
 //! `wcet/wcet_insn.c` counts the instructions between them), called once per frame of

@@ -32,7 +32,7 @@
 
 use fixtures::justin;
 use fixtures::justin::whole_body::CLEAN_MUG;
-use kernel::controller::config::Hand;
+use kernel::controller::config::ArmId;
 use kernel::dynamics::forward_kinematics;
 use kernel::model::{Data, FrameId, Placement};
 use kernel::tasks::collision::SweptSphere;
@@ -80,8 +80,8 @@ fn plan(start: [Placement<f64>; 2]) -> ToolPlan {
     let mut contacts = Vec::new();
     let centre_y = 0.5 * (start[0].translation.vector.y + start[1].translation.vector.y);
     for (hand, placement, label, frame, side) in [
-        (Hand::Right, start[0], "mug_right_face", justin::RIGHT_TCP, -1.0),
-        (Hand::Left, start[1], "mug_left_face", justin::LEFT_TCP, 1.0),
+        (ArmId::RIGHT, start[0], "mug_right_face", justin::RIGHT_TCP, -1.0),
+        (ArmId::LEFT, start[1], "mug_left_face", justin::LEFT_TCP, 1.0),
     ] {
         let p0 = placement.translation.vector;
         let face_y = centre_y + side * 0.5 * MUG_WIDTH_M;
@@ -92,7 +92,7 @@ fn plan(start: [Placement<f64>; 2]) -> ToolPlan {
         let mut points = press_path(p0, touch, pressed, &press, (1.0, TOUCH_S - 0.5, TOUCH_S, SCRUB_S.0 - HOLD_S));
         points.extend([(SCRUB_S.1, pressed), (DURATION_S - 0.3, p0)]);
         #[allow(clippy::cast_precision_loss, reason = "a handful of circles")]
-        let circles = (hand == Hand::Right).then_some(Circles {
+        let circles = (hand == ArmId::RIGHT).then_some(Circles {
             u: Vector3::x(),
             v: Vector3::z(),
             radius_m: CIRCLE_RADIUS_M,

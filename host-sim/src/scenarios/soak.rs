@@ -30,7 +30,7 @@
 //! `energy_j`.
 
 use fixtures::justin;
-use kernel::controller::config::Hand;
+use kernel::controller::config::ArmId;
 use kernel::controller::messages::{Command, Pose};
 use kernel::controller::PLATFORM_DOF;
 use kernel::model::{FrameId, Placement};
@@ -176,7 +176,7 @@ pub fn run(
     record_from: Option<f64>,
     options: &RunOptions,
 ) -> Result<(SoakMetrics, TimeSeries), String> {
-    let mut rig = wbc::chapter_6_rig(Hand::Right, &[], options)?;
+    let mut rig = wbc::chapter_6_rig(ArmId::RIGHT, &[], options)?;
     rig.sim.set_plant_model(options.plant_model(seed))?;
     let mut rng = Rng(seed.max(1));
     let mut disturbances = Disturbances::new(&mut rng, &mut rig)?;
@@ -236,7 +236,7 @@ impl Disturbances {
             let q = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), yaw) * self.home_rotation;
             let pose = Pose { position: [position.x, position.y, position.z], orientation: [q.w, q.i, q.j, q.k] };
             let duration_s = rng.uniform(GOAL_DURATION_S);
-            rig.apply(&Command::TcpGoal { hand: Hand::Right, pose, duration_s })
+            rig.apply(&Command::TcpGoal { hand: ArmId::RIGHT, pose, duration_s })
                 .map_err(|e| format!("goal at {t:.3} s: {e}"))?;
             m.goals += 1;
             self.next_goal = t + rng.uniform(GOAL_INTERVAL_S);

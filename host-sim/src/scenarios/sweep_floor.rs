@@ -32,7 +32,7 @@
 
 use fixtures::justin;
 use fixtures::justin::whole_body::SWEEP_FLOOR;
-use kernel::controller::config::Hand;
+use kernel::controller::config::ArmId;
 use kernel::model::Placement;
 use nalgebra::{Unit, Vector3};
 
@@ -79,8 +79,8 @@ fn plan(start: [Placement<f64>; 2]) -> ToolPlan {
     let mut references = Vec::new();
     let mut contacts = Vec::new();
     for (hand, placement, label, frame) in [
-        (Hand::Right, start[0], "surface_right", justin::RIGHT_TCP),
-        (Hand::Left, start[1], "surface_left", justin::LEFT_TCP),
+        (ArmId::RIGHT, start[0], "surface_right", justin::RIGHT_TCP),
+        (ArmId::LEFT, start[1], "surface_left", justin::LEFT_TCP),
     ] {
         let p0 = placement.translation.vector;
         let surface_z = p0.z - SURFACE_DROP_M;

@@ -22,7 +22,7 @@
 //! (every pair distance > 0); no fault.
 
 use fixtures::justin::{self, whole_body};
-use kernel::controller::config::Hand;
+use kernel::controller::config::ArmId;
 use kernel::controller::messages::Command;
 use kernel::tasks::collision::SweptSphere;
 use nalgebra::{Rotation3, Vector3};
@@ -116,7 +116,7 @@ pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
 
 /// The rig with the table and the Fig. 6.3 hierarchy for the left hand.
 fn setup(options: &RunOptions) -> Result<wbc::Rig, String> {
-    let hierarchy = whole_body::fig_6_3_hierarchy(Hand::Left);
+    let hierarchy = whole_body::fig_6_3_hierarchy(ArmId::LEFT);
     wbc::rig(&justin::home_configuration(), &table(), ConfigChanges::NONE, &hierarchy, options)
 }
 
@@ -129,7 +129,7 @@ fn run(rig: &mut wbc::Rig, options: &RunOptions) -> Result<(TimeSeries, Vector3<
         if info.cycle % 100 == 0 {
             options.progress.report(NAME, info.time_s, DURATION_S);
         }
-        let begin = *start.get_or_insert(rig.controller.tcp_target(Hand::Left).pose);
+        let begin = *start.get_or_insert(rig.tcp_target(ArmId::LEFT)?.pose);
         let mut object = begin;
         object.translation.vector.x = TABLE_EDGE_X_M + OBJECT_BEYOND_EDGE_M;
         object.translation.vector.y += OBJECT_LATERAL_M;
@@ -139,7 +139,7 @@ fn run(rig: &mut wbc::Rig, options: &RunOptions) -> Result<(TimeSeries, Vector3<
         let near = |t: f64| (info.time_s - t).abs() < 0.5 * crate::sim::CONTROL_PERIOD_S;
         for (at, target) in [(REACH_AT_S, object), (RETURN_AT_S, begin)] {
             if near(at) {
-                let command = Command::TcpGoal { hand: Hand::Left, pose: pose_of(&target), duration_s: REACH_S };
+                let command = Command::TcpGoal { hand: ArmId::LEFT, pose: pose_of(&target), duration_s: REACH_S };
                 rig.apply(&command).map_err(|e| format!("goal: {e}"))?;
             }
         }
@@ -175,7 +175,7 @@ struct Measures {
 impl Measures {
     fn new(series: &TimeSeries, start: &Vector3<f64>, goal: &Vector3<f64>) -> Result<Self, String> {
         let t = col(series, "t")?;
-        let tcp = tcp_columns(series, Hand::Left)?;
+        let tcp = tcp_columns(series, ArmId::LEFT)?;
         let to_goal = distance_to(&tcp, goal);
         let to_start = distance_to(&tcp, start);
         let at = |values: &[f64], time: f64| {

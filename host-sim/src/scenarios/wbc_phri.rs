@@ -21,7 +21,7 @@
 //! noise floor ([`kernel::controller::observer::noise_floor`], README `--plant`), recorded
 //! as `contact_threshold_nm`.
 
-use kernel::controller::config::Hand;
+use kernel::controller::config::ArmId;
 use nalgebra::Vector3;
 
 use super::wbc_step::{
@@ -73,7 +73,7 @@ pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
 
 /// The Ch. 6 rig with the two pushes scheduled.
 fn setup(options: &RunOptions) -> Result<wbc::Rig, String> {
-    let mut rig = wbc::chapter_6_rig(Hand::Right, &[], options)?;
+    let mut rig = wbc::chapter_6_rig(ArmId::RIGHT, &[], options)?;
     for (at, direction) in PUSHES {
         rig.sim.push(PUSH_FRAME, Vector3::from(direction) * PUSH_N, at, PUSH_S).map_err(|e| format!("push: {e}"))?;
     }
@@ -87,7 +87,7 @@ fn run(rig: &mut wbc::Rig, options: &RunOptions) -> Result<(TimeSeries, Vector3<
         if info.cycle % 100 == 0 {
             options.progress.report(NAME, info.time_s, DURATION_S);
         }
-        start.get_or_insert(rig.controller.tcp_target(Hand::Right).pose.translation.vector);
+        start.get_or_insert(rig.tcp_target(ArmId::RIGHT)?.pose.translation.vector);
         Ok(())
     })?;
     options.progress.finish();
@@ -107,7 +107,7 @@ struct Signals {
 impl Signals {
     fn new(series: &TimeSeries, start: &Vector3<f64>) -> Result<Self, String> {
         let t = col(series, "t")?;
-        let error = distance_to(&tcp_columns(series, Hand::Right)?, start);
+        let error = distance_to(&tcp_columns(series, ArmId::RIGHT)?, start);
         // Energy relative to the rest state before the first push (the level-1 potentials, e.g.
         // the torso workspace, are not zero at rest).
         let total: Vec<f64> =

@@ -20,7 +20,7 @@
 //! The module also holds the helpers the other `wbc_*` scenarios share (columns, poses, plots).
 
 use fixtures::justin::{self, RIGHT_TCP};
-use kernel::controller::config::Hand;
+use kernel::controller::config::ArmId;
 use kernel::controller::messages::{Command, Pose};
 use kernel::model::Placement;
 use nalgebra::{UnitQuaternion, Vector3};
@@ -95,8 +95,8 @@ pub fn max_in(t: &[f64], y: &[f64], from: f64, to: f64) -> f64 {
 }
 
 /// World TCP position columns of `hand` (m).
-pub fn tcp_columns(series: &TimeSeries, hand: Hand) -> Result<[Vec<f64>; 3], String> {
-    let prefix = if hand == Hand::Right { "right_tcp" } else { "left_tcp" };
+pub fn tcp_columns(series: &TimeSeries, hand: ArmId) -> Result<[Vec<f64>; 3], String> {
+    let prefix = if hand == ArmId::RIGHT { "right_tcp" } else { "left_tcp" };
     Ok([
         col(series, &format!("{prefix}.x"))?,
         col(series, &format!("{prefix}.y"))?,
@@ -159,17 +159,17 @@ pub fn phases() -> Vec<(f64, String)> {
 
 /// Runs the scenario.
 pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
-    let mut rig = wbc::chapter_6_rig(Hand::Right, &[], options)?;
+    let mut rig = wbc::chapter_6_rig(ArmId::RIGHT, &[], options)?;
     let mut goal: Option<Vector3<f64>> = None;
     let series = rig.run(DURATION_S, |rig, info| {
         if info.cycle % 100 == 0 {
             options.progress.report(NAME, info.time_s, DURATION_S);
         }
         if goal.is_none() && info.time_s + 0.5 * wbc_period() >= STEP_AT_S {
-            let mut target = rig.controller.tcp_target(Hand::Right).pose;
+            let mut target = rig.tcp_target(ArmId::RIGHT)?.pose;
             target.translation.vector.x += STEP_M;
             goal = Some(target.translation.vector);
-            let command = Command::TcpGoal { hand: Hand::Right, pose: pose_of(&target), duration_s: 0.0 };
+            let command = Command::TcpGoal { hand: ArmId::RIGHT, pose: pose_of(&target), duration_s: 0.0 };
             rig.apply(&command).map_err(|e| format!("step goal: {e}"))?;
         }
         Ok(())
@@ -181,7 +181,7 @@ pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
 
 fn evaluate(rig: &Rig, series: TimeSeries, goal: &Vector3<f64>, plant: PlantKind) -> Result<Outcome, String> {
     let t = col(&series, "t")?;
-    let tcp = tcp_columns(&series, Hand::Right)?;
+    let tcp = tcp_columns(&series, ArmId::RIGHT)?;
     let error = distance_to(&tcp, goal);
     let final_tcp = Vector3::from_fn(|k, _| tcp.get(k).and_then(|c| c.last()).copied().unwrap_or(f64::NAN));
     // The band's centre: the goal on the ideal plant, the final value where friction holds the
@@ -259,7 +259,7 @@ fn evaluate(rig: &Rig, series: TimeSeries, goal: &Vector3<f64>, plant: PlantKind
 
 fn figures(series: &TimeSeries, goal: &Vector3<f64>) -> Result<Vec<(&'static str, Figure)>, String> {
     let t = col(series, "t")?;
-    let tcp = tcp_columns(series, Hand::Right)?;
+    let tcp = tcp_columns(series, ArmId::RIGHT)?;
     let x0 = goal.x - STEP_M;
     let y0 = tcp[1].first().copied().unwrap_or(0.0);
     let z0 = tcp[2].first().copied().unwrap_or(0.0);

@@ -12,7 +12,7 @@
 //! configuration at the end differs from the start (the redundancy is not restored: the
 //! thesis' Fig. 6.6 remark on the null space), its norm reported; no fault.
 
-use kernel::controller::config::{Hand, MAX_LEVELS};
+use kernel::controller::config::{ArmId, MAX_LEVELS};
 use kernel::controller::messages::Command;
 use nalgebra::{SVector, Vector3};
 
@@ -63,7 +63,7 @@ pub fn phases() -> Vec<(f64, String)> {
 
 /// Runs the scenario: run, tracking error, claims, figures.
 pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
-    let mut rig = wbc::chapter_6_rig(Hand::Right, &[], options)?;
+    let mut rig = wbc::chapter_6_rig(ArmId::RIGHT, &[], options)?;
     let run = run(&mut rig, options)?;
     let tracking = tracking_error(&run)?;
     let summary = claims(&run, &tracking, &rig)?;
@@ -94,7 +94,7 @@ fn run(rig: &mut wbc::Rig, options: &RunOptions) -> Result<Run, String> {
         if info.cycle % 100 == 0 {
             options.progress.report(NAME, info.time_s, DURATION_S);
         }
-        let target = rig.controller.tcp_target(Hand::Right).pose;
+        let target = rig.tcp_target(ArmId::RIGHT)?.pose;
         let begin = *start.get_or_insert(target);
         q0.get_or_insert(*rig.sim.q());
         let near = |t: f64| (info.time_s - t).abs() < 0.5 * crate::sim::CONTROL_PERIOD_S;
@@ -102,11 +102,11 @@ fn run(rig: &mut wbc::Rig, options: &RunOptions) -> Result<Run, String> {
             if near(at) {
                 let mut goal = begin;
                 goal.translation.vector.x += offset;
-                let command = Command::TcpGoal { hand: Hand::Right, pose: pose_of(&goal), duration_s: SEGMENT_S };
+                let command = Command::TcpGoal { hand: ArmId::RIGHT, pose: pose_of(&goal), duration_s: SEGMENT_S };
                 rig.apply(&command).map_err(|e| format!("goal: {e}"))?;
             }
         }
-        desired.push(rig.controller.tcp_target(Hand::Right).pose.translation.vector);
+        desired.push(rig.tcp_target(ArmId::RIGHT)?.pose.translation.vector);
         levels.push(rig.controller.telemetry().level_torque_norm);
         Ok(())
     })?;
@@ -119,7 +119,7 @@ fn run(rig: &mut wbc::Rig, options: &RunOptions) -> Result<Run, String> {
 /// The tracking error ‖p − p_des‖ per row (m).
 fn tracking_error(run: &Run) -> Result<Vec<f64>, String> {
     let Run { series, start, desired, .. } = run;
-    let tcp = tcp_columns(series, Hand::Right)?;
+    let tcp = tcp_columns(series, ArmId::RIGHT)?;
     // The desired pose recorded after cycle k is the one cycle k + 1 uses; compare with the
     // next row's TCP (one period of lag is 0.2 mm at the peak speed).
     let [px, py, pz] = &tcp;
@@ -139,7 +139,7 @@ fn tracking_error(run: &Run) -> Result<Vec<f64>, String> {
 /// Metrics and claims (module docs).
 fn claims(run: &Run, tracking: &[f64], rig: &wbc::Rig) -> Result<Summary, String> {
     let Run { series, start, q0, .. } = run;
-    let tcp = tcp_columns(series, Hand::Right)?;
+    let tcp = tcp_columns(series, ArmId::RIGHT)?;
     let max_tracking = tracking.iter().copied().fold(0.0, f64::max);
     let final_error = distance_to(&tcp, start).last().copied().unwrap_or(f64::NAN);
     let q_end = *rig.sim.q();
@@ -174,7 +174,7 @@ fn claims(run: &Run, tracking: &[f64], rig: &wbc::Rig) -> Result<Summary, String
 fn figures(run: &Run, tracking: &[f64]) -> Result<Vec<(&'static str, Figure)>, String> {
     let Run { series, start, desired, levels, .. } = run;
     let t = col(series, "t")?;
-    let tcp = tcp_columns(series, Hand::Right)?;
+    let tcp = tcp_columns(series, ArmId::RIGHT)?;
     let spans = || {
         vec![
             Span { label: "forward".into(), from: FORWARD_AT_S, to: FORWARD_AT_S + SEGMENT_S },

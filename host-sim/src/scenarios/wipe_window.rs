@@ -36,7 +36,7 @@
 
 use fixtures::justin::whole_body::{ServiceTask, WIPE_WINDOW};
 use fixtures::justin::{self, whole_body};
-use kernel::controller::config::{CartesianParameters, Hand, JointGroup, TaskKind, TaskSpec};
+use kernel::controller::config::{ArmId, CartesianParameters, JointGroup, TaskKind, TaskSpec};
 use kernel::controller::messages::{Command, Pose};
 use kernel::model::Placement;
 use nalgebra::{Rotation3, SVector, Unit, UnitQuaternion, Vector3};
@@ -147,7 +147,7 @@ pub fn tool_orientation(start: &Rotation3<f64>, axis: usize, direction: &Vector3
 #[derive(Clone, Debug, PartialEq)]
 pub struct ToolReference {
     /// Which TCP.
-    pub hand: Hand,
+    pub hand: ArmId,
     /// Start orientation (measured).
     pub start: Rotation3<f64>,
     /// Tool orientation (the desired TCP frame during the task).
@@ -239,7 +239,7 @@ pub struct Contact {
     /// Short label for the columns (`window`, `floor_right`, …).
     pub label: &'static str,
     /// The TCP that touches it.
-    pub hand: Hand,
+    pub hand: ArmId,
     /// The surface.
     pub surface: Surface,
 }
@@ -320,7 +320,7 @@ pub fn run_tool(
     plan: impl FnOnce([Placement<f64>; 2]) -> ToolPlan,
     options: &RunOptions,
 ) -> Result<ToolRun, String> {
-    let mut rig = wbc::rig(q0, &[], changes, &whole_body::fig_6_3_hierarchy(Hand::Right), options)?;
+    let mut rig = wbc::rig(q0, &[], changes, &whole_body::fig_6_3_hierarchy(ArmId::RIGHT), options)?;
     let start = [
         rig.sim.frame_placement(justin::RIGHT_TCP).map_err(|e| e.to_string())?,
         rig.sim.frame_placement(justin::LEFT_TCP).map_err(|e| e.to_string())?,
@@ -368,7 +368,7 @@ pub fn run_tool(
         let (limited, applied, corrections) =
             (telemetry.tcp_force_limited, telemetry.contact_wrench, telemetry.force_limit_correction);
         for reference in &references {
-            let frame = if reference.hand == Hand::Right { justin::RIGHT_TCP } else { justin::LEFT_TCP };
+            let frame = if reference.hand == ArmId::RIGHT { justin::RIGHT_TCP } else { justin::LEFT_TCP };
             sample.measured.push(rig.sim.frame_placement(frame).map_err(|e| e.to_string())?.translation.vector);
             sample.reference.push(reference.at(info.time_s).0.translation.vector);
             sample.limited.push(limited.get(reference.hand.index()).is_some_and(|l| l.iter().any(|x| *x)));
@@ -407,14 +407,6 @@ pub fn run_tool(
     })
 }
 
-fn hand_name(hand: Hand) -> &'static str {
-    if hand == Hand::Right {
-        "right"
-    } else {
-        "left"
-    }
-}
-
 /// The rig's columns, then per contact `contact.<label>.force`, `.depth`, `.friction`, `.friction_bound`, per reference
 /// `ref.<hand>.x/y/z`, `limited.<hand>`, the estimated applied force `est.<hand>.x/y/z` and the
 /// governor's correction `corr.<hand>.x/y/z` (desired-frame axes).
@@ -432,7 +424,7 @@ fn extend_series(
         columns.push(format!("contact.{}.friction_bound", c.label));
     }
     for r in references {
-        let h = hand_name(r.hand);
+        let h = r.hand.name();
         columns.extend(["x", "y", "z"].iter().map(|a| format!("ref.{h}.{a}")));
         columns.push(format!("limited.{h}"));
         columns.extend(["x", "y", "z"].iter().map(|a| format!("est.{h}.{a}")));
@@ -662,7 +654,7 @@ pub fn tool_figures(
         .iter()
         .enumerate()
         .map(|(i, c)| Panel {
-            title: format!("normal contact force on {} ({} TCP)", c.label, hand_name(c.hand)),
+            title: format!("normal contact force on {} ({} TCP)", c.label, c.hand.name()),
             y_label: "force (N)".into(),
             lines: vec![
                 Line::new(
@@ -692,7 +684,7 @@ pub fn tool_figures(
             ];
             lines.extend(surface_lines(run, r.hand, axis));
             tcp_panels.push(Panel {
-                title: format!("{} TCP, {label}", hand_name(r.hand)),
+                title: format!("{} TCP, {label}", r.hand.name()),
                 y_label: "position (m)".into(),
                 lines,
                 spans: spans.to_vec(),
@@ -721,7 +713,7 @@ pub fn tool_figures(
 
 /// The contact surfaces of `hand` whose normal is along `axis`, as lines at their position along
 /// it over the run.
-fn surface_lines<'a>(run: &'a ToolRun, hand: Hand, axis: &'a Vector3<f64>) -> impl Iterator<Item = Line> + 'a {
+fn surface_lines<'a>(run: &'a ToolRun, hand: ArmId, axis: &'a Vector3<f64>) -> impl Iterator<Item = Line> + 'a {
     let span = [run.samples.first(), run.samples.last()];
     run.contacts.iter().filter(move |c| c.hand == hand && c.surface.normal.dot(axis).abs() > 0.99).map(move |c| {
         let at = c.surface.point.dot(axis);
@@ -767,14 +759,14 @@ fn plan(start: [Placement<f64>; 2]) -> ToolPlan {
     };
     ToolPlan {
         references: vec![ToolReference {
-            hand: Hand::Right,
+            hand: ArmId::RIGHT,
             start: right.rotation,
             tool,
             turn_s: (1.5, STROKES_S.0 - HOLD_S),
             path: Waypoints(points),
             circles: None,
         }],
-        contacts: vec![Contact { label: "window", hand: Hand::Right, surface: window }],
+        contacts: vec![Contact { label: "window", hand: ArmId::RIGHT, surface: window }],
         cartesian: None,
     }
 }

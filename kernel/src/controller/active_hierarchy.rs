@@ -149,9 +149,9 @@ impl<T: RealField + Copy> ActiveHierarchy<T> {
 mod tests {
     use super::*;
     use crate::controller::config::Field;
-    use crate::controller::layout::{Hand, JointGroup};
+    use crate::controller::layout::{ArmId, JointGroup};
 
-    const CARTESIAN: TaskKind = TaskKind::CartesianImpedance(Hand::Right);
+    const CARTESIAN: TaskKind = TaskKind::CartesianImpedance(ArmId::RIGHT);
     const COLLISION: TaskKind = TaskKind::CollisionAvoidance(Field::Strong);
     const DAMPING: TaskKind = TaskKind::JointDamping(JointGroup::UpperBody);
 

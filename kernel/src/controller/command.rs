@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 
 use super::config::{CartesianParameters, CollisionFieldParameters, Consistency, Field, TaskSpec, MAX_TASKS};
 use super::error::CommandError;
-use super::layout::{Hand, JointGroup};
+use super::layout::{ArmId, JointGroup};
 use super::settings::ControllerSettings;
 use super::state::{ControllerState, Workspace};
 use super::task_set::{cartesian_task, collision_parameters};
@@ -44,8 +44,8 @@ pub enum Command<T> {
     SetHierarchy(Vec<TaskSpec, MAX_TASKS>),
     /// Table 7.1 parameters of a TCP's Cartesian impedance.
     SetCartesian {
-        /// Which TCP.
-        hand: Hand,
+        /// Which TCP: its arm, `OutOfRange` for an arm the robot does not have.
+        hand: ArmId,
         /// Stiffnesses, damping ratio and force limits.
         parameters: CartesianParameters<T>,
     },
@@ -61,8 +61,8 @@ pub enum Command<T> {
     SetConsistency(Consistency),
     /// Move a TCP to a goal along the cubic of [`super::trajectory`] in `duration_s`.
     TcpGoal {
-        /// Which TCP.
-        hand: Hand,
+        /// Which TCP: its arm, `OutOfRange` for an arm the robot does not have.
+        hand: ArmId,
         /// The goal.
         pose: Pose<T>,
         /// Duration (s), `≥ 0`.
@@ -70,8 +70,8 @@ pub enum Command<T> {
     },
     /// One sample of a planner-generated TCP trajectory (pose and twist), held until the next.
     TcpSample {
-        /// Which TCP.
-        hand: Hand,
+        /// Which TCP: its arm, `OutOfRange` for an arm the robot does not have.
+        hand: ArmId,
         /// Desired pose.
         pose: Pose<T>,
         /// Desired linear velocity (m/s, world).
@@ -123,6 +123,9 @@ fn placement<T: RealField + Copy>(pose: &Pose<T>) -> Result<Placement<T>, Comman
     Ok(Placement::from_parts(Translation3::new(px, py, pz), rotation))
 }
 
+/// The refusal of a command for an arm the robot does not have.
+const OUT_OF_RANGE_ARM: CommandError = CommandError::OutOfRange { field: "hand" };
+
 /// What a command may change: the settings, the state and the collision workspace's broad-phase
 /// distance.
 pub(super) struct CommandTarget<
@@ -134,10 +137,11 @@ pub(super) struct CommandTarget<
     const U: usize,
     const V: usize,
     const P: usize,
+    const A: usize,
 > {
-    pub(super) settings: &'a mut ControllerSettings<T, N, B, F, V, P>,
-    pub(super) state: &'a mut ControllerState<T, N, U>,
-    pub(super) work: &'a mut Workspace<T, N, B, F, V, P>,
+    pub(super) settings: &'a mut ControllerSettings<T, N, B, F, V, P, A>,
+    pub(super) state: &'a mut ControllerState<T, N, U, A>,
+    pub(super) work: &'a mut Workspace<T, N, B, F, V, P, A>,
 }
 
 impl<
@@ -148,7 +152,8 @@ impl<
         const U: usize,
         const V: usize,
         const P: usize,
-    > CommandTarget<'_, T, N, B, F, U, V, P>
+        const A: usize,
+    > CommandTarget<'_, T, N, B, F, U, V, P, A>
 {
     /// Applies a planner command, all or nothing (see the module docs).
     pub(super) fn apply(&mut self, command: &Command<T>) -> Result<(), CommandError> {
@@ -162,10 +167,14 @@ impl<
                 finite(&p.translational_stiffness, "translational_stiffness")?;
                 finite(&p.rotational_stiffness, "rotational_stiffness")?;
                 finite(&[p.damping_ratio], "damping_ratio")?;
-                let task = cartesian_task(&self.settings.config, *hand, p)
+                let frame = *hand.of(&self.settings.config.layout.tcp).ok_or(OUT_OF_RANGE_ARM)?;
+                let task = cartesian_task(&self.settings.config, frame, p)
                     .map_err(|_| CommandError::OutOfRange { field: "cartesian parameters" })?;
-                *hand.of_mut(&mut self.settings.tasks.cartesian) = task;
-                *hand.of_mut(&mut self.settings.config.cartesian) = *p;
+                if let (Some(slot), Some(config)) =
+                    (hand.of_mut(&mut self.settings.tasks.cartesian), hand.of_mut(&mut self.settings.config.cartesian))
+                {
+                    (*slot, *config) = (task, *p);
+                }
                 Ok(())
             }
             Command::SetCollisionField { field, parameters } => {
@@ -194,7 +203,9 @@ impl<
                 let goal = placement(pose)?;
                 let duration = duration(*duration_s)?;
                 let start = self.started_target(*hand)?;
-                *hand.of_mut(&mut self.state.hands) = PoseTrajectory::towards(start.pose, goal, duration);
+                if let Some(trajectory) = hand.of_mut(&mut self.state.hands) {
+                    *trajectory = PoseTrajectory::towards(start.pose, goal, duration);
+                }
                 Ok(())
             }
             Command::TcpSample { hand, pose, linear_velocity, angular_velocity } => {
@@ -207,7 +218,9 @@ impl<
                     linear_velocity: Vector3::from(*linear_velocity),
                     angular_velocity: Vector3::from(*angular_velocity),
                 };
-                *hand.of_mut(&mut self.state.hands) = PoseTrajectory::streamed(target);
+                if let Some(trajectory) = hand.of_mut(&mut self.state.hands) {
+                    *trajectory = PoseTrajectory::streamed(target);
+                }
                 Ok(())
             }
             Command::JointGoal { group, values, duration_s } => {
@@ -215,6 +228,9 @@ impl<
                 let duration = duration(*duration_s)?;
                 if !self.state.started {
                     return Err(CommandError::NotStarted);
+                }
+                if matches!(group, JointGroup::Arm(arm) if arm.index() >= A) {
+                    return Err(OUT_OF_RANGE_ARM);
                 }
                 let mask = self.settings.config.layout.coordinates(*group);
                 let expected = mask.iter().filter(|m| **m).count();
@@ -240,11 +256,14 @@ impl<
         }
     }
 
-    fn started_target(&self, hand: Hand) -> Result<CartesianTarget<T>, CommandError> {
+    /// The current target of `hand`'s TCP; `OutOfRange` for an arm the robot does not have,
+    /// `NotStarted` before the first valid frame.
+    fn started_target(&self, hand: ArmId) -> Result<CartesianTarget<T>, CommandError> {
+        let trajectory = hand.of(&self.state.hands).ok_or(OUT_OF_RANGE_ARM)?;
         if !self.state.started {
             return Err(CommandError::NotStarted);
         }
-        Ok(hand.of(&self.state.hands).sample())
+        Ok(trajectory.sample())
     }
 }
 
@@ -260,4 +279,58 @@ pub fn encode_command<'b, T: Serialize>(
 /// that does not form a command give [`CommandError::Decode`].
 pub fn decode_command<T: for<'de> Deserialize<'de>>(bytes: &[u8]) -> Result<Command<T>, CommandError> {
     postcard::from_bytes(bytes).map_err(|_| CommandError::Decode)
+}
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used, reason = "tests")]
+    use super::{encode_command, Command, Pose};
+    use crate::controller::config::{CartesianParameters, TaskKind, TaskSpec};
+    use crate::controller::layout::{ArmId, JointGroup};
+
+    fn pose() -> Pose<f32> {
+        Pose { position: [0.5, -0.25, 1.0], orientation: [1.0, 0.0, 0.0, 0.0] }
+    }
+
+    /// Justin's commands on the wire, pinned byte for byte: the arm is one byte (0 right, 1 left)
+    /// in the command and in the task kinds of a hierarchy.
+    #[test]
+    fn justin_commands_keep_their_bytes() {
+        let hierarchy = [
+            TaskSpec { kind: TaskKind::CartesianImpedance(ArmId::LEFT), level: 0 },
+            TaskSpec { kind: TaskKind::SingularityAvoidance(ArmId::RIGHT), level: 1 },
+            TaskSpec { kind: TaskKind::JointImpedance(JointGroup::Arm(ArmId::LEFT)), level: 2 },
+            TaskSpec { kind: TaskKind::JointDamping(JointGroup::UpperBody), level: 2 },
+        ];
+        let parameters = CartesianParameters {
+            translational_stiffness: [1000.0_f32, 2000.0, 3000.0],
+            rotational_stiffness: [10.0, 20.0, 30.0],
+            damping_ratio: 0.7,
+            force_lower: [f32::NEG_INFINITY, -5.0, -5.0, -1.0, -1.0, -1.0],
+            force_upper: [10.0, 5.0, 5.0, 1.0, 1.0, f32::INFINITY],
+        };
+        let commands: [(Command<f32>, &str); 4] = [
+            (Command::SetHierarchy(hierarchy.iter().copied().collect()), "000400010002000105020102060302"),
+            (Command::SetCartesian { hand: ArmId::LEFT, parameters }, "010100007a440000fa4400803b45000020410000a0410000f0413333333f000080ff0000a0c00000a0c0000080bf000080bf000080bf000020410000a0400000a0400000803f0000803f0000807f"),
+            (
+                Command::TcpGoal { hand: ArmId::RIGHT, pose: pose(), duration_s: 2.0 },
+                "04000000003f000080be0000803f0000803f00000000000000000000000000000040",
+            ),
+            (
+                Command::TcpSample {
+                    hand: ArmId::LEFT,
+                    pose: pose(),
+                    linear_velocity: [0.1, 0.0, 0.0],
+                    angular_velocity: [0.0, 0.0, 0.5],
+                },
+                "05010000003f000080be0000803f0000803f000000000000000000000000cdcccc3d000000000000000000000000000000000000003f",
+            ),
+        ];
+        for (command, expected) in commands {
+            let mut buffer = [0_u8; 256];
+            let bytes = encode_command(&command, &mut buffer).unwrap();
+            let hex: std::string::String = bytes.iter().map(|b| std::format!("{b:02x}")).collect();
+            assert_eq!(hex, expected, "{command:?}");
+        }
+    }
 }

@@ -18,7 +18,7 @@ use crate::tasks::torso_workspace::TorsoWorkspaceConfig;
 
 pub use super::capacity::{MAX_LEVELS, MAX_ROWS, MAX_TASKS, MAX_TASK_ROWS};
 pub use super::faults::InputLimits;
-pub use super::layout::{Hand, JointGroup, PerHand, RobotLayout};
+pub use super::layout::{ArmId, JointGroup, PerArm, RobotLayout, MAX_ARMS};
 
 /// The two collision-avoidance fields of Fig. 6.3.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -47,11 +47,11 @@ impl Field {
 #[derive(serde::Serialize, serde::Deserialize)]
 pub enum TaskKind {
     /// Cartesian impedance of a TCP with force limits (Sec. 3.4.1, Table 7.1), six rows.
-    CartesianImpedance(Hand),
+    CartesianImpedance(ArmId),
     /// Self-collision and platform–environment collision avoidance (Sec. 3.1) with one field.
     CollisionAvoidance(Field),
     /// Arm singularity avoidance by the manipulability (Sec. 3.4.2), one row.
-    SingularityAvoidance(Hand),
+    SingularityAvoidance(ArmId),
     /// Avoidance of the mechanical end stops of every limited joint (Sec. 3.4.3).
     EndStops,
     /// Torso workspace of the tendon-coupled torso (Sec. 3.3), twelve boundary rows.
@@ -63,51 +63,58 @@ pub enum TaskKind {
     JointDamping(JointGroup),
 }
 
-impl TaskKind {
-    /// Every task kind, in a fixed order (the telemetry columns of host-sim follow it).
-    pub const ALL: [TaskKind; 18] = [
-        TaskKind::CartesianImpedance(Hand::Right),
-        TaskKind::CartesianImpedance(Hand::Left),
-        TaskKind::CollisionAvoidance(Field::Strong),
-        TaskKind::CollisionAvoidance(Field::Weak),
-        TaskKind::SingularityAvoidance(Hand::Right),
-        TaskKind::SingularityAvoidance(Hand::Left),
-        TaskKind::EndStops,
-        TaskKind::TorsoWorkspace,
-        TaskKind::JointImpedance(JointGroup::Platform),
-        TaskKind::JointImpedance(JointGroup::Torso),
-        TaskKind::JointImpedance(JointGroup::Arm(Hand::Right)),
-        TaskKind::JointImpedance(JointGroup::Arm(Hand::Left)),
-        TaskKind::JointImpedance(JointGroup::UpperBody),
-        TaskKind::JointDamping(JointGroup::Platform),
-        TaskKind::JointDamping(JointGroup::Torso),
-        TaskKind::JointDamping(JointGroup::Arm(Hand::Right)),
-        TaskKind::JointDamping(JointGroup::Arm(Hand::Left)),
-        TaskKind::JointDamping(JointGroup::UpperBody),
-    ];
+/// Most task kinds of a layout: `4 A + 10` with [`MAX_ARMS`] arms (Cartesian impedance and
+/// singularity avoidance per arm, two collision fields, end stops, torso workspace, joint
+/// impedance and damping per group).
+pub const MAX_TASK_KINDS: usize = 4 * MAX_ARMS + 10;
 
-    /// A short name for logs and column headers, e.g. `cartesian_right`,
-    /// `joint_impedance_left_arm`.
-    pub const fn name(self) -> &'static str {
+/// The names of the per-arm task kinds, per arm ([`ArmId::name`]).
+const ARM_TASK_NAMES: [[&str; MAX_ARMS]; 4] = [
+    ["cartesian_right", "cartesian_left", "cartesian_arm_2", "cartesian_arm_3"],
+    ["singularity_right", "singularity_left", "singularity_arm_2", "singularity_arm_3"],
+    ["joint_impedance_right_arm", "joint_impedance_left_arm", "joint_impedance_arm_2", "joint_impedance_arm_3"],
+    ["joint_damping_right_arm", "joint_damping_left_arm", "joint_damping_arm_2", "joint_damping_arm_3"],
+];
+
+impl TaskKind {
+    /// Every task kind of a robot with `A` arms, in a fixed order (the telemetry columns of
+    /// host-sim follow it): Cartesian impedance per arm, the collision fields, singularity
+    /// avoidance per arm, end stops, torso workspace, joint impedance and joint damping per
+    /// group of [`JointGroup::all`]. `4 A + 10` kinds, 18 for Justin.
+    pub fn all<const A: usize>() -> heapless::Vec<TaskKind, MAX_TASK_KINDS> {
+        let arms = || ArmId::all::<A>().into_iter().take(MAX_ARMS);
+        let groups = || JointGroup::all::<A>().into_iter();
+        arms()
+            .map(TaskKind::CartesianImpedance)
+            .chain([Field::Strong, Field::Weak].map(TaskKind::CollisionAvoidance))
+            .chain(arms().map(TaskKind::SingularityAvoidance))
+            .chain([TaskKind::EndStops, TaskKind::TorsoWorkspace])
+            .chain(groups().map(TaskKind::JointImpedance))
+            .chain(groups().map(TaskKind::JointDamping))
+            .collect()
+    }
+
+    /// A short name for logs, column headers and configuration files, e.g. `cartesian_right`,
+    /// `joint_impedance_left_arm` (arms named by [`ArmId::name`]).
+    pub fn name(self) -> &'static str {
         use JointGroup::{Arm, Platform, Torso, UpperBody};
+        let per_arm = |table: usize, arm: ArmId| {
+            ARM_TASK_NAMES.get(table).and_then(|names| names.get(arm.index())).copied().unwrap_or("unknown_arm")
+        };
         match self {
-            TaskKind::CartesianImpedance(Hand::Right) => "cartesian_right",
-            TaskKind::CartesianImpedance(Hand::Left) => "cartesian_left",
+            TaskKind::CartesianImpedance(arm) => per_arm(0, arm),
             TaskKind::CollisionAvoidance(Field::Strong) => "collision_strong",
             TaskKind::CollisionAvoidance(Field::Weak) => "collision_weak",
-            TaskKind::SingularityAvoidance(Hand::Right) => "singularity_right",
-            TaskKind::SingularityAvoidance(Hand::Left) => "singularity_left",
+            TaskKind::SingularityAvoidance(arm) => per_arm(1, arm),
             TaskKind::EndStops => "end_stops",
             TaskKind::TorsoWorkspace => "torso_workspace",
             TaskKind::JointImpedance(Platform) => "joint_impedance_platform",
             TaskKind::JointImpedance(Torso) => "joint_impedance_torso",
-            TaskKind::JointImpedance(Arm(Hand::Right)) => "joint_impedance_right_arm",
-            TaskKind::JointImpedance(Arm(Hand::Left)) => "joint_impedance_left_arm",
+            TaskKind::JointImpedance(Arm(arm)) => per_arm(2, arm),
             TaskKind::JointImpedance(UpperBody) => "joint_impedance_upper_body",
             TaskKind::JointDamping(Platform) => "joint_damping_platform",
             TaskKind::JointDamping(Torso) => "joint_damping_torso",
-            TaskKind::JointDamping(Arm(Hand::Right)) => "joint_damping_right_arm",
-            TaskKind::JointDamping(Arm(Hand::Left)) => "joint_damping_left_arm",
+            TaskKind::JointDamping(Arm(arm)) => per_arm(3, arm),
             TaskKind::JointDamping(UpperBody) => "joint_damping_upper_body",
         }
     }
@@ -169,7 +176,7 @@ pub struct CollisionFieldParameters<T> {
     pub activation_zero: T,
 }
 
-/// Parameters of the arm singularity avoidance (3.55)–(3.57), shared by both arms.
+/// Parameters of the arm singularity avoidance (3.55)–(3.57), shared by every arm.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SingularityParameters<T> {
     /// Rows of the TCP Jacobian whose manipulability is kept (e.g. the translational ones).
@@ -233,11 +240,11 @@ pub struct ObserverParameters<T> {
 
 /// Everything [`super::Controller`] needs besides the model and the collision model.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ControllerConfig<T: RealField, const N: usize> {
+pub struct ControllerConfig<T: RealField, const N: usize, const A: usize> {
     /// Control period (s), `> 0` (1 ms on Rollin' Justin).
     pub period_s: T,
     /// Which frames and coordinates are which.
-    pub layout: RobotLayout<N>,
+    pub layout: RobotLayout<N, A>,
     /// Successive or augmented projections (Sec. 4.1).
     pub recursion: Recursion,
     /// Static or dynamic consistency of the projections.
@@ -246,8 +253,8 @@ pub struct ControllerConfig<T: RealField, const N: usize> {
     pub shaping: Shaping<T>,
     /// Duration of a task's move between levels, fade-in or fade-out (s), `> 0`.
     pub transition_s: T,
-    /// Cartesian impedance of each TCP, per [`Hand`].
-    pub cartesian: PerHand<CartesianParameters<T>>,
+    /// Cartesian impedance of each TCP, per arm ([`ArmId`]).
+    pub cartesian: PerArm<CartesianParameters<T>, A>,
     /// Task-space damping used when the double diagonalisation is impossible (Ns/m, Nms/rad).
     pub cartesian_fallback_damping: Vector6<T>,
     /// The strong and the weak collision field.
@@ -280,7 +287,7 @@ pub struct ControllerConfig<T: RealField, const N: usize> {
     pub recovery: RecoveryParameters<T>,
 }
 
-impl<T: RealField + Copy, const N: usize> ControllerConfig<T, N> {
+impl<T: RealField + Copy, const N: usize, const A: usize> ControllerConfig<T, N, A> {
     /// Checks every controller parameter once (the tasks' and the platform's own parameters
     /// are checked when their objects are built): the first one out of range is named in
     /// [`ConfigError::InvalidParameter`].
@@ -334,29 +341,42 @@ impl<T: RealField + Copy, const N: usize> ControllerConfig<T, N> {
 
 #[cfg(test)]
 mod tests {
-    use super::{Field, Hand, JointGroup, TaskKind};
+    use super::{ArmId, Field, JointGroup, TaskKind};
 
     #[test]
-    fn the_list_holds_every_task_kind_of_every_hand_field_and_group() {
-        let mut kinds = heapless::Vec::<TaskKind, 18>::new();
-        let mut push = |kind| assert!(kinds.push(kind).is_ok());
-        Hand::BOTH.into_iter().for_each(|hand| push(TaskKind::CartesianImpedance(hand)));
-        [Field::Strong, Field::Weak].into_iter().for_each(|field| push(TaskKind::CollisionAvoidance(field)));
-        Hand::BOTH.into_iter().for_each(|hand| push(TaskKind::SingularityAvoidance(hand)));
-        push(TaskKind::EndStops);
-        push(TaskKind::TorsoWorkspace);
-        JointGroup::ALL.into_iter().for_each(|group| push(TaskKind::JointImpedance(group)));
-        JointGroup::ALL.into_iter().for_each(|group| push(TaskKind::JointDamping(group)));
-        assert_eq!(kinds.as_slice(), TaskKind::ALL.as_slice());
+    fn justins_list_holds_every_task_kind_of_every_arm_field_and_group_in_order() {
+        use JointGroup::{Arm, Platform, Torso, UpperBody};
+        let (right, left) = (ArmId::RIGHT, ArmId::LEFT);
+        let groups = [Platform, Torso, Arm(right), Arm(left), UpperBody];
+        let expected: heapless::Vec<TaskKind, 18> = [
+            TaskKind::CartesianImpedance(right),
+            TaskKind::CartesianImpedance(left),
+            TaskKind::CollisionAvoidance(Field::Strong),
+            TaskKind::CollisionAvoidance(Field::Weak),
+            TaskKind::SingularityAvoidance(right),
+            TaskKind::SingularityAvoidance(left),
+            TaskKind::EndStops,
+            TaskKind::TorsoWorkspace,
+        ]
+        .into_iter()
+        .chain(groups.map(TaskKind::JointImpedance))
+        .chain(groups.map(TaskKind::JointDamping))
+        .collect();
+        assert_eq!(TaskKind::all::<2>().as_slice(), expected.as_slice());
+        assert_eq!(TaskKind::all::<1>().len(), 14);
+        assert_eq!(TaskKind::all::<4>().len(), 26);
     }
 
     #[test]
     fn every_task_kind_is_listed_once_with_its_own_name() {
-        for (i, a) in TaskKind::ALL.iter().enumerate() {
-            for b in TaskKind::ALL.iter().skip(i + 1) {
+        let all = TaskKind::all::<4>();
+        for (i, a) in all.iter().enumerate() {
+            for b in all.iter().skip(i + 1) {
                 assert_ne!(a, b);
                 assert_ne!(a.name(), b.name());
             }
         }
+        assert_eq!(TaskKind::JointDamping(JointGroup::Arm(ArmId::LEFT)).name(), "joint_damping_left_arm");
+        assert_eq!(TaskKind::CartesianImpedance(ArmId(5)).name(), "unknown_arm");
     }
 }

@@ -6,15 +6,15 @@ use nalgebra::{convert, RealField, SVector, Vector3, Vector6};
 
 use hal::{PlatformCommand, LEGS};
 
-use super::capacity::{MAX_ACTIVE, MAX_LEVELS, MAX_TASK_ROWS};
+use super::capacity::{MAX_ACTIVE, MAX_FORCE_LIMITED_ARMS, MAX_LEVELS, MAX_TASK_ROWS};
 use super::config::{Consistency, TaskKind};
 use super::faults::{validate_frame, Fault, SafeOutput};
 use super::force_limit::HandLimits;
-use super::frames::{SensorFrame, PLATFORM_DOF};
+use super::frames::SensorFrame;
 use super::guard::{
     limit_base_velocity, limit_leg_rates, rate_exceeded, saturate_with_priority, torque_box, Saturation,
 };
-use super::layout::{Hand, JointGroup};
+use super::layout::{ArmId, JointGroup};
 use super::settings::ControllerSettings;
 use super::speed_barrier::{speed_barrier, InverseInertia, JointLimits};
 use super::state::{ControllerState, InertiaFactors, Workspace};
@@ -53,10 +53,11 @@ pub(super) struct Cycle<
     const U: usize,
     const V: usize,
     const P: usize,
+    const A: usize,
 > {
-    pub(super) settings: &'a ControllerSettings<T, N, B, F, V, P>,
-    pub(super) state: &'a mut ControllerState<T, N, U>,
-    pub(super) work: &'a mut Workspace<T, N, B, F, V, P>,
+    pub(super) settings: &'a ControllerSettings<T, N, B, F, V, P, A>,
+    pub(super) state: &'a mut ControllerState<T, N, U, A>,
+    pub(super) work: &'a mut Workspace<T, N, B, F, V, P, A>,
 }
 
 impl<
@@ -67,8 +68,12 @@ impl<
         const U: usize,
         const V: usize,
         const P: usize,
-    > Cycle<'_, T, N, B, F, U, V, P>
+        const A: usize,
+    > Cycle<'_, T, N, B, F, U, V, P, A>
 {
+    /// The model's platform coordinates ahead of the `U` joints: 3, or 0 for a fixed base.
+    const PLATFORM_COORDINATES: usize = N - U;
+
     /// One control cycle: never panics, always writes a checked output (the whole-body torque,
     /// or the safe output of [`super::faults`] with the fault in the telemetry).
     /// `factors` holds the cycle's tree factors (overwritten).
@@ -93,9 +98,9 @@ impl<
     fn control(&mut self, frame: &SensorFrame<T, U>, factors: &mut InertiaFactors<T, N>) -> Result<(), Fault> {
         let input_limits =
             self.state.recovery.input_limits(&self.settings.config.input_limits, &self.settings.config.recovery);
-        validate_frame(&self.settings.model, &input_limits, frame, PLATFORM_DOF, self.state.last_cycle)?;
+        validate_frame(&self.settings.model, &input_limits, frame, Self::PLATFORM_COORDINATES, self.state.last_cycle)?;
         let dt = self.settings.config.period_s;
-        let (q, v) = frame.coordinates();
+        let (q, v) = frame.coordinates(Self::PLATFORM_COORDINATES);
         let (model, data) = (&self.settings.model, &mut self.work.data);
         // Everything the step reads; the 6×6 body inertias are not among it.
         kinematics(model, data, &q, KinematicsLevel::Velocities(&v)).map_err(Fault::Dynamics)?;
@@ -208,14 +213,15 @@ impl<
     /// The contact-force limiter ([`super::force_limit`]) on the last cycle's observer estimate, for the
     /// hands whose Cartesian task is in the hierarchy with at least one finite force bound.
     fn limit_contact_forces(&mut self, dt: T) -> Result<(), Fault> {
-        let hands = Hand::BOTH.map(|hand| {
-            let running = self.state.hierarchy.contains(TaskKind::CartesianImpedance(hand));
-            let parameters = hand.of(&self.settings.config.cartesian);
+        let (cartesian, targets) = (&self.settings.config.cartesian, &self.state.hands);
+        let mut hands = [None; A];
+        for (((hand, arm), parameters), target) in hands.iter_mut().zip(ArmId::all::<A>()).zip(cartesian).zip(targets) {
+            let running = self.state.hierarchy.contains(TaskKind::CartesianImpedance(arm));
             let (lower, upper) = (Vector6::from(parameters.force_lower), Vector6::from(parameters.force_upper));
             let limited = lower.iter().chain(upper.iter()).any(|x| x.is_finite());
-            let axes = *hand.of(&self.state.hands).sample().pose.rotation.matrix();
-            (running && limited).then_some(HandLimits { axes, lower, upper })
-        });
+            let axes = *target.sample().pose.rotation.matrix();
+            *hand = (running && limited).then_some(HandLimits { axes, lower, upper });
+        }
         let residual = *self.state.observer.residual();
         self.state
             .force_limiter
@@ -230,8 +236,13 @@ impl<
                 &mut self.work.tcp_jacobians,
             )
             .map_err(Fault::Dynamics)?;
-        self.state.telemetry.contact_wrench = self.state.force_limiter.applied();
-        self.state.telemetry.force_limit_correction = self.state.force_limiter.correction();
+        let t = &mut self.state.telemetry;
+        let (applied, correction) = (self.state.force_limiter.applied(), self.state.force_limiter.correction());
+        for (((wrench, c), a), k) in
+            t.contact_wrench.iter_mut().zip(t.force_limit_correction.iter_mut()).zip(applied).zip(correction)
+        {
+            (*wrench, *c) = (a, k);
+        }
         Ok(())
     }
 
@@ -243,18 +254,18 @@ impl<
     ) -> Result<(), Fault> {
         self.work.stack.clear();
         let t = &mut self.state.telemetry;
-        t.tcp_error = [Vector6::zeros(); 2];
-        t.tcp_force_limited = [[false; 6]; 2];
+        t.tcp_error = [Vector6::zeros(); A];
+        t.tcp_force_limited = [[false; 6]; A];
         t.min_collision_distance = None;
         t.collision_rows = 0;
-        t.manipulability = [T::zero(); 2];
+        t.manipulability = [T::zero(); A];
         t.tasks = [None; MAX_ACTIVE];
         t.task_count = self.state.hierarchy.entries().len();
         let mut scratch = Scratch {
             collision: &mut self.work.collision_data,
             geometry_current: false,
             pair_rows: PairRowCache::default(),
-            cartesian_damping: [Vector6::zeros(); 2],
+            cartesian_damping: [Vector6::zeros(); MAX_FORCE_LIMITED_ARMS],
         };
         for (index, entry) in self.state.hierarchy.entries().iter().enumerate() {
             // The task writes its rows into the stack's slots; `place` tags and weights them.
@@ -293,7 +304,18 @@ impl<
 
     /// Admittance (5.1) driven by the platform rows of `τ`, then the ICR avoidance loop.
     /// Returns `ṙ_des`, the commanded `r̈` and the leg rates, all limited.
+    /// A fixed base (no platform axis in the layout) runs neither: the platform command is zero.
     fn platform_command(&mut self, frame: &SensorFrame<T, U>, dt: T) -> Result<PlatformStep<T>, Fault> {
+        if self.settings.config.layout.platform.axes().iter().all(|axis| axis.coordinate().is_none()) {
+            let t = &mut self.state.telemetry;
+            t.saturation = Saturation::none();
+            (t.virtual_force, t.base_acceleration, t.icr_repelling) = (Vector3::zeros(), Vector3::zeros(), false);
+            return Ok(PlatformStep {
+                velocity: Vector3::zeros(),
+                acceleration: Vector3::zeros(),
+                leg_rates: [T::zero(); LEGS],
+            });
+        }
         let platform = &self.settings.config.platform;
         let mut force = Vector3::zeros();
         for ((axis, f), deadband) in
@@ -465,7 +487,7 @@ impl<
         self.state.previous_torque = *torque;
         self.state.previous_base_velocity = Vector3::from(platform.velocity);
         let out = &mut self.state.output;
-        for (o, t) in out.torque.iter_mut().zip(torque.as_slice().iter().skip(PLATFORM_DOF)) {
+        for (o, t) in out.torque.iter_mut().zip(torque.as_slice().iter().skip(Self::PLATFORM_COORDINATES)) {
             *o = *t;
         }
         out.platform = platform;
@@ -491,7 +513,9 @@ impl<
             return Err(Fault::NonFiniteOutput);
         }
         let mut measured = SVector::<T, N>::zeros();
-        for (m, t) in measured.as_mut_slice().iter_mut().skip(PLATFORM_DOF).zip(frame.joints.torque.iter()) {
+        for (m, t) in
+            measured.as_mut_slice().iter_mut().skip(Self::PLATFORM_COORDINATES).zip(frame.joints.torque.iter())
+        {
             *m = *t;
         }
         let observed = self.settings.config.layout.coordinates(JointGroup::UpperBody);
@@ -555,7 +579,7 @@ impl<
         t.fault_cycles = t.fault_cycles.saturating_add(1);
         let brake = t.fault_cycles >= self.settings.config.input_limits.brake_after_cycles;
         let dt = self.settings.config.period_s;
-        let (q, v) = frame.coordinates();
+        let (q, v) = frame.coordinates(Self::PLATFORM_COORDINATES);
         let positions_valid = crate::math::all_finite(&q)
             && forward_kinematics(&self.settings.model, &mut self.work.data, &q, &SVector::zeros()).is_ok();
         let gravity_torque =

@@ -44,8 +44,9 @@ pub struct ActuatorFrame<T, const U: usize> {
 }
 
 impl<T: RealField + Copy, const U: usize> SensorFrame<T, U> {
-    /// `y = (r, q)` and `ẏ` (5.7): the platform's coordinates first, then the joints'.
-    pub(super) fn coordinates<const N: usize>(&self) -> (SVector<T, N>, SVector<T, N>) {
+    /// `y = (r, q)` and `ẏ` (5.7): the platform's `platform_coordinates` first (3, or 0 for a
+    /// fixed base), then the joints'.
+    pub(super) fn coordinates<const N: usize>(&self, platform_coordinates: usize) -> (SVector<T, N>, SVector<T, N>) {
         let mut q = SVector::<T, N>::zeros();
         let mut v = SVector::<T, N>::zeros();
         // The platform's three coordinates first, then the joints (slice copies).
@@ -53,7 +54,8 @@ impl<T: RealField + Copy, const U: usize> SensorFrame<T, U> {
             .into_iter()
             .zip([(&self.platform.pose, &self.joints.position), (&self.platform.velocity, &self.joints.velocity)])
         {
-            let Some((head, tail)) = target.split_at_mut_checked(target.len().min(platform.len())) else { continue };
+            let split = target.len().min(platform.len()).min(platform_coordinates);
+            let Some((head, tail)) = target.split_at_mut_checked(split) else { continue };
             for (x, p) in head.iter_mut().zip(platform.iter()) {
                 *x = *p;
             }

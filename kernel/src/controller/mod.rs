@@ -46,7 +46,7 @@
 //! | --- | --- |
 //! | [`frames`] | the I/O of one cycle: [`SensorFrame`] in, [`ActuatorFrame`] out |
 //! | [`config`] | [`config::ControllerConfig`] and its validation, the task kinds ([`config::TaskKind`]) and their parameters |
-//! | [`layout`], [`capacity`] | hands, joint groups and the robot layout; the table sizes |
+//! | [`layout`], [`capacity`] | arms, joint groups and the robot layout; the table sizes |
 //! | `task_set` | the validated task objects of the configuration and the dispatch of a task kind to its rows |
 //! | `active_hierarchy` | the running hierarchy and its transitions (4.68) |
 //! | `cycle` | [`Controller::step`]: the stages above, the safe output |
@@ -89,8 +89,9 @@ pub use error::ConfigError;
 pub use frames::{ActuatorFrame, SensorFrame, PLATFORM_DOF};
 pub use telemetry::Telemetry;
 
+use capacity::MAX_FORCE_LIMITED_ARMS;
 use command::{decode_command, Command, CommandTarget};
-use config::{ControllerConfig, Hand, TaskSpec, MAX_TASK_ROWS};
+use config::{ArmId, ControllerConfig, TaskSpec, MAX_TASK_ROWS};
 use cycle::Cycle;
 use error::CommandError;
 use settings::{ControllerSettings, Derived};
@@ -100,8 +101,10 @@ use crate::model::{Data, Model};
 use crate::tasks::cartesian_impedance::CartesianTarget;
 use crate::tasks::collision::{CollisionData, CollisionModel};
 
-/// The whole-body controller for a robot with `N = 3 + U` coordinates (platform first), `B`
-/// bodies, `F` frames, and a collision model of `V` volumes and `P` pairs. See the module docs.
+/// The whole-body controller for a robot with `N = 3 + U` coordinates (platform first) or
+/// `N = U` (a fixed base, every platform axis absent), `B` bodies, `F` frames, `A` arms (one or
+/// two, each with a TCP, [`layout`]), and a collision model of `V` volumes and `P` pairs. See the
+/// module docs.
 ///
 /// Its parts: the settings (models, configuration, validated task objects; changed only by
 /// [`Controller::apply`]), the state one cycle leaves for the next, and the workspace each
@@ -187,7 +190,7 @@ use crate::tasks::collision::{CollisionData, CollisionModel};
 ///     layout: RobotLayout {
 ///         tcp: [right_tcp, left_tcp],
 ///         platform: PlatformLayout::try_new::<5>([0, 1, 2].map(PlatformAxis::Admitted)).unwrap(),
-///         torso: [false; 5],
+///         torso: None,
 ///         arms: [[false, false, false, true, false], [false, false, false, false, true]],
 ///     },
 ///     recursion: Recursion::Augmented,
@@ -239,7 +242,7 @@ use crate::tasks::collision::{CollisionData, CollisionModel};
 ///     TaskSpec { kind: TaskKind::CollisionAvoidance(Field::Strong), level: 0 },
 ///     TaskSpec { kind: TaskKind::JointImpedance(JointGroup::UpperBody), level: 1 },
 /// ];
-/// let mut controller = Controller::<f64, 5, 5, 2, 2, 2, 1>::try_new(model, collision, config, &hierarchy).unwrap();
+/// let mut controller = Controller::<f64, 5, 5, 2, 2, 2, 1, 2>::try_new(model, collision, config, &hierarchy).unwrap();
 ///
 /// // One cycle with the arms horizontal and everything at rest.
 /// let frame = SensorFrame {
@@ -268,10 +271,11 @@ pub struct Controller<
     const U: usize,
     const V: usize,
     const P: usize,
+    const A: usize,
 > {
-    settings: ControllerSettings<T, N, B, F, V, P>,
-    state: ControllerState<T, N, U>,
-    work: Workspace<T, N, B, F, V, P>,
+    settings: ControllerSettings<T, N, B, F, V, P, A>,
+    state: ControllerState<T, N, U, A>,
+    work: Workspace<T, N, B, F, V, P, A>,
     factors: InertiaFactors<T, N>,
 }
 
@@ -283,7 +287,8 @@ impl<
         const U: usize,
         const V: usize,
         const P: usize,
-    > Controller<T, N, B, F, U, V, P>
+        const A: usize,
+    > Controller<T, N, B, F, U, V, P, A>
 {
     /// Validates everything once: the configuration, every task's parameters and the initial
     /// hierarchy. The controller starts (targets at the measured poses) on its first valid
@@ -292,10 +297,16 @@ impl<
     pub fn try_new(
         model: Model<T, N, B, F>,
         collision_model: CollisionModel<T, V, P>,
-        config: ControllerConfig<T, N>,
+        config: ControllerConfig<T, N, A>,
         hierarchy: &[TaskSpec],
     ) -> Result<Self, ConfigError> {
-        const { assert!(N == U + PLATFORM_DOF, "N must be the platform's 3 coordinates plus U joints") };
+        const {
+            assert!(
+                N == U + PLATFORM_DOF || N == U,
+                "N must be U joints after the platform's 3 coordinates, or U joints on a fixed base"
+            )
+        };
+        const { assert!(A >= 1 && A <= MAX_FORCE_LIMITED_ARMS, "one or two arms (the contact-force limiter's TCPs)") };
         const { assert!(N <= MAX_TASK_ROWS, "a joint-space task emits up to N rows") };
         // Everything fallible first, out of line, with a small result ([`Derived::try_new`]);
         // then the controller in one infallible expression of its final fields: no by-value
@@ -303,7 +314,7 @@ impl<
         // (the firmware's `init`) holds the models, the configuration and at most one
         // controller, not copies of it beside the validation's temporaries.
         let Derived { tasks, tree, admittance, avoidance, hierarchy: active } =
-            Derived::try_new(&model, &config, hierarchy)?;
+            Derived::try_new(&model, &config, hierarchy, N - U)?;
         Ok(Self {
             work: Workspace::new(&model, &collision_model, tasks.broad_phase_distance()),
             factors: InertiaFactors::new(tree),
@@ -318,7 +329,7 @@ impl<
     }
 
     /// The current configuration (changed only by accepted commands).
-    pub fn config(&self) -> &ControllerConfig<T, N> {
+    pub fn config(&self) -> &ControllerConfig<T, N, A> {
         &self.settings.config
     }
 
@@ -349,13 +360,13 @@ impl<
         &self.work.collision_data
     }
 
-    /// The current TCP target of `hand`.
-    pub fn tcp_target(&self, hand: Hand) -> CartesianTarget<T> {
-        hand.of(&self.state.hands).sample()
+    /// The current TCP target of `arm`, `None` for an arm the robot does not have.
+    pub fn tcp_target(&self, arm: ArmId) -> Option<CartesianTarget<T>> {
+        arm.of(&self.state.hands).map(|trajectory| trajectory.sample())
     }
 
     /// The telemetry of the last cycle.
-    pub fn telemetry(&self) -> &Telemetry<T, N> {
+    pub fn telemetry(&self) -> &Telemetry<T, N, A> {
         &self.state.telemetry
     }
 

@@ -7,7 +7,7 @@ use nalgebra::RealField;
 
 use super::active_hierarchy::ActiveHierarchy;
 use super::config::{ControllerConfig, TaskSpec};
-use super::error::ConfigError;
+use super::error::{CommandError, ConfigError};
 use super::task_set::TaskSet;
 use crate::dynamics::TreeStructure;
 use crate::model::Model;
@@ -24,26 +24,27 @@ pub(super) struct ControllerSettings<
     const F: usize,
     const V: usize,
     const P: usize,
+    const A: usize,
 > {
     pub(super) model: Model<T, N, B, F>,
     pub(super) collision_model: CollisionModel<T, V, P>,
-    pub(super) config: ControllerConfig<T, N>,
+    pub(super) config: ControllerConfig<T, N, A>,
     /// The task objects of `config`, validated.
-    pub(super) tasks: TaskSet<T, N>,
+    pub(super) tasks: TaskSet<T, N, A>,
 }
 
 /// What the constructor validates and derives from the models and the configuration before it
 /// builds the controller: the task objects, the elimination tree and the initial platform loop
 /// and hierarchy (a few KB; see [`Derived::try_new`]).
-pub(super) struct Derived<T: RealField, const N: usize> {
-    pub(super) tasks: TaskSet<T, N>,
+pub(super) struct Derived<T: RealField, const N: usize, const A: usize> {
+    pub(super) tasks: TaskSet<T, N, A>,
     pub(super) tree: TreeStructure<N>,
     pub(super) admittance: Admittance<T>,
     pub(super) avoidance: PlatformAvoidance<T>,
     pub(super) hierarchy: ActiveHierarchy<T>,
 }
 
-impl<T: RealField + Copy, const N: usize> Derived<T, N> {
+impl<T: RealField + Copy, const N: usize, const A: usize> Derived<T, N, A> {
     /// Validates `config` and the initial `hierarchy` on `model` and builds the task objects,
     /// the elimination tree, the admittance and the ICR avoidance.
     ///
@@ -57,13 +58,21 @@ impl<T: RealField + Copy, const N: usize> Derived<T, N> {
     #[inline(never)]
     pub(super) fn try_new<const B: usize, const F: usize>(
         model: &Model<T, N, B, F>,
-        config: &ControllerConfig<T, N>,
+        config: &ControllerConfig<T, N, A>,
         hierarchy: &[TaskSpec],
+        platform_coordinates: usize,
     ) -> Result<Self, ConfigError> {
         config.validate()?;
+        // A fixed base (no platform coordinates in the model) has no platform axis.
+        if config.layout.platform.axes().iter().filter_map(|a| a.coordinate()).any(|c| c >= platform_coordinates) {
+            return Err(ConfigError::InvalidParameter { name: "layout.platform" });
+        }
         let tasks = TaskSet::try_new(model, config)?;
         let admittance = Admittance::try_new(config.platform.admittance).map_err(ConfigError::Platform)?;
         let avoidance = PlatformAvoidance::try_new(config.platform.avoidance).map_err(ConfigError::Platform)?;
+        if hierarchy.iter().any(|spec| !tasks.supports(spec.kind)) {
+            return Err(ConfigError::Hierarchy(CommandError::UnknownTask));
+        }
         let hierarchy = ActiveHierarchy::initial(hierarchy).map_err(ConfigError::Hierarchy)?;
         Ok(Self { tasks, tree: TreeStructure::new(model), admittance, avoidance, hierarchy })
     }

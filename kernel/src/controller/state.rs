@@ -6,11 +6,11 @@
 use nalgebra::{RealField, SMatrix, SVector, Vector3, Vector6};
 
 use super::active_hierarchy::ActiveHierarchy;
-use super::capacity::{MAX_LEVELS, MAX_ROWS};
+use super::capacity::{MAX_FORCE_LIMITED_ARMS, MAX_LEVELS, MAX_ROWS};
 use super::config::ControllerConfig;
 use super::force_limit::ForceLimiter;
 use super::frames::ActuatorFrame;
-use super::layout::PerHand;
+use super::layout::PerArm;
 use super::observer::MomentumObserver;
 use super::recovery::Recovery;
 use super::telemetry::Telemetry;
@@ -25,10 +25,10 @@ use crate::tasks::collision::{CollisionData, CollisionModel};
 
 /// The controller's state: everything one cycle leaves for the next (see the module docs).
 #[derive(Clone, Debug)]
-pub(super) struct ControllerState<T: RealField, const N: usize, const U: usize> {
+pub(super) struct ControllerState<T: RealField, const N: usize, const U: usize, const A: usize> {
     pub(super) hierarchy: ActiveHierarchy<T>,
-    /// The TCP targets, per [`Hand`](super::layout::Hand).
-    pub(super) hands: PerHand<PoseTrajectory<T>>,
+    /// The TCP targets, per arm ([`ArmId`](super::layout::ArmId)).
+    pub(super) hands: PerArm<PoseTrajectory<T>, A>,
     pub(super) joint_goal: JointTrajectory<T, N>,
     pub(super) admittance: Admittance<T>,
     pub(super) avoidance: PlatformAvoidance<T>,
@@ -46,23 +46,23 @@ pub(super) struct ControllerState<T: RealField, const N: usize, const U: usize> 
     /// The last torque and platform command, for the rate limits.
     pub(super) previous_torque: SVector<T, N>,
     pub(super) previous_base_velocity: Vector3<T>,
-    pub(super) telemetry: Telemetry<T, N>,
+    pub(super) telemetry: Telemetry<T, N, A>,
     pub(super) output: ActuatorFrame<T, U>,
 }
 
-impl<T: RealField + Copy, const N: usize, const U: usize> ControllerState<T, N, U> {
+impl<T: RealField + Copy, const N: usize, const U: usize, const A: usize> ControllerState<T, N, U, A> {
     /// The state before the first frame: targets at the origin until the first valid frame sets
     /// them, the hold output.
     #[inline(always)]
     pub(super) fn new(
-        config: &ControllerConfig<T, N>,
+        config: &ControllerConfig<T, N, A>,
         hierarchy: ActiveHierarchy<T>,
         admittance: Admittance<T>,
         avoidance: PlatformAvoidance<T>,
     ) -> Self {
         Self {
             hierarchy,
-            hands: [PoseTrajectory::hold(Placement::identity()); 2],
+            hands: [PoseTrajectory::hold(Placement::identity()); A],
             joint_goal: JointTrajectory::hold(SVector::zeros()),
             admittance,
             avoidance,
@@ -90,6 +90,7 @@ pub(super) struct Workspace<
     const F: usize,
     const V: usize,
     const P: usize,
+    const A: usize,
 > {
     /// The dynamics of the last valid cycle.
     pub(super) data: Data<T, N, B, F>,
@@ -98,10 +99,11 @@ pub(super) struct Workspace<
     /// Every task's rows, written in place by the tasks (`Stack::task`).
     pub(super) stack: Stack<T, N, MAX_ROWS>,
     pub(super) projection: HierarchyData<T, N, MAX_ROWS, MAX_LEVELS>,
-    /// The Cartesian damping force of each hand this cycle (task axes), outside the force limits.
-    pub(super) cartesian_damping: PerHand<Vector6<T>>,
+    /// The Cartesian damping force of each arm this cycle (task axes), outside the force limits,
+    /// in the contact-force limiter's two slots.
+    pub(super) cartesian_damping: [Vector6<T>; MAX_FORCE_LIMITED_ARMS],
     /// The world-aligned TCP Jacobians of this cycle (contact-force limiter and Cartesian tasks).
-    pub(super) tcp_jacobians: PerHand<SMatrix<T, 6, N>>,
+    pub(super) tcp_jacobians: PerArm<SMatrix<T, 6, N>, A>,
     /// The closed-loop inertia `M̃` (5.17) of this cycle.
     pub(super) closed_loop: SMatrix<T, N, N>,
     /// The dense `M̃⁻¹` of this cycle (dynamically consistent projection and speed barrier).
@@ -126,8 +128,15 @@ impl<T: RealField + Copy, const N: usize> InertiaFactors<T, N> {
     }
 }
 
-impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const V: usize, const P: usize>
-    Workspace<T, N, B, F, V, P>
+impl<
+        T: RealField + Copy,
+        const N: usize,
+        const B: usize,
+        const F: usize,
+        const V: usize,
+        const P: usize,
+        const A: usize,
+    > Workspace<T, N, B, F, V, P, A>
 {
     /// A workspace for `model` and `collision_model`; the broad phase evaluates the pairs within
     /// `exact_within` exactly.
@@ -140,8 +149,8 @@ impl<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const 
             collision_data,
             stack: Stack::new(),
             projection: HierarchyData::default(),
-            cartesian_damping: [Vector6::zeros(); 2],
-            tcp_jacobians: [SMatrix::zeros(); 2],
+            cartesian_damping: [Vector6::zeros(); MAX_FORCE_LIMITED_ARMS],
+            tcp_jacobians: [SMatrix::zeros(); A],
             closed_loop: SMatrix::zeros(),
             inverse_inertia: SMatrix::zeros(),
         }

@@ -6,17 +6,17 @@
 use heapless::Vec;
 use nalgebra::{Matrix3, RealField, SMatrix, SVector, Vector3, Vector6};
 
-use super::capacity::MAX_TASK_ROWS;
+use super::capacity::{MAX_FORCE_LIMITED_ARMS, MAX_TASK_ROWS};
 use super::config::{CartesianParameters, CollisionFieldParameters, ControllerConfig, TaskKind};
 use super::error::ConfigError;
 use super::faults::Fault;
-use super::layout::{Hand, JointGroup, PerHand};
+use super::layout::{ArmId, JointGroup, PerArm, MAX_GROUPS};
 use super::telemetry::Telemetry;
 use super::trajectory::{JointTrajectory, PoseTrajectory};
 use crate::dynamics::TreeFactorization;
 use crate::hierarchy::StackRow;
 use crate::math::sqrt;
-use crate::model::{Data, Model};
+use crate::model::{Data, FrameId, Model};
 use crate::tasks::cartesian_impedance::{
     cartesian_impedance_with_jacobian, AxisMask, CartesianImpedance, CartesianImpedanceConfig, StiffnessFrame,
 };
@@ -31,25 +31,28 @@ use crate::tasks::{RowSink, TaskError};
 
 /// Validated task objects built from the configuration.
 #[derive(Clone, Debug)]
-pub(super) struct TaskSet<T: RealField, const N: usize> {
-    /// Per [`Hand`].
-    pub(super) cartesian: PerHand<CartesianImpedance<T>>,
+pub(super) struct TaskSet<T: RealField, const N: usize, const A: usize> {
+    /// Per arm ([`ArmId`]).
+    pub(super) cartesian: PerArm<CartesianImpedance<T>, A>,
     /// Per [`Field`](super::config::Field).
     pub(super) collision: [CollisionParameters<T>; 2],
-    /// Per [`Hand`].
-    pub(super) singularity: PerHand<Manipulability<T, N>>,
+    /// Per arm ([`ArmId`]).
+    pub(super) singularity: PerArm<Manipulability<T, N>, A>,
     end_stops: Vec<EndStop<T, N>, MAX_TASK_ROWS>,
     torso: Option<TorsoWorkspace<T, N>>,
-    /// Impedance, then pure damping; each per [`JointGroup`] ([`JointGroup::index`]).
-    joint: [[JointImpedance<T, N>; 5]; 2],
+    /// Impedance, then pure damping; each per [`JointGroup`] of the layout, at
+    /// [`JointGroup::index`].
+    joint: [Vec<JointImpedance<T, N>, MAX_GROUPS>; 2],
+    /// Which groups have coordinates, at [`JointGroup::index`] (a joint task on an empty group
+    /// is refused).
+    populated: [bool; MAX_GROUPS],
 }
 
-pub(super) fn cartesian_task<T: RealField + Copy, const N: usize>(
-    config: &ControllerConfig<T, N>,
-    hand: Hand,
+pub(super) fn cartesian_task<T: RealField + Copy, const N: usize, const A: usize>(
+    config: &ControllerConfig<T, N, A>,
+    frame: FrameId,
     parameters: &CartesianParameters<T>,
 ) -> Result<CartesianImpedance<T>, TaskError> {
-    let frame = *hand.of(&config.layout.tcp);
     CartesianImpedance::try_new(CartesianImpedanceConfig {
         frame,
         axes: AxisMask::ALL,
@@ -61,6 +64,19 @@ pub(super) fn cartesian_task<T: RealField + Copy, const N: usize>(
         force_upper: Vector6::from(parameters.force_upper),
         fallback_damping: config.cartesian_fallback_damping,
     })
+}
+
+/// `[build(ArmId(0)), …, build(ArmId(A − 1))]`, or the first error.
+fn try_per_arm<X, const A: usize>(
+    mut build: impl FnMut(ArmId) -> Result<X, ConfigError>,
+) -> Result<PerArm<X, A>, ConfigError> {
+    let mut built: Vec<X, A> = Vec::new();
+    for arm in ArmId::all::<A>() {
+        if built.push(build(arm)?).is_err() {
+            break;
+        }
+    }
+    built.into_array().map_err(|_| ConfigError::InvalidParameter { name: "arms" })
 }
 
 pub(super) fn collision_parameters<T: RealField + Copy>(
@@ -75,50 +91,57 @@ pub(super) fn collision_parameters<T: RealField + Copy>(
     )
 }
 
-impl<T: RealField + Copy, const N: usize> TaskSet<T, N> {
+impl<T: RealField + Copy, const N: usize, const A: usize> TaskSet<T, N, A> {
     /// The distance below which both collision fields need exact pair distances (their larger
     /// emit distance): the broad phase of the geometry update skips the pairs beyond it.
     pub(super) fn broad_phase_distance(&self) -> T {
         self.collision.iter().map(CollisionParameters::emit_distance).fold(T::zero(), |m, d| m.max(d))
     }
 
-    /// `false` for a task this robot cannot run (the torso workspace without a coupled torso).
+    /// `false` for a task this robot cannot run: the torso workspace without a coupled torso, a
+    /// task of an arm the robot does not have, a joint task on a group without coordinates.
     pub(super) fn supports(&self, kind: TaskKind) -> bool {
         match kind {
             TaskKind::TorsoWorkspace => self.torso.is_some(),
-            _ => true,
+            TaskKind::CartesianImpedance(arm) | TaskKind::SingularityAvoidance(arm) => arm.index() < A,
+            TaskKind::JointImpedance(group) | TaskKind::JointDamping(group) => {
+                self.populated.get(group.index()).copied().unwrap_or(false)
+            }
+            TaskKind::CollisionAvoidance(_) | TaskKind::EndStops => true,
         }
     }
 
     /// Validates and builds every task object of `config` on `model`.
     pub(super) fn try_new<const B: usize, const F: usize>(
         model: &Model<T, N, B, F>,
-        config: &ControllerConfig<T, N>,
+        config: &ControllerConfig<T, N, A>,
     ) -> Result<Self, ConfigError> {
-        let [right, left] = config.cartesian;
-        let cartesian = [
-            cartesian_task(config, Hand::Right, &right).map_err(ConfigError::Task)?,
-            cartesian_task(config, Hand::Left, &left).map_err(ConfigError::Task)?,
-        ];
+        let layout = &config.layout;
+        let cartesian = try_per_arm(|arm| {
+            let (Some(frame), Some(parameters)) = (arm.of(&layout.tcp), arm.of(&config.cartesian)) else {
+                return Err(ConfigError::InvalidParameter { name: "arms" });
+            };
+            cartesian_task(config, *frame, parameters).map_err(ConfigError::Task)
+        })?;
         let [strong, weak] = config.collision;
         let collision = [
             collision_parameters(&strong).map_err(ConfigError::Task)?,
             collision_parameters(&weak).map_err(ConfigError::Task)?,
         ];
         let s = &config.singularity;
-        let arm = |hand: Hand| {
-            let frame = *hand.of(&config.layout.tcp);
+        let singularity = try_per_arm(|arm| {
+            let frame = *arm.of(&layout.tcp).ok_or(ConfigError::InvalidParameter { name: "arms" })?;
             Manipulability::try_new(ManipulabilityConfig {
                 frame,
                 rows: s.rows,
-                coordinates: config.layout.coordinates(JointGroup::Arm(hand)),
+                coordinates: layout.coordinates(JointGroup::Arm(arm)),
                 threshold: s.threshold,
                 full_activation: s.full_activation,
                 stiffness: s.stiffness,
                 damping: s.damping,
             })
-        };
-        let singularity = [arm(Hand::Right).map_err(ConfigError::Task)?, arm(Hand::Left).map_err(ConfigError::Task)?];
+            .map_err(ConfigError::Task)
+        })?;
         let mut stops = Vec::new();
         let limits = &model.limits;
         let e = &config.end_stops;
@@ -145,25 +168,35 @@ impl<T: RealField + Copy, const N: usize> TaskSet<T, N> {
             })
             .map_err(ConfigError::Task)
         };
-        let mut joint = [[joint_task(JointGroup::Platform, SVector::zeros(), SVector::zeros())?; 5]; 2];
-        let [impedance, damping] = &mut joint;
-        for ((group, imp), damp) in JointGroup::ALL.iter().zip(impedance.iter_mut()).zip(damping.iter_mut()) {
-            *imp = joint_task(*group, config.joint_stiffness, config.joint_damping)?;
-            *damp = joint_task(*group, SVector::zeros(), config.safe_damping)?;
+        // Every group of `A` arms in storage order ([`JointGroup::index`]); an empty group gets an
+        // empty task that [`Self::supports`] keeps out of the hierarchy.
+        let mut groups = JointGroup::all::<A>();
+        groups.sort_unstable_by_key(|group| group.index());
+        let mut joint = [Vec::new(), Vec::new()];
+        let mut populated = [false; MAX_GROUPS];
+        for group in groups {
+            let [impedance, damping] = &mut joint;
+            let full = ConfigError::InvalidParameter { name: "arms: more than MAX_ARMS" };
+            impedance.push(joint_task(group, config.joint_stiffness, config.joint_damping)?).map_err(|_| full)?;
+            damping.push(joint_task(group, SVector::zeros(), config.safe_damping)?).map_err(|_| full)?;
+            if let Some(flag) = populated.get_mut(group.index()) {
+                *flag = layout.coordinates(group).contains(&true);
+            }
         }
-        Ok(Self { cartesian, collision, singularity, end_stops: stops, torso, joint })
+        Ok(Self { cartesian, collision, singularity, end_stops: stops, torso, joint, populated })
     }
 }
 
 /// What the task evaluations of one cycle share: the collision geometry and whether it is
 /// current (updated this cycle), the pair rows the collision fields evaluated (the strong
 /// field's pairs are mostly among the weak field's), and the Cartesian damping force of each
-/// hand (task axes) for the command-side force limit ([`super::force_limit`]).
+/// arm (task axes, the limiter's two slots) for the command-side force limit
+/// ([`super::force_limit`]).
 pub(super) struct Scratch<'a, T: RealField, const N: usize, const V: usize, const P: usize> {
     pub(super) collision: &'a mut CollisionData<T, V, P>,
     pub(super) geometry_current: bool,
     pub(super) pair_rows: PairRowCache<T, N, P, MAX_TASK_ROWS>,
-    pub(super) cartesian_damping: [Vector6<T>; 2],
+    pub(super) cartesian_damping: [Vector6<T>; MAX_FORCE_LIMITED_ARMS],
 }
 
 /// Read-only inputs of a task evaluation.
@@ -175,12 +208,13 @@ pub(super) struct EvaluationContext<
     const F: usize,
     const V: usize,
     const P: usize,
+    const A: usize,
 > {
     pub(super) model: &'a Model<T, N, B, F>,
     pub(super) collision_model: &'a CollisionModel<T, V, P>,
-    pub(super) config: &'a ControllerConfig<T, N>,
-    pub(super) tasks: &'a TaskSet<T, N>,
-    pub(super) hands: &'a [PoseTrajectory<T>; 2],
+    pub(super) config: &'a ControllerConfig<T, N, A>,
+    pub(super) tasks: &'a TaskSet<T, N, A>,
+    pub(super) hands: &'a PerArm<PoseTrajectory<T>, A>,
     pub(super) joint_goal: &'a JointTrajectory<T, N>,
     /// The tree-sparse factor of the plain `M` (Cartesian damping design), `None` if `M` is not
     /// positive definite.
@@ -188,7 +222,7 @@ pub(super) struct EvaluationContext<
     /// The tree-sparse factor of the closed-loop inertia (5.17) (collision and torso rows).
     pub(super) inertia: &'a TreeFactorization<T, N>,
     /// The world-aligned TCP Jacobians at `data` (from the contact-force limiter).
-    pub(super) tcp_jacobians: &'a PerHand<SMatrix<T, 6, N>>,
+    pub(super) tcp_jacobians: &'a PerArm<SMatrix<T, 6, N>, A>,
 }
 
 /// Appends the rows of one task to `rows` (the task's window of the stack) and records its
@@ -200,17 +234,22 @@ pub(super) fn evaluate<
     const F: usize,
     const V: usize,
     const P: usize,
+    const A: usize,
 >(
     kind: TaskKind,
-    cx: &EvaluationContext<'_, T, N, B, F, V, P>,
+    cx: &EvaluationContext<'_, T, N, B, F, V, P, A>,
     data: &mut Data<T, N, B, F>,
     scratch: &mut Scratch<'_, T, N, V, P>,
     rows: &mut impl RowSink<T, N, MAX_TASK_ROWS>,
-    telemetry: &mut Telemetry<T, N>,
+    telemetry: &mut Telemetry<T, N, A>,
 ) -> Result<(), Fault> {
     match kind {
-        TaskKind::CartesianImpedance(hand) => {
-            let (task, trajectory) = (hand.of(&cx.tasks.cartesian), hand.of(cx.hands));
+        TaskKind::CartesianImpedance(arm) => {
+            let (Some(task), Some(trajectory), Some(jacobian)) =
+                (arm.of(&cx.tasks.cartesian), arm.of(cx.hands), arm.of(cx.tcp_jacobians))
+            else {
+                return Ok(());
+            };
             // (5.11): no Cartesian damping on the platform coordinates.
             let velocity = data.v;
             for (i, x) in data.v.iter_mut().enumerate() {
@@ -218,14 +257,17 @@ pub(super) fn evaluate<
                     *x = T::zero();
                 }
             }
-            let jacobian = hand.of(cx.tcp_jacobians);
             let report =
                 cartesian_impedance_with_jacobian(cx.model, data, cx.mass, task, &trajectory.sample(), jacobian, rows);
             data.v = velocity;
             let report = report.map_err(Fault::Task)?;
-            *hand.of_mut(&mut telemetry.tcp_error) = report.error;
-            *hand.of_mut(&mut telemetry.tcp_force_limited) = report.saturated;
-            *hand.of_mut(&mut scratch.cartesian_damping) = report.damping_force;
+            if let (Some(error), Some(limited), Some(damping)) = (
+                arm.of_mut(&mut telemetry.tcp_error),
+                arm.of_mut(&mut telemetry.tcp_force_limited),
+                scratch.cartesian_damping.get_mut(arm.index()),
+            ) {
+                (*error, *limited, *damping) = (report.error, report.saturated, report.damping_force);
+            }
         }
         TaskKind::CollisionAvoidance(field) => {
             let Some(parameters) = cx.tasks.collision.get(field.index()) else { return Ok(()) };
@@ -253,10 +295,12 @@ pub(super) fn evaluate<
             telemetry.min_collision_distance = report.min_distance;
             telemetry.collision_rows += report.rows;
         }
-        TaskKind::SingularityAvoidance(hand) => {
-            let task = hand.of(&cx.tasks.singularity);
+        TaskKind::SingularityAvoidance(arm) => {
+            let Some(task) = arm.of(&cx.tasks.singularity) else { return Ok(()) };
             let report = manipulability_avoidance(cx.model, data, task, rows).map_err(Fault::Task)?;
-            *hand.of_mut(&mut telemetry.manipulability) = report.manipulability;
+            if let Some(manipulability) = arm.of_mut(&mut telemetry.manipulability) {
+                *manipulability = report.manipulability;
+            }
         }
         TaskKind::EndStops => end_stops(&cx.tasks.end_stops, &data.q, &data.v, rows).map_err(Fault::Task)?,
         TaskKind::TorsoWorkspace => {

@@ -6,16 +6,17 @@ use heapless::Vec;
 use nalgebra::{RealField, SVector, Vector3, Vector6};
 use serde::{Deserialize, Serialize};
 
+use super::capacity::MAX_FORCE_LIMITED_ARMS;
 use super::capacity::{MAX_ACTIVE, MAX_LEVELS};
 use super::config::TaskKind;
 use super::error::CommandError;
 use super::faults::{Fault, SafeOutput};
 use super::guard::Saturation;
-use super::layout::PerHand;
+use super::layout::PerArm;
 
 /// What the controller found in its last cycle (Sec. 7.2: "information about task execution").
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Telemetry<T: RealField, const N: usize> {
+pub struct Telemetry<T: RealField, const N: usize, const A: usize> {
     /// Cycle counter of the frame.
     pub cycle: u64,
     /// Controller time since the first valid frame (s).
@@ -26,18 +27,19 @@ pub struct Telemetry<T: RealField, const N: usize> {
     pub fault_cycles: u32,
     /// Changes of the output mode since the first cycle ([`super::recovery`]).
     pub mode_changes: u32,
-    /// TCP error `(p − p_des, 2ε)` in the desired frame's axes (m, rad-like), per [`Hand`](super::layout::Hand);
-    /// zero for a TCP without Cartesian task.
-    pub tcp_error: PerHand<Vector6<T>>,
+    /// TCP error `(p − p_des, 2ε)` in the desired frame's axes (m, rad-like), per arm
+    /// ([`ArmId`](super::layout::ArmId)); zero for a TCP without Cartesian task.
+    pub tcp_error: PerArm<Vector6<T>, A>,
     /// Where the Cartesian force limits (Table 7.1) acted: the task clamped its spring force,
     /// or the command-side limit the commanded contact force ([`super::force_limit`]).
-    pub tcp_force_limited: PerHand<[bool; 6]>,
+    pub tcp_force_limited: PerArm<[bool; 6], A>,
     /// Estimated wrench each TCP applies on its environment (N, Nm), desired-frame axes, per
-    /// [`Hand`](super::layout::Hand): `−(J_u J_uᵀ + μ I)⁻¹ J_u τ̂_ext` ([`super::force_limit`]).
-    pub contact_wrench: PerHand<Vector6<T>>,
-    /// Contact-force governor correction per hand and axis (N, Nm): positive lowers the
+    /// arm ([`ArmId`](super::layout::ArmId)): `−(J_u J_uᵀ + μ I)⁻¹ J_u τ̂_ext`
+    /// ([`super::force_limit`]).
+    pub contact_wrench: PerArm<Vector6<T>, A>,
+    /// Contact-force governor correction per arm and axis (N, Nm): positive lowers the
     /// upper force bound, negative raises the lower one ([`super::force_limit`]).
-    pub force_limit_correction: PerHand<Vector6<T>>,
+    pub force_limit_correction: PerArm<Vector6<T>, A>,
     /// Number of levels in the last projection.
     pub level_count: usize,
     /// Potential energy of each level's springs (J): the level's storage function.
@@ -62,8 +64,8 @@ pub struct Telemetry<T: RealField, const N: usize> {
     pub min_collision_distance: Option<T>,
     /// Collision rows on the stack.
     pub collision_rows: usize,
-    /// Manipulability of each arm (when its task runs), per [`Hand`](super::layout::Hand).
-    pub manipulability: PerHand<T>,
+    /// Manipulability of each arm (when its task runs), per arm ([`ArmId`](super::layout::ArmId)).
+    pub manipulability: PerArm<T, A>,
     /// Estimated external joint torque (momentum residual, Nm).
     pub external_torque: SVector<T, N>,
     /// `‖external_torque‖` above the threshold.
@@ -84,7 +86,7 @@ pub struct Telemetry<T: RealField, const N: usize> {
     pub saturation: Saturation<T>,
 }
 
-impl<T: RealField + Copy, const N: usize> Telemetry<T, N> {
+impl<T: RealField + Copy, const N: usize, const A: usize> Telemetry<T, N, A> {
     /// The telemetry before the first cycle: every count and value zero, no fault.
     pub(super) fn empty() -> Self {
         Self {
@@ -93,10 +95,10 @@ impl<T: RealField + Copy, const N: usize> Telemetry<T, N> {
             fault: None,
             fault_cycles: 0,
             mode_changes: 0,
-            tcp_error: [Vector6::zeros(); 2],
-            tcp_force_limited: [[false; 6]; 2],
-            contact_wrench: [Vector6::zeros(); 2],
-            force_limit_correction: [Vector6::zeros(); 2],
+            tcp_error: [Vector6::zeros(); A],
+            tcp_force_limited: [[false; 6]; A],
+            contact_wrench: [Vector6::zeros(); A],
+            force_limit_correction: [Vector6::zeros(); A],
             level_count: 0,
             level_storage: [T::zero(); MAX_LEVELS],
             level_storage_rate: [T::zero(); MAX_LEVELS],
@@ -108,7 +110,7 @@ impl<T: RealField + Copy, const N: usize> Telemetry<T, N> {
             task_torque_norm: [T::zero(); MAX_ACTIVE],
             min_collision_distance: None,
             collision_rows: 0,
-            manipulability: [T::zero(); 2],
+            manipulability: [T::zero(); A],
             external_torque: SVector::zeros(),
             contact: false,
             kinetic_energy: T::zero(),
@@ -133,8 +135,9 @@ pub struct TelemetryMessage<T> {
     pub mode: SafeOutput,
     /// Fault code (0 = none), see [`fault_code`].
     pub fault: u8,
-    /// TCP errors per [`Hand`](super::layout::Hand): `(x, y, z, rx, ry, rz)` (m, rad-like).
-    pub tcp_error: PerHand<[T; 6]>,
+    /// TCP errors per arm ([`ArmId`](super::layout::ArmId)): `(x, y, z, rx, ry, rz)` (m, rad-like);
+    /// two slots on the wire, zero for an arm the robot does not have.
+    pub tcp_error: [[T; 6]; MAX_FORCE_LIMITED_ARMS],
     /// Storage function (potential) per level (J).
     pub level_storage: Vec<T, MAX_LEVELS>,
     /// Its rate per level (W).
@@ -173,7 +176,7 @@ pub fn fault_code(fault: Option<Fault>) -> u8 {
 
 impl<T: RealField + Copy> TelemetryMessage<T> {
     /// The summary of a cycle's telemetry.
-    pub fn from_telemetry<const N: usize>(telemetry: &Telemetry<T, N>, mode: SafeOutput) -> Self {
+    pub fn from_telemetry<const N: usize, const A: usize>(telemetry: &Telemetry<T, N, A>, mode: SafeOutput) -> Self {
         let t = telemetry;
         let levels = t.level_count.min(MAX_LEVELS);
         let collect = |values: &[T]| values.iter().take(levels).copied().collect::<Vec<T, MAX_LEVELS>>();
@@ -189,7 +192,7 @@ impl<T: RealField + Copy> TelemetryMessage<T> {
             cycle: t.cycle,
             mode,
             fault: fault_code(t.fault),
-            tcp_error: t.tcp_error.map(|e| e.into()),
+            tcp_error: core::array::from_fn(|i| t.tcp_error.get(i).map_or([T::zero(); 6], |e| (*e).into())),
             level_storage: collect(&t.level_storage),
             level_storage_rate: collect(&t.level_storage_rate),
             activations,

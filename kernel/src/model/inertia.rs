@@ -254,7 +254,7 @@ mod tests {
         assert!(!body::<T>(f64::NAN, 0.01, 0.01).is_physical());
         // An asymmetric rotational inertia.
         let mut skew = body::<T>(0.01, 0.01, 0.01);
-        skew.rotational[(0, 1)] = nalgebra::convert(1e-3);
+        skew.rotational.m12 = nalgebra::convert(1e-3);
         assert!(!skew.is_physical());
     }
 

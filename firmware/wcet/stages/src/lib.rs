@@ -9,7 +9,7 @@ use fixtures::justin::collision::JustinCollisionModel;
 use fixtures::justin::whole_body;
 use fixtures::justin::JustinModel;
 use hal::{JointSample, PlatformSample};
-use kernel::controller::config::{Field, Hand, TaskKind, TaskSpec};
+use kernel::controller::config::{ArmId, Field, TaskKind, TaskSpec};
 use kernel::controller::messages::Command;
 use kernel::controller::SensorFrame;
 use kernel::dynamics::{coriolis_matrix, crba, forward_kinematics, frame_jacobian, gravity, mass_matrix_cholesky};
@@ -154,7 +154,7 @@ pub type JustinController = whole_body::JustinController<S>;
 /// One sensor frame.
 pub type Frame = SensorFrame<S, U>;
 
-/// The controller with `whole_body::controller_config` and `fig_6_3_hierarchy(Hand::Right)`,
+/// The controller with `whole_body::controller_config` and `fig_6_3_hierarchy(ArmId::RIGHT)`,
 /// both TCPs with the force limits of Table 7.1's "Clean the mug!" (±20 N on every tool axis):
 /// the contact-force limiter's command-side limit (12 solves with the inertia factor, one
 /// 12 × 12 Cholesky) runs in every valid frame. The return from the safe output is immediate
@@ -177,7 +177,7 @@ pub fn new_controller() -> Option<JustinController> {
     }
     config.recovery.valid_cycles = 1;
     config.recovery.blend_s = 0.0;
-    JustinController::try_new(model, collision, config, &whole_body::fig_6_3_hierarchy(Hand::Right)).ok()
+    JustinController::try_new(model, collision, config, &whole_body::fig_6_3_hierarchy(ArmId::RIGHT)).ok()
 }
 
 /// One full control cycle; returns the sum of the output torques (a checksum).
@@ -232,7 +232,7 @@ pub fn capacity_commands(k: u32) -> Option<[Command<S>; 2]> {
 
 /// The task that [`transition_command`] moves: the right arm's singularity avoidance (one row),
 /// from level 1 to level 0.
-pub const TRANSITION_TASK: TaskKind = TaskKind::SingularityAvoidance(Hand::Right);
+pub const TRANSITION_TASK: TaskKind = TaskKind::SingularityAvoidance(ArmId::RIGHT);
 
 /// The planner command applied before frame `k`: at [`TRANSITION_START`], the Fig. 6.3 hierarchy
 /// with [`TRANSITION_TASK`] moved from level 1 to level 0. During the transition (`transition_s`,
@@ -247,7 +247,7 @@ pub fn transition_command(k: u32) -> Option<Command<S>> {
     }
     let mut command = Command::SetHierarchy(Default::default());
     if let Command::SetHierarchy(tasks) = &mut command {
-        for spec in whole_body::fig_6_3_hierarchy(Hand::Right) {
+        for spec in whole_body::fig_6_3_hierarchy(ArmId::RIGHT) {
             let level = if spec.kind == TRANSITION_TASK { 0 } else { spec.level };
             tasks.push(TaskSpec { level, ..spec }).ok()?;
         }

@@ -20,17 +20,17 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
     /// Cholesky, all as loops over the column-major storage.
     /// Errors: [`DynamicsError::UnknownFrame`] for a TCP frame outside the model.
     #[allow(clippy::too_many_arguments, reason = "the controller's pieces, each used once")]
-    pub fn update<const B: usize, const F: usize>(
+    pub fn update<const B: usize, const F: usize, const A: usize>(
         &mut self,
         parameters: &ForceLimitParameters<T>,
         model: &Model<T, N, B, F>,
         data: &Data<T, N, B, F>,
-        layout: &RobotLayout<N>,
+        layout: &RobotLayout<N, A>,
         residual: &SVector<T, N>,
-        hands: &[Option<HandLimits<T>>; 2],
+        hands: &[Option<HandLimits<T>>; A],
         dt: T,
     ) -> Result<(), DynamicsError> {
-        let mut world = [SMatrix::<T, 6, N>::zeros(); 2];
+        let mut world = [SMatrix::<T, 6, N>::zeros(); A];
         self.update_with_jacobians(parameters, model, data, layout, residual, hands, dt, &mut world)
     }
 
@@ -38,16 +38,16 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
     /// (what [`frame_jacobian`] writes for `layout.tcp`) in `world`, for the Cartesian tasks of
     /// the same cycle.
     #[allow(clippy::too_many_arguments, reason = "the controller's pieces, each used once")]
-    pub fn update_with_jacobians<const B: usize, const F: usize>(
+    pub fn update_with_jacobians<const B: usize, const F: usize, const A: usize>(
         &mut self,
         parameters: &ForceLimitParameters<T>,
         model: &Model<T, N, B, F>,
         data: &Data<T, N, B, F>,
-        layout: &RobotLayout<N>,
+        layout: &RobotLayout<N, A>,
         residual: &SVector<T, N>,
-        hands: &[Option<HandLimits<T>>; 2],
+        hands: &[Option<HandLimits<T>>; A],
         dt: T,
-        world: &mut [SMatrix<T, 6, N>; 2],
+        world: &mut [SMatrix<T, 6, N>; A],
     ) -> Result<(), DynamicsError> {
         // J_h = blockdiag(A_hᵀ, A_hᵀ) J_h,world column by column; J_u (platform columns zero)
         // stacked for both hands into the 12 × N matrix, one 12-entry column per coordinate,

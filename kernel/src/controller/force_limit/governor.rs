@@ -18,11 +18,11 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
     /// `full` the TCP Jacobians of both hands (desired-frame axes), `external` the estimated
     /// `F̂_ext` of both hands stacked. A hand with `None` limits (or a disabled limiter) is reset.
     #[inline(always)]
-    pub(super) fn govern(
+    pub(super) fn govern<const A: usize>(
         &mut self,
         parameters: &ForceLimitParameters<T>,
-        layout: &RobotLayout<N>,
-        hands: &[Option<HandLimits<T>>; 2],
+        layout: &RobotLayout<N, A>,
+        hands: &[Option<HandLimits<T>>; A],
         full: &[SMatrix<T, 6, N>; 2],
         external: &SVector<T, 12>,
         dt: T,

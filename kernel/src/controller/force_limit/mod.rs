@@ -20,7 +20,9 @@
 //! with the gain `K_O`, on the upper-body coordinates. With the TCP Jacobians in the axes of
 //! the desired frames (those of the limits), `J_h = blockdiag(A_hᵀ, A_hᵀ) J_h,world`
 //! (`A_h = R_des,h`), restricted to the upper-body columns (`J_u`, the platform columns zero)
-//! and stacked for both hands (12 × N), the contact wrenches (on the robot) are the regularised
+//! and stacked for both hands (12 × N; a robot with one arm leaves the second hand's rows zero;
+//! the controller takes at most [`MAX_FORCE_LIMITED_ARMS`](super::capacity::MAX_FORCE_LIMITED_ARMS)
+//! arms), the contact wrenches (on the robot) are the regularised
 //! least-squares estimate
 //!
 //! `F̂_ext = (J_u J_uᵀ + μ I)⁻¹ J_u τ̂_ext`,

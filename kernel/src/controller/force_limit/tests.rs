@@ -43,7 +43,7 @@ impl<T: RealField + Copy, const N: usize> Reference<T, N> {
         parameters: &ForceLimitParameters<T>,
         model: &Model<T, N, B, F>,
         data: &Data<T, N, B, F>,
-        layout: &RobotLayout<N>,
+        layout: &RobotLayout<N, 2>,
         residual: &SVector<T, N>,
         hands: &[Option<HandLimits<T>>; 2],
         dt: T,
@@ -251,7 +251,7 @@ for_scalars!(sides, governor_sides_and_bounds);
 /// reaction on the platform along the limited axis.
 /// A 3-DOF model: platform slider x, an upper-body slider x and one along z, 1 kg on each
 /// body, TCP on the last one (both hands' frame); kinematics and `M` at rest.
-fn sliders<T: RealField + Copy>() -> (Model<T, 3, 3, 1>, Data<T, 3, 3, 1>, RobotLayout<3>) {
+fn sliders<T: RealField + Copy>() -> (Model<T, 3, 3, 1>, Data<T, 3, 3, 1>, RobotLayout<3, 2>) {
     use crate::dynamics::{crba, forward_kinematics};
     use crate::math::Placement;
     use crate::model::{Inertia, JointDrive, JointKind, ModelBuilder};
@@ -278,7 +278,7 @@ fn sliders<T: RealField + Copy>() -> (Model<T, 3, 3, 1>, Data<T, 3, 3, 1>, Robot
     crba(&model, &mut data);
     let platform =
         PlatformLayout::try_new::<3>([PlatformAxis::Admitted(0), PlatformAxis::Absent, PlatformAxis::Absent]).unwrap();
-    (model, data, RobotLayout { tcp: [tcp, tcp], platform, torso: [false; 3], arms: [[false, true, true], [false; 3]] })
+    (model, data, RobotLayout { tcp: [tcp, tcp], platform, torso: None, arms: [[false, true, true], [false; 3]] })
 }
 
 /// The loops of [`ForceLimiter::update`] and [`ForceLimiter::limit_command`] against the
@@ -297,7 +297,7 @@ fn loops_match_the_reference<T: RealField + Copy>(regularisation: f64, tolerance
     let layout = RobotLayout {
         tcp: [TCP, WRIST],
         platform,
-        torso: [false, true, true, false, false, false],
+        torso: Some([false, true, true, false, false, false]),
         arms: [[false, false, false, true, false, false], [false, false, false, false, true, true]],
     };
     let (mut fast, mut plain) = (ForceLimiter::<T, N>::new(), Reference(ForceLimiter::<T, N>::new()));
