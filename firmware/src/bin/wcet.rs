@@ -56,7 +56,7 @@ static mut COLLISION: Option<JustinCollisionModel<S>> = None;
 static mut COLLISION_DATA: Option<CollisionData<S, { justin::collision::VOLUMES }, { justin::collision::PAIRS }>> =
     None;
 static mut ROWS_OUT: Rows = TaskRows::new();
-static mut STACK: Stack<S, N, ROWS> = Stack::new();
+static mut STACK: Option<Stack<S, N, ROWS>> = None;
 static mut HIERARCHY: Option<Hierarchy> = None;
 
 fn run() -> Result<(), &'static str> {
@@ -73,7 +73,7 @@ fn run() -> Result<(), &'static str> {
             &*collision,
             collision_data,
             &mut *core::ptr::addr_of_mut!(ROWS_OUT),
-            &mut *core::ptr::addr_of_mut!(STACK),
+            (*core::ptr::addr_of_mut!(STACK)).insert(Stack::new()),
             hierarchy,
         )
     };
