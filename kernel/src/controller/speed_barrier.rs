@@ -60,11 +60,21 @@
 //!   secant `a_i d_i`: the activation rises from 0 to 1 within 40 % of the limit, so
 //!   `t = a + ρ a'` reaches 3.3 at `ρ` ≈ 0.74 (onset ½, full 0.9). The bound above therefore shares
 //!   `m_i / T_b` by `Σ t_j` instead of `Σ a_j`: with `D = diag(t_i d_i)` the same trace argument
-//!   gives `Δt λ_max ≤ Δt / T_b`. With `T_b = 2 Δt` that is at most ½. The real robot applies a
-//!   command one cycle after it sensed the state and through its torque loop (`host-sim`'s
-//!   realistic plant: 1 ms delay, 0.5 ms lag); for a damper `d` on an inertia `m` sampled at `Δt`
-//!   that loop is stable for `Δt d / m` < 0.89 (< 2 with neither), and at ½ every disturbance
-//!   decays (by 0.84 per cycle). Shared by `Σ a`, the incremental gain was up to 3.3 times the
+//!   gives `Δt λ_max ≤ Δt / T_b`. The real robot applies a command one cycle after it sensed
+//!   the state and through its torque loop (`host-sim`'s realistic plant: 1 ms delay, 0.5 ms
+//!   lag `τ_l`). For a damper `d` on an inertia `m` with `g = Δt d / m`, the speed, the torque
+//!   in the lag and the command in flight evolve per cycle as `x_{k+1} = A x_k` with
+//!   `A = [[1, τ_l(1−e), Δt − τ_l(1−e)], [0, e, 1−e], [−g/Δt, 0, 0]]`, `e = exp(−Δt/τ_l)`
+//!   (speed and torque per unit inertia). Its poles are inside the unit circle for `g` < 0.88
+//!   (< 2 with neither delay nor lag), but complex from `g` = 0.177 on: at `g` = ½ (the former
+//!   `T_b = 2 Δt`) every disturbance rings at ≈ 100 Hz and decays by only 0.84 per cycle, and
+//!   the torque-rate guard, which scales whole levels when one joint's rate binds, turned that
+//!   ringing into the one-hour soak's limit cycles (right wrist joints 5 and 7, `m` = 0.005 and
+//!   0.008 kg m², swinging at 99–113 Hz to 1.46 × their limits at 601.96 s, default seed, and
+//!   1.39 × at 759.37 s, seed 1; Justin's Cartesian damping was not it: `Δt λ_max(M̃⁻¹ Jᵀ D J)`
+//!   = 0.15 there, its fastest mode 108 rad/s). `g = 0.177` is critically damped and also the
+//!   fastest decay (two real poles at 0.63 per cycle), so Justin's configuration takes
+//!   `T_b = Δt / 0.177` = 5.6 ms. Shared by `Σ a`, the incremental gain was up to 3.3 times the
 //!   bound: in the realistic one-hour soak (default seed) a push on the left hand held Justin's
 //!   left arm joints 1 and 3 (axes nearly aligned, `m` = 0.10 and 0.04 kg m²) at 0.7–0.8 of their
 //!   limits, their torques answered the speed with 70 and 34 Nms/rad (secant 23 and 11),
@@ -105,7 +115,8 @@ pub struct SpeedBarrierParameters<T> {
     pub onset: T,
     /// `|q̇|/q̇_max` from which the barrier acts fully, in `(onset, ∞)`.
     pub full: T,
-    /// Sampling bound of the damping: `Δt λ_max(M̃⁻¹ D) ≤ Δt / T_b` (s), `> 0`.
+    /// Sampling bound of the damping: `Δt λ_max(M̃⁻¹ D) ≤ Δt / T_b` (s), `> 0`; `Δt / 0.177`
+    /// for a plant that applies the command one cycle late through a lag of `Δt / 2` (module docs).
     pub braking_time_s: T,
     /// Largest barrier torque as a fraction `c` of the joint's peak torque, in `(0, 1]`.
     pub max_torque_fraction: T,
@@ -442,28 +453,106 @@ mod tests {
         let inverse = Matrix2::new(10.3, -14.5, -14.5, 23.1);
         let p = SpeedBarrierParameters { onset: 0.5, full: 0.9, braking_time_s: 0.002, max_torque_fraction: 0.25 };
         let (limit, effort) = (Vector2::new(1.92, 2.23), Vector2::new(176.0, 100.0));
-        let drive = Vector2::new(15.0, 5.0);
+        let run = delayed_and_lagged(&p, &inverse, limits(&limit, &effort), &Vector2::new(15.0, 5.0));
+        assert!((run.high - run.low).amax() < 0.01, "still oscillating: {} .. {}", run.low, run.high);
+        assert!(run.fastest < 0.9, "fastest {} × the limit", run.fastest);
+        assert!(run.low.component_div(&limit).min() > 0.6, "settled inside the band: {}", run.low);
+    }
+
+    /// Justin's right wrist joint 7 (`m` = 0.0076 kg m² with the other joints free, limit
+    /// 3.21 rad/s, peak torque 38 Nm) driven by a steady 4 Nm of the levels into the band, the
+    /// command applied one cycle late through the 0.5 ms torque lag. At `Δt / T_b` = ½ (the
+    /// former 2 ms) the loop rings at ≈ 100 Hz (poles 0.84 ∠ ±37°, module docs) and the barrier's
+    /// feedforward of the drive, switched in by the activation along the speed, keeps it
+    /// swinging: a limit cycle over 0.69 of the limit, as the soak's wrist joints at 601.96 s
+    /// (default seed) and 759.37 s (seed 1). At the critically damped `Δt / T_b` = 0.177 (5.6 ms)
+    /// it settles at 0.78 of the limit without a swing and never passes 0.96.
+    #[test]
+    fn a_light_wrist_joint_in_the_band_settles_at_the_critically_damped_gain() {
+        let inverse = SMatrix::<f64, 1, 1>::new(1.0 / 0.0076);
+        let (limit, effort) = (SVector::<f64, 1>::new(3.21), SVector::<f64, 1>::new(38.0));
+        let drive = SVector::<f64, 1>::new(4.0);
+        let with = |braking_time_s| {
+            let p = SpeedBarrierParameters { onset: 0.5, full: 0.9, braking_time_s, max_torque_fraction: 0.25 };
+            delayed_and_lagged(&p, &inverse, limits(&limit, &effort), &drive)
+        };
+        let (ringing, critical) = (with(0.002), with(0.0056));
+        let swing = |run: &DelayedRun<1>| (run.high[0] - run.low[0]) / limit[0];
+        assert!(swing(&ringing) > 0.6, "T_b = 2 ms: swing {} of the limit", swing(&ringing));
+        assert!(swing(&critical) < 1e-3, "T_b = 5.6 ms: swing {} of the limit", swing(&critical));
+        assert!(critical.fastest < 0.97, "fastest {} × the limit", critical.fastest);
+        assert!((critical.low[0] / limit[0] - 0.78).abs() < 0.01, "settled at {}", critical.low[0] / limit[0]);
+    }
+
+    /// The per-cycle map of the module docs for a damper `g = Δt d / m` commanded one cycle
+    /// late through the 0.5 ms lag: complex poles (ringing) from `g` = 0.177 on, stable up to
+    /// 0.88; at `g` = ½ the poles are 0.84 ∠ ±37° (≈ 100 Hz at 1 kHz), at 0.177 both real at
+    /// 0.63, the smallest spectral radius of all `g`.
+    #[test]
+    fn the_delayed_damper_is_critically_damped_at_0_177() {
+        let (dt, lag) = (1e-3_f64, 5e-4_f64);
+        let e = (-dt / lag).exp();
+        let poles = |g: f64| {
+            nalgebra::Matrix3::new(1.0, lag * (1.0 - e), dt - lag * (1.0 - e), 0.0, e, 1.0 - e, -g / dt, 0.0, 0.0)
+                .complex_eigenvalues()
+        };
+        let radius = |g: f64| poles(g).iter().map(|z| z.norm()).fold(0.0, f64::max);
+        let ringing = |g: f64| poles(g).iter().any(|z| z.im.abs() > 1e-9);
+        assert!(!ringing(0.176) && ringing(0.178));
+        assert!(radius(0.87) < 1.0 && radius(0.89) > 1.0);
+        assert!((radius(0.5) - 0.839).abs() < 1e-3);
+        let dominant =
+            poles(0.5)
+                .iter()
+                .copied()
+                .fold(nalgebra::Complex::new(0.0, 0.0), |a, z| if z.norm() > a.norm() { z } else { a });
+        let angle = dominant.im.atan2(dominant.re).abs();
+        assert!((angle.to_degrees() - 36.6).abs() < 0.1, "{}", angle.to_degrees());
+        assert!((radius(0.177) - 0.634).abs() < 1e-3);
+        for k in 1..=88 {
+            let g = 0.01 * f64::from(k);
+            assert!(radius(g) >= radius(0.177) - 1e-3, "g = {g}: {}", radius(g));
+        }
+    }
+
+    /// What [`delayed_and_lagged`] saw: the fastest joint relative to its limit over the run, and
+    /// the velocity range over its last 300 cycles.
+    struct DelayedRun<const N: usize> {
+        fastest: f64,
+        low: SVector<f64, N>,
+        high: SVector<f64, N>,
+    }
+
+    /// 1000 cycles of the barrier on joints with the inverse inertia `inverse` under a steady
+    /// `drive`, each command applied one cycle late through the 0.5 ms first-order torque lag (as
+    /// `host-sim`'s realistic plant), integrated in 6 steps per cycle; the barrier's driven
+    /// acceleration is `M⁻¹ (drive + τ)`.
+    fn delayed_and_lagged<const N: usize>(
+        p: &SpeedBarrierParameters<f64>,
+        inverse: &SMatrix<f64, N, N>,
+        limits: JointLimits<'_, f64, N>,
+        drive: &SVector<f64, N>,
+    ) -> DelayedRun<N> {
         let (steps, h, lag) = (6, 1e-3 / 6.0, 5e-4_f64);
         let follow = 1.0 - (-h / lag).exp();
-        let (mut v, mut applied, mut pending) = (Vector2::zeros(), Vector2::zeros(), Vector2::zeros());
-        let (mut low, mut high, mut fastest) = (Vector2::repeat(f64::MAX), Vector2::repeat(f64::MIN), 0.0_f64);
+        let (mut v, mut applied, mut pending) =
+            (SVector::<f64, N>::zeros(), SVector::<f64, N>::zeros(), SVector::<f64, N>::zeros());
+        let mut run = DelayedRun::<N> { fastest: 0.0, low: SVector::repeat(f64::MAX), high: SVector::repeat(f64::MIN) };
         for cycle in 0..1000 {
             let set_point = pending;
             let mobility = |i: usize| inverse[(i, i)];
-            pending = speed_barrier(&p, &v, limits(&limit, &effort), mobility, |t| inverse * (drive + t), &[true; 2]);
+            pending = speed_barrier(p, &v, limits, mobility, |t| inverse * (drive + t), &[true; N]);
             for _ in 0..steps {
                 applied += (set_point - applied) * follow;
                 v += inverse * (drive + applied) * h;
             }
-            fastest = fastest.max(v.component_div(&limit).amax());
+            run.fastest = run.fastest.max(v.component_div(limits.speed).amax());
             if cycle >= 700 {
-                low = low.inf(&v);
-                high = high.sup(&v);
+                run.low = run.low.inf(&v);
+                run.high = run.high.sup(&v);
             }
         }
-        assert!((high - low).amax() < 0.01, "still oscillating: {low} .. {high}");
-        assert!(fastest < 0.9, "fastest {fastest} × the limit");
-        assert!(low.component_div(&limit).min() > 0.6, "settled inside the band: {low}");
+        run
     }
 
     /// The dense `M⁻¹` and the tree factor as the barrier's source of `M⁻¹` on the branched test
