@@ -47,6 +47,8 @@ pub(super) struct ControllerState<T: RealField, const N: usize, const U: usize> 
     /// The last torque and platform command, for the rate limits.
     pub(super) previous_torque: SVector<T, N>,
     pub(super) previous_base_velocity: Vector3<T>,
+    /// The speed barrier's held feedforward activations ([`super::speed_barrier::speed_barrier`]).
+    pub(super) barrier_hold: [T; N],
     pub(super) telemetry: Telemetry<T, N>,
     pub(super) output: ActuatorFrame<T, U>,
 }
@@ -76,6 +78,7 @@ impl<T: RealField + Copy, const N: usize, const U: usize> ControllerState<T, N, 
             hold_gravity: SVector::zeros(),
             previous_torque: SVector::zeros(),
             previous_base_velocity: Vector3::zeros(),
+            barrier_hold: [T::zero(); N],
             telemetry: Telemetry::empty(),
             output: ActuatorFrame::initial(),
         }
