@@ -4,6 +4,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use host_sim::generic::RobotName;
 use host_sim::import::ImportOptions;
 use host_sim::plant::PlantKind;
 use host_sim::scalar::Scalar;
@@ -47,6 +48,10 @@ enum Command {
         /// scenarios of the whole-body rig (wbc_*, wipe_window, sweep_floor, clean_mug, soak).
         #[arg(long, value_enum, default_value_t = Scalar::F64, conflicts_with = "pil")]
         scalar: Scalar,
+        /// The imported robot of a generic scenario (`reach`) [default: panda]; the other
+        /// scenarios run their own robot and refuse it.
+        #[arg(long, value_enum)]
+        robot: Option<RobotName>,
     },
     /// List the scenarios with a one-line description each.
     List,
@@ -94,8 +99,8 @@ enum Base {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Run { scenario, out, record_every, plant, pil, scalar } => {
-            let options = RunOptions { dir: out, record_every, plant, pil, scalar, progress: Progress::Stderr };
+        Command::Run { scenario, out, record_every, plant, pil, scalar, robot } => {
+            let options = RunOptions { dir: out, record_every, plant, pil, scalar, robot, progress: Progress::Stderr };
             host_sim::scenarios::run(&scenario, &options)
         }
         Command::List => {
