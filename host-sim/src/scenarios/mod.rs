@@ -232,6 +232,7 @@ const SCENARIOS: &[Entry] = &[
     },
     rig_entry!(soak),
     generic_entry!(reach),
+    generic_entry!(posture_push),
 ];
 
 /// The scenarios: `(name, one-line description)`.
