@@ -45,10 +45,11 @@ enum Command {
         /// The scalar of the whole-body controller on the host: `f32` runs it as the boards do (the
         /// simulator stays f64) with the f64 controller alongside on the same frames;
         /// summary.json adds their largest torque difference over the first 0.5 s. Only the
-        /// scenarios of the whole-body rig (wbc_*, wipe_window, sweep_floor, clean_mug, soak).
+        /// scenarios of the whole-body rig (wbc_*, wipe_window, sweep_floor, clean_mug, soak) and
+        /// the generic scenarios (reach, posture_push: the controller alone in f32).
         #[arg(long, value_enum, default_value_t = Scalar::F64, conflicts_with = "pil")]
         scalar: Scalar,
-        /// The imported robot of a generic scenario (`reach`) [default: panda]; the other
+        /// The imported robot of a generic scenario (`reach`, `posture_push`) [default: panda]; the other
         /// scenarios run their own robot and refuse it.
         #[arg(long, value_enum)]
         robot: Option<RobotName>,

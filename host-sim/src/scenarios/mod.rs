@@ -8,7 +8,9 @@
 //! whole-body rig with [`crate::wbc::rig`]) so `--plant` reaches it, and reports its progress
 //! through [`RunOptions::progress`]. `--pil` and `--scalar f32` choose the controller of the
 //! whole-body rig ([`crate::wbc::Driver`]); [`run`] refuses them, before running, for the
-//! scenarios without that rig (they run their own controllers in `f64`). Errors are one-line
+//! scenarios without that rig (they run their own controllers in `f64`), except `--scalar` for
+//! the generic scenarios ([`crate::generic`]), which also take `--robot` (refused by the
+//! others). Errors are one-line
 //! messages. Tests call the scenario functions directly and assert the same numbers the
 //! summary reports.
 
