@@ -24,6 +24,7 @@
 pub mod codegen;
 pub mod controllers;
 pub mod dynamics_cli;
+pub mod generic;
 pub mod import;
 pub mod mobile_controller;
 pub mod output;

@@ -4,6 +4,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use host_sim::generic::RobotName;
 use host_sim::import::ImportOptions;
 use host_sim::plant::PlantKind;
 use host_sim::scalar::Scalar;
@@ -44,9 +45,14 @@ enum Command {
         /// The scalar of the whole-body controller on the host: `f32` runs it as the boards do (the
         /// simulator stays f64) with the f64 controller alongside on the same frames;
         /// summary.json adds their largest torque difference over the first 0.5 s. Only the
-        /// scenarios of the whole-body rig (wbc_*, wipe_window, sweep_floor, clean_mug, soak).
+        /// scenarios of the whole-body rig (wbc_*, wipe_window, sweep_floor, clean_mug, soak) and
+        /// the generic scenarios (reach, posture_push: the controller alone in f32).
         #[arg(long, value_enum, default_value_t = Scalar::F64, conflicts_with = "pil")]
         scalar: Scalar,
+        /// The imported robot of a generic scenario (`reach`, `posture_push`) [default: panda]; the other
+        /// scenarios run their own robot and refuse it.
+        #[arg(long, value_enum)]
+        robot: Option<RobotName>,
     },
     /// List the scenarios with a one-line description each.
     List,
@@ -94,8 +100,8 @@ enum Base {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Run { scenario, out, record_every, plant, pil, scalar } => {
-            let options = RunOptions { dir: out, record_every, plant, pil, scalar, progress: Progress::Stderr };
+        Command::Run { scenario, out, record_every, plant, pil, scalar, robot } => {
+            let options = RunOptions { dir: out, record_every, plant, pil, scalar, robot, progress: Progress::Stderr };
             host_sim::scenarios::run(&scenario, &options)
         }
         Command::List => {

@@ -8,7 +8,9 @@
 //! whole-body rig with [`crate::wbc::rig`]) so `--plant` reaches it, and reports its progress
 //! through [`RunOptions::progress`]. `--pil` and `--scalar f32` choose the controller of the
 //! whole-body rig ([`crate::wbc::Driver`]); [`run`] refuses them, before running, for the
-//! scenarios without that rig (they run their own controllers in `f64`). Errors are one-line
+//! scenarios without that rig (they run their own controllers in `f64`), except `--scalar` for
+//! the generic scenarios ([`crate::generic`]), which also take `--robot` (refused by the
+//! others). Errors are one-line
 //! messages. Tests call the scenario functions directly and assert the same numbers the
 //! summary reports.
 
@@ -17,6 +19,7 @@ use std::path::{Path, PathBuf};
 use kernel::model::Model;
 use kernel::tasks::collision::SweptSphere;
 
+use crate::generic::{self, RobotName};
 use crate::output::{self, Figure, Summary, TimeSeries};
 use crate::pil::Target;
 use crate::plant::{PlantKind, PlantModel};
@@ -117,6 +120,9 @@ struct Entry {
     /// Whether the scenario runs the whole-body rig ([`crate::wbc::rig`]), whose controller
     /// `--pil` and `--scalar` choose.
     whole_body_rig: bool,
+    /// Whether the scenario runs the generic rig ([`crate::generic`]) on the robot `--robot`
+    /// names, with the controller in the scalar `--scalar` names.
+    generic_rig: bool,
 }
 
 /// What a scenario's [`Outcome::series`] holds, and so the file it is written to.
@@ -147,6 +153,7 @@ impl Entry {
             view: None,
             table: Table::TimeSeries,
             whole_body_rig: false,
+            generic_rig: false,
         }
     }
 }
@@ -171,6 +178,16 @@ const fn planar4(tcp_error: [&'static str; 2]) -> Robot {
 macro_rules! rig_entry {
     ($module:ident) => {
         Entry { whole_body_rig: true, ..entry!($module, Robot::JUSTIN) }
+    };
+}
+
+/// The registry entry of generic scenario module `$module` ([`crate::generic`]).
+macro_rules! generic_entry {
+    ($module:ident) => {
+        Entry {
+            generic_rig: true,
+            ..Entry::new(generic::$module::NAME, generic::$module::DESCRIPTION, generic::$module::simulate)
+        }
     };
 }
 
@@ -216,6 +233,8 @@ const SCENARIOS: &[Entry] = &[
         ..rig_entry!(clean_mug)
     },
     rig_entry!(soak),
+    generic_entry!(reach),
+    generic_entry!(posture_push),
 ];
 
 /// The scenarios: `(name, one-line description)`.
@@ -237,6 +256,8 @@ pub struct RunOptions {
     pub pil: Option<Target>,
     /// The scalar of the whole-body rig's host controller ([`crate::scalar`]; ignored with `pil`).
     pub scalar: Scalar,
+    /// The imported robot a generic scenario runs on (`--robot`; `None`: the Panda).
+    pub robot: Option<RobotName>,
     /// Whether the scenario reports its progress on stderr.
     pub progress: Progress,
 }
@@ -256,6 +277,7 @@ impl Default for RunOptions {
             plant: PlantKind::Ideal,
             pil: None,
             scalar: Scalar::F64,
+            robot: None,
             progress: Progress::Silent,
         }
     }
@@ -300,7 +322,16 @@ pub fn run(name: &str, options: &RunOptions) -> Result<(), String> {
         let names: Vec<&str> = SCENARIOS.iter().map(|s| s.name).collect();
         return Err(format!("unknown scenario `{name}`; known: {}", names.join(", ")));
     };
-    let chosen = [(options.pil.is_some(), "--pil"), (options.scalar != Scalar::F64, "--scalar f32")];
+    if let (Some(robot), false) = (options.robot, entry.generic_rig) {
+        let generic: Vec<&str> = SCENARIOS.iter().filter(|s| s.generic_rig).map(|s| s.name).collect();
+        return Err(format!(
+            "--robot {}: {name} runs its own robot; the scenarios for imported robots: {}",
+            robot.name(),
+            generic.join(", ")
+        ));
+    }
+    let scalar_chosen = options.scalar != Scalar::F64 && !entry.generic_rig;
+    let chosen = [(options.pil.is_some(), "--pil"), (scalar_chosen, "--scalar f32")];
     if let Some((_, option)) = chosen.iter().find(|(chosen, _)| *chosen && !entry.whole_body_rig) {
         let rigs: Vec<&str> = SCENARIOS.iter().filter(|s| s.whole_body_rig).map(|s| s.name).collect();
         return Err(format!(

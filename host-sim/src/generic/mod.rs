@@ -1,0 +1,488 @@
+//! The generic rig: an imported robot (`--robot panda|tiago_dual`, `fixtures::robots`) simulated
+//! by [`Simulator`] under the kernel's whole-body controller for its layout (issue 15, item 4).
+//!
+//! The layout is a fixed base (`U = N`, every platform axis absent), one arm per TCP of the
+//! import (`A = TCPS.len()`), and the robot's torso coordinates if it has any (TIAGo++'s lift).
+//! The hierarchy ([`hierarchy`]): end stops over the Cartesian impedance of every arm over each
+//! arm's singularity avoidance over the joint damping of the upper body. Collision avoidance is
+//! not in it yet: the import writes the swept-sphere model as a text file
+//! (`fixtures/robots/<name>/<name>.collision`) without a Rust constructor.
+//!
+//! Every gain follows from the model by one rule, [`gains`]: the Cartesian stiffness per arm is
+//! `K = λ ω_c²` with `λ` the largest eigenvalue of the translational reflected inertia
+//! `(J_p M⁻¹ J_pᵀ)⁻¹` at the home posture and the rotational one `λ_r ω_c²` likewise, so the
+//! heaviest direction has the natural frequency `ω_c` ([`CARTESIAN_FREQUENCY_RAD_S`]); the
+//! kernel damps it with the thesis' `ξ = 0.7` (double diagonalisation). The joint damping is
+//! `D_i = 2 ξ ω_j M_ii` and the end stops `K = ω_j² max M_ii`, `D = 2 ξ ω_j max M_ii`
+//! ([`JOINT_FREQUENCY_RAD_S`]). A robot's configuration file will replace this function.
+//!
+//! [`GenericRig::cycle`] reads the sensors through the `hal` traits, steps the controller in the
+//! run's scalar (`f64` or `f32`: the frame narrowed, the torque widened) and writes the torques.
+
+pub mod posture_push;
+pub mod reach;
+
+use fixtures::robots::{panda, tiago_dual};
+use hal::{JointTorqueInterface, PlatformVelocityInterface};
+use kernel::controller::config::*;
+use kernel::controller::faults::SafeOutput;
+use kernel::controller::force_limit::ForceLimitParameters;
+use kernel::controller::messages::{Command, Pose};
+use kernel::controller::recovery::RecoveryParameters;
+use kernel::controller::speed_barrier::SpeedBarrierParameters;
+use kernel::controller::{Controller, SensorFrame};
+use kernel::dynamics::{crba, forward_kinematics, frame_jacobian};
+use kernel::hierarchy::{Recursion, Shaping};
+use kernel::model::{Data, FrameId, Model};
+use kernel::platform::admittance::AdmittanceConfig;
+use kernel::platform::avoidance::AvoidanceConfig;
+use kernel::platform::coupling_compensation::CompensationSwitch;
+use kernel::platform::icr::IcrRepulsionConfig;
+use kernel::platform::legs::{LegAdmittanceConfig, ReturnGains};
+use kernel::platform::{PlatformAxis, PlatformLayout};
+use kernel::tasks::cartesian_impedance::AxisMask;
+use kernel::tasks::collision::CollisionModelBuilder;
+use nalgebra::{convert, RealField, SMatrix, SVector, Vector3, Vector6};
+
+use crate::output::TimeSeries;
+use crate::scalar::Scalar;
+use crate::scenarios::{Outcome, RunOptions};
+use crate::sim::{CycleInfo, JointStops, Physics, SimConfig, SimError, Simulator, StepReport};
+
+/// The imported robots a generic scenario runs on.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum RobotName {
+    /// The Franka Panda (`fixtures::robots::panda`): fixed base, one 7-DOF arm.
+    #[default]
+    Panda,
+    /// TIAGo++ (`fixtures::robots::tiago_dual`): fixed base, the torso lift and two 7-DOF arms.
+    #[value(name = "tiago_dual")]
+    TiagoDual,
+}
+
+impl RobotName {
+    /// The option's value on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Panda => "panda",
+            Self::TiagoDual => "tiago_dual",
+        }
+    }
+}
+
+/// Damping ratio of every gain rule (the thesis' `ξ = 0.7`, Ch. 6).
+pub const DAMPING_RATIO: f64 = 0.7;
+/// Natural frequency of the Cartesian impedance along the heaviest direction (rad/s): 1.5 Hz.
+pub const CARTESIAN_FREQUENCY_RAD_S: f64 = 3.0 * core::f64::consts::PI;
+/// Natural frequency of the joint damping and the end stops (rad/s): 3 Hz.
+pub const JOINT_FREQUENCY_RAD_S: f64 = 6.0 * core::f64::consts::PI;
+
+/// What the generic rig needs of an imported robot besides its model.
+#[derive(Clone, Copy, Debug)]
+pub struct RobotSpec<const N: usize, const A: usize> {
+    /// The robot's name (`--robot`).
+    pub name: &'static str,
+    /// The TCP frame of each arm.
+    pub tcps: [FrameId; A],
+    /// The coordinates of each arm.
+    pub arms: [[bool; N]; A],
+    /// The torso coordinates, if the robot has a torso.
+    pub torso: Option<[bool; N]>,
+    /// The home posture (rad, m): inside the limits, away from the end-stop margins.
+    pub home: [f64; N],
+    /// A mid-chain frame of arm 0 (the elbow) where `posture_push` pushes.
+    pub elbow: FrameId,
+    /// URDF joint of each coordinate.
+    pub joint_names: [&'static str; N],
+}
+
+/// The Panda: one arm of all seven joints; the home posture of `tests/src/fixed_base.rs`.
+pub const PANDA: RobotSpec<{ panda::N }, 1> = RobotSpec {
+    name: "panda",
+    tcps: panda::TCPS,
+    arms: [[true; panda::N]],
+    torso: None,
+    home: [0.0, -0.3, 0.0, -2.0, 0.0, 1.8, 0.8],
+    elbow: panda::PANDA_LINK4,
+    joint_names: panda::JOINT_NAMES,
+};
+
+/// TIAGo++: the lift (coordinate 0) as the torso, the left arm (1–7, TCP 0) and the right arm
+/// (8–14, TCP 1); home: the lift at 0.15 m, each arm's shoulder forward and out, elbow bent
+/// 1.5 rad.
+pub const TIAGO_DUAL: RobotSpec<{ tiago_dual::N }, 2> = RobotSpec {
+    name: "tiago_dual",
+    tcps: tiago_dual::TCPS,
+    arms: [[O, I, I, I, I, I, I, I, O, O, O, O, O, O, O], [O, O, O, O, O, O, O, O, I, I, I, I, I, I, I]],
+    torso: Some([I, O, O, O, O, O, O, O, O, O, O, O, O, O, O]),
+    home: [0.15, 0.4, 0.3, 0.0, 1.5, 0.0, 0.5, 0.0, 0.4, 0.3, 0.0, 1.5, 0.0, 0.5, 0.0],
+    elbow: tiago_dual::ARM_LEFT_4_LINK,
+    joint_names: tiago_dual::JOINT_NAMES,
+};
+
+/// A coordinate in a mask (`I`) or not (`O`), for the masks above.
+const I: bool = true;
+const O: bool = false;
+
+/// A generic scenario: one function over the robot's sizes and the controller's scalar.
+pub trait Scenario {
+    /// Runs the scenario on `spec` with the controller in `T` built on `model`.
+    fn simulate<T, const N: usize, const B: usize, const F: usize, const A: usize>(
+        spec: &RobotSpec<N, A>,
+        model: Model<T, N, B, F>,
+        plant: Model<f64, N, B, F>,
+        options: &RunOptions,
+    ) -> Result<Outcome, String>
+    where
+        T: RealField + Copy + Into<f64>;
+}
+
+/// Runs scenario `S` on the robot and in the scalar the options name.
+pub fn simulate<S: Scenario>(options: &RunOptions) -> Result<Outcome, String> {
+    let error = |e: kernel::model::ModelError| format!("model: {e}");
+    match (options.robot.unwrap_or_default(), options.scalar) {
+        (RobotName::Panda, Scalar::F64) => {
+            S::simulate(&PANDA, panda::model::<f64>().map_err(error)?, panda::model().map_err(error)?, options)
+        }
+        (RobotName::Panda, Scalar::F32) => {
+            S::simulate(&PANDA, panda::model::<f32>().map_err(error)?, panda::model().map_err(error)?, options)
+        }
+        (RobotName::TiagoDual, Scalar::F64) => S::simulate(
+            &TIAGO_DUAL,
+            tiago_dual::model::<f64>().map_err(error)?,
+            tiago_dual::model().map_err(error)?,
+            options,
+        ),
+        (RobotName::TiagoDual, Scalar::F32) => S::simulate(
+            &TIAGO_DUAL,
+            tiago_dual::model::<f32>().map_err(error)?,
+            tiago_dual::model().map_err(error)?,
+            options,
+        ),
+    }
+}
+
+fn c<T: RealField>(x: f64) -> T {
+    convert(x)
+}
+
+/// The gains of [`gains`], in `f64`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Gains<const N: usize, const A: usize> {
+    /// Isotropic translational stiffness per arm (N/m).
+    pub translational_stiffness: [f64; A],
+    /// Isotropic rotational stiffness per arm (Nm/rad).
+    pub rotational_stiffness: [f64; A],
+    /// Joint damping per coordinate (Nms/rad or Ns/m).
+    pub joint_damping: [f64; N],
+    /// End-stop stiffness (Nm/rad) and damping (Nms/rad), one for every joint.
+    pub end_stop: (f64, f64),
+}
+
+/// The gain rule (module docs) from the model at the robot's home posture.
+pub fn gains<const N: usize, const B: usize, const F: usize, const A: usize>(
+    spec: &RobotSpec<N, A>,
+    model: &Model<f64, N, B, F>,
+) -> Result<Gains<N, A>, String> {
+    let mut data = Data::new(model);
+    let q = SVector::from(spec.home);
+    forward_kinematics(model, &mut data, &q, &SVector::zeros()).map_err(|e| format!("home posture: {e}"))?;
+    let mass = *crba(model, &mut data);
+    let inverse = mass.try_inverse().ok_or("the mass matrix at the home posture is singular")?;
+    let mut translational_stiffness = [0.0; A];
+    let mut rotational_stiffness = [0.0; A];
+    for (arm, tcp) in spec.tcps.iter().enumerate() {
+        let mut jacobian = SMatrix::<f64, 6, N>::zeros();
+        frame_jacobian(model, &data, *tcp, &mut jacobian).map_err(|e| format!("TCP Jacobian: {e}"))?;
+        let heaviest = |rows: usize| -> Result<f64, String> {
+            let j = jacobian.fixed_rows::<3>(rows);
+            let reflected = (j * inverse * j.transpose()).try_inverse().ok_or("the TCP is singular at home")?;
+            Ok(reflected.symmetric_eigenvalues().max())
+        };
+        let w2 = CARTESIAN_FREQUENCY_RAD_S * CARTESIAN_FREQUENCY_RAD_S;
+        if let (Some(t), Some(r)) = (translational_stiffness.get_mut(arm), rotational_stiffness.get_mut(arm)) {
+            *t = heaviest(0)? * w2;
+            *r = heaviest(3)? * w2;
+        }
+    }
+    let joint_damping = mass.diagonal().map(|m| 2.0 * DAMPING_RATIO * JOINT_FREQUENCY_RAD_S * m).into();
+    let heaviest_joint = mass.diagonal().max();
+    let end_stop = (
+        JOINT_FREQUENCY_RAD_S * JOINT_FREQUENCY_RAD_S * heaviest_joint,
+        2.0 * DAMPING_RATIO * JOINT_FREQUENCY_RAD_S * heaviest_joint,
+    );
+    Ok(Gains { translational_stiffness, rotational_stiffness, joint_damping, end_stop })
+}
+
+/// The hierarchy: end stops; the Cartesian impedance of every arm; each arm's singularity
+/// avoidance; the upper body's joint damping.
+pub fn hierarchy<const A: usize>() -> Vec<TaskSpec> {
+    let arms = ArmId::all::<A>();
+    let mut tasks = vec![TaskSpec { kind: TaskKind::EndStops, level: 0 }];
+    tasks.extend(arms.iter().map(|arm| TaskSpec { kind: TaskKind::CartesianImpedance(*arm), level: 1 }));
+    tasks.extend(arms.iter().map(|arm| TaskSpec { kind: TaskKind::SingularityAvoidance(*arm), level: 2 }));
+    tasks.push(TaskSpec { kind: TaskKind::JointDamping(JointGroup::UpperBody), level: 3 });
+    tasks
+}
+
+/// The controller's configuration for `spec` with `gains`, in `T`: a fixed base (the platform
+/// parameters are valid but drive nothing), no force limit, the Ch. 6 guards.
+fn config<T: RealField + Copy, const N: usize, const A: usize>(
+    spec: &RobotSpec<N, A>,
+    gains: &Gains<N, A>,
+) -> Result<ControllerConfig<T, N, A>, String> {
+    let cartesian = core::array::from_fn(|arm| CartesianParameters {
+        translational_stiffness: [c(gains.translational_stiffness.get(arm).copied().unwrap_or(0.0)); 3],
+        rotational_stiffness: [c(gains.rotational_stiffness.get(arm).copied().unwrap_or(0.0)); 3],
+        damping_ratio: c(DAMPING_RATIO),
+        force_lower: [c(f64::NEG_INFINITY); 6],
+        force_upper: [c(f64::INFINITY); 6],
+    });
+    let field = CollisionFieldParameters {
+        max_force: c(20.0),
+        influence_distance: c(0.1),
+        damping_ratio: c(DAMPING_RATIO),
+        activation_full: c(0.0),
+        activation_zero: c(0.1),
+    };
+    let joint_damping = SVector::from(gains.joint_damping.map(c));
+    Ok(ControllerConfig {
+        period_s: c(crate::sim::CONTROL_PERIOD_S),
+        layout: RobotLayout {
+            tcp: spec.tcps,
+            platform: PlatformLayout::try_new::<N>([PlatformAxis::Absent; 3]).map_err(|e| format!("layout: {e}"))?,
+            torso: spec.torso,
+            arms: spec.arms,
+        },
+        recursion: Recursion::Augmented,
+        consistency: Consistency::Dynamic,
+        shaping: Shaping::Continuous { singular_full: c(0.05), singular_start: c(0.15) },
+        transition_s: c(1.0),
+        cartesian,
+        cartesian_fallback_damping: Vector6::repeat(c(10.0)),
+        collision: [field; 2],
+        singularity: SingularityParameters {
+            rows: AxisMask::new([true, true, true, false, false, false]),
+            threshold: c(0.01),
+            full_activation: c(0.002),
+            stiffness: c(100.0),
+            damping: c(1.0),
+        },
+        end_stops: EndStopParameters { margin: c(0.1), stiffness: c(gains.end_stop.0), damping: c(gains.end_stop.1) },
+        torso_workspace: None,
+        joint_stiffness: SVector::zeros(),
+        joint_damping,
+        safe_damping: joint_damping,
+        platform: fixed_base_platform(),
+        output_limits: OutputLimits {
+            torque_rate: SVector::repeat(c(1e5)),
+            base_velocity: Vector3::repeat(c(1.0)),
+            base_acceleration: Vector3::repeat(c(2.0)),
+            leg_rate: c(0.2),
+        },
+        input_limits: InputLimits {
+            position_tolerance: c(0.05),
+            velocity_factor: c(1.5),
+            max_cycle_gap: 5,
+            brake_after_cycles: 100,
+        },
+        observer: ObserverParameters { gain: c(50.0), contact_threshold: c(5.0) },
+        force_limit: ForceLimitParameters {
+            enabled: false,
+            margin: c(0.05),
+            gain: c(3.0),
+            max_correction: c(10.0),
+            regularisation: c(1e-4),
+        },
+        speed_barrier: SpeedBarrierParameters {
+            onset: c(0.5),
+            full: c(0.9),
+            braking_time_s: c(0.002),
+            max_torque_fraction: c(0.25),
+        },
+        recovery: RecoveryParameters { valid_cycles: 10, margin: c(0.2), blend_s: c(0.1) },
+    })
+}
+
+/// Platform parameters of a fixed base: valid, unused (every platform axis is absent).
+fn fixed_base_platform<T: RealField + Copy>() -> PlatformParameters<T> {
+    PlatformParameters {
+        admittance: AdmittanceConfig {
+            mass: Vector3::new(c(50.0), c(50.0), c(10.0)),
+            damping: Vector3::new(c(200.0), c(200.0), c(40.0)),
+            force_limit: Vector3::new(c(100.0), c(100.0), c(40.0)),
+            free_axes: [false; 3],
+        },
+        avoidance: AvoidanceConfig {
+            repulsion: IcrRepulsionConfig {
+                leg_directions: [45.0_f64, 135.0, 225.0, 315.0].map(|d| c(d.to_radians())),
+                max_extension: c(0.12),
+                extension_ratio: c(0.4),
+                max_force: c(0.8),
+                min_yaw_rate: c(1e-3),
+            },
+            legs: LegAdmittanceConfig {
+                mass: c(0.2),
+                damping: c(1.0),
+                cubic_stiffness: c(1e3),
+                nominal_length: c(0.4),
+                min_length: c(0.3),
+                max_length: c(0.5),
+            },
+            return_gains: ReturnGains::critically_damped(c(2.0), c(0.05)),
+            icr_avoidance: false,
+            leg_motion: false,
+        },
+        compensation: CompensationSwitch::OFF,
+        force_deadband: [T::zero(); 3],
+    }
+}
+
+/// The controller of an imported robot: `U = N` (fixed base), no collision volumes, `A` arms.
+pub type GenericController<T, const N: usize, const B: usize, const F: usize, const A: usize> =
+    Controller<T, N, B, F, N, 0, 0, A>;
+
+/// The simulated imported robot and its controller, wired.
+pub struct GenericRig<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const A: usize> {
+    /// The simulated robot (always `f64`).
+    pub sim: Simulator<N, B, F, N>,
+    /// The controller in the run's scalar; boxed: it is large.
+    pub controller: Box<GenericController<T, N, B, F, A>>,
+    /// The gains of [`gains`].
+    pub gains: Gains<N, A>,
+    /// Cycles with a safe output instead of the whole-body torque.
+    pub faulty_cycles: u64,
+    /// Cycles with a non-finite torque or TCP error.
+    pub non_finite_cycles: u64,
+}
+
+impl<T, const N: usize, const B: usize, const F: usize, const A: usize> GenericRig<T, N, B, F, A>
+where
+    T: RealField + Copy + Into<f64>,
+{
+    /// The robot at its home posture at rest on the plant of `options`, the controller on `model`.
+    pub fn new(
+        spec: &RobotSpec<N, A>,
+        model: Model<T, N, B, F>,
+        plant: Model<f64, N, B, F>,
+        options: &RunOptions,
+    ) -> Result<Self, String> {
+        let gains = gains(spec, &plant)?;
+        let collision = CollisionModelBuilder::<T, 0, 0>::new()
+            .try_build(&model, &[])
+            .map_err(|e| format!("collision model: {e}"))?;
+        let controller = GenericController::try_new(model, collision, config(spec, &gains)?, &hierarchy::<A>())
+            .map_err(|e| format!("controller: {e}"))?;
+        let mut sim = options.simulator(plant, SimConfig::default())?;
+        sim.set_state(SVector::from(spec.home), SVector::zeros())?;
+        sim.set_joint_stops(Some(JointStops::JUSTIN))?;
+        Ok(Self { sim, controller: Box::new(controller), gains, faulty_cycles: 0, non_finite_cycles: 0 })
+    }
+
+    /// One control cycle: sense, step the controller on the frame in `T`, write the torques.
+    pub fn cycle(&mut self, info: &CycleInfo) -> Result<(), String> {
+        let mut joints = JointTorqueInterface::read(&mut self.sim)?;
+        let mut platform = PlatformVelocityInterface::read(&mut self.sim)?;
+        joints.cycle = info.cycle + 1;
+        platform.cycle = info.cycle + 1;
+        let frame = SensorFrame {
+            joints: hal::JointSample {
+                position: joints.position.map(c),
+                velocity: joints.velocity.map(c),
+                torque: joints.torque.map(c),
+                cycle: joints.cycle,
+            },
+            platform: hal::PlatformSample {
+                pose: platform.pose.map(c),
+                velocity: platform.velocity.map(c),
+                leg_lengths: platform.leg_lengths.map(c),
+                cycle: platform.cycle,
+            },
+        };
+        let output = self.controller.step(&frame);
+        let torque: [f64; N] = output.torque.map(Into::into);
+        if output.mode != SafeOutput::Normal {
+            self.faulty_cycles += 1;
+        }
+        let errors_finite = self.controller.telemetry().tcp_error.iter().all(|e| e.iter().all(|x| x.is_finite()));
+        if !(errors_finite && torque.iter().all(|x| x.is_finite())) {
+            self.non_finite_cycles += 1;
+        }
+        JointTorqueInterface::write_torque(&mut self.sim, &torque)?;
+        Ok(())
+    }
+
+    /// The TCP position of `arm` in the simulator (m, world).
+    pub fn tcp_position(&mut self, spec: &RobotSpec<N, A>, arm: usize) -> Result<Vector3<f64>, String> {
+        let frame = *spec.tcps.get(arm).ok_or("no such arm")?;
+        Ok(self.sim.frame_placement(frame)?.translation.vector)
+    }
+
+    /// Moves the goal of `arm` by `offset` (m, world) from its current target, as a step.
+    pub fn step_goal(&mut self, arm: usize, offset: Vector3<f64>) -> Result<(), String> {
+        let id = *ArmId::all::<A>().get(arm).ok_or("no such arm")?;
+        let target = self.controller.tcp_target(id).ok_or("no TCP target")?.pose;
+        let rotation = nalgebra::UnitQuaternion::from_rotation_matrix(&target.rotation);
+        let goal = target.translation.vector + offset.map(c::<T>);
+        let pose = Pose { position: goal.into(), orientation: [rotation.w, rotation.i, rotation.j, rotation.k] };
+        self.controller
+            .apply(&Command::TcpGoal { hand: id, pose, duration_s: T::zero() })
+            .map_err(|e| format!("TcpGoal: {e}"))
+    }
+
+    /// The TCP position error of `arm` (m): `‖p − p_des‖` from the telemetry.
+    pub fn tcp_error(&self, arm: usize) -> f64 {
+        let telemetry = self.controller.telemetry();
+        telemetry.tcp_error.get(arm).map_or(f64::NAN, |e| e.fixed_rows::<3>(0).norm().into())
+    }
+}
+
+/// The columns of [`record`]: `t`, the joints' `q.*`, `dq.*`, `tau.*`, then per arm `a` the TCP
+/// error norm `e<a>` (m) and the TCP position `tcp<a>.x/y/z` (m, world).
+pub fn columns<const N: usize, const A: usize>(spec: &RobotSpec<N, A>) -> Vec<String> {
+    let mut columns = vec!["t".to_string()];
+    columns.extend(crate::scenarios::joint_columns(&spec.joint_names));
+    for arm in 0..A {
+        columns.push(format!("e{arm}"));
+        columns.extend(["x", "y", "z"].iter().map(|axis| format!("tcp{arm}.{axis}")));
+    }
+    columns
+}
+
+/// Appends the rig's state at `time_s` to `series` (the columns of [`columns`]).
+pub fn record<T, const N: usize, const B: usize, const F: usize, const A: usize>(
+    rig: &mut GenericRig<T, N, B, F, A>,
+    spec: &RobotSpec<N, A>,
+    time_s: f64,
+    series: &mut TimeSeries,
+) -> Result<(), String>
+where
+    T: RealField + Copy + Into<f64>,
+{
+    let mut row = vec![time_s];
+    row.extend(rig.sim.q().iter());
+    row.extend(rig.sim.v().iter());
+    row.extend(rig.sim.applied_torque().iter());
+    for arm in 0..A {
+        row.push(rig.tcp_error(arm));
+        row.extend(rig.tcp_position(spec, arm)?.iter());
+    }
+    series.push(row)
+}
+
+impl<T, const N: usize, const B: usize, const F: usize, const A: usize> Physics for GenericRig<T, N, B, F, A>
+where
+    T: RealField + Copy,
+{
+    fn time_s(&self) -> f64 {
+        self.sim.time_s()
+    }
+
+    fn physics_step_s(&self) -> f64 {
+        self.sim.config().physics_step_s
+    }
+
+    fn step_physics(&mut self) -> Result<StepReport, SimError> {
+        self.sim.step()
+    }
+}
