@@ -92,7 +92,7 @@ pub const MIN_BASE_TRAVEL_M: f64 = 0.10;
 /// Plan time at which the planner waits for both brooms to touch (s): the references have
 /// reached [`BELOW_M`] below the surface and rest there.
 pub const WAIT_AT_S: f64 = SWEEP_S.0 - HOLD_S;
-/// Longest wait for the contact (s); chosen: twice the 1.45 s the brooms need on the realistic
+/// Longest wait for the contact (s); chosen: about twice the 1.40 s the brooms need on the realistic
 /// plant (README `--plant`). Beyond it the sweep starts without contact and the claim fails.
 pub const CONTACT_TIMEOUT_S: f64 = 3.0;
 /// How far above the surface a broom end may still be for the planner to count it as touching
