@@ -959,9 +959,11 @@ mod tests {
         assert_eq!(clock.plan_time(0.5, false), 0.5);
         assert_eq!(clock.plan_time(1.0, false), 1.0);
         assert_eq!(clock.plan_time(1.2, false), 1.0);
-        assert_eq!(clock.plan_time(1.3, true), 1.0);
-        assert!((clock.plan_time(2.0, false) - 1.7).abs() < 1e-12, "released: no further wait");
-        assert_eq!(clock.record(), Some(GateRecord { waited_s: 0.30000000000000004, touched: true }));
+        // The contact: the clock runs on from where it stood, one cycle later.
+        assert!((clock.plan_time(1.3, true) - 1.1).abs() < 1e-12);
+        assert!((clock.plan_time(2.0, false) - 1.8).abs() < 1e-12, "released: no further wait");
+        let record = clock.record().unwrap();
+        assert!(record.touched && (record.waited_s - 0.2).abs() < 1e-12, "{record:?}");
         let mut clock = PlanClock { gate: Some(gate), waited_s: 0.0, released: None };
         for t in [1.0, 1.2, 1.4, 1.5, 1.6] {
             clock.plan_time(t, false);
