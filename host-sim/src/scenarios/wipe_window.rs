@@ -278,6 +278,9 @@ pub struct ToolSample {
     pub estimate: Vec<Vector3<f64>>,
     /// The contact-force governor's correction of the force bounds per axis (N).
     pub correction: Vec<Vector3<f64>>,
+    /// The controller's TCP position error `p − p_des` per reference (m, desired-frame axes,
+    /// telemetry).
+    pub error: Vec<Vector3<f64>>,
     /// Base pose `(x, y, θ)`.
     pub base: [f64; 3],
 }
@@ -303,6 +306,58 @@ pub struct ToolRun {
     pub finite: bool,
     /// The first fault the controller reported (`Debug` text) and its time (s).
     pub first_fault: Option<(f64, String)>,
+    /// What the plan's contact gate did, if it has one.
+    pub gate: Option<GateRecord>,
+}
+
+/// A contact-waiting phase in the tool sequence (the planner of Ch. 7 reacting to the robot's
+/// telemetry): the plan's clock stops at `at_s` (plan time, the references at rest pressed behind
+/// the surface) until `touched` reports contact at every tool TCP, at most `timeout_s`; the rest of
+/// the plan runs that much later.
+#[derive(Clone, Copy, Debug)]
+pub struct ContactGate {
+    /// Plan time at which the clock waits (s).
+    pub at_s: f64,
+    /// Longest wait (s); the plan goes on without the contact after it.
+    pub timeout_s: f64,
+    /// The planner's contact signal, from what a cycle's sample holds.
+    pub touched: fn(&ToolSample) -> bool,
+}
+
+/// What a [`ContactGate`] did in a run.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GateRecord {
+    /// How long the plan waited (s).
+    pub waited_s: f64,
+    /// Whether the contact came before the timeout.
+    pub touched: bool,
+}
+
+/// The plan's clock: run time less the time spent waiting at a [`ContactGate`].
+struct PlanClock {
+    gate: Option<ContactGate>,
+    waited_s: f64,
+    released: Option<bool>,
+}
+
+impl PlanClock {
+    /// Plan time of the cycle at run time `t` (s), with the planner's contact signal of the cycle.
+    fn plan_time(&mut self, t: f64, touched: bool) -> f64 {
+        let Some(gate) = self.gate.filter(|_| self.released.is_none()) else { return t - self.waited_s };
+        if t - self.waited_s < gate.at_s {
+            return t - self.waited_s;
+        }
+        if touched || self.waited_s >= gate.timeout_s {
+            self.released = Some(touched);
+            return t - self.waited_s;
+        }
+        self.waited_s = t - gate.at_s;
+        gate.at_s
+    }
+
+    fn record(&self) -> Option<GateRecord> {
+        self.gate.map(|_| GateRecord { waited_s: self.waited_s, touched: self.released.unwrap_or(false) })
+    }
 }
 
 /// Runs a Table 7.1 tool: rig at `q0` with the configuration of Ch. 6 with `changes` and the
@@ -320,6 +375,26 @@ pub fn run_tool(
     plan: impl FnOnce([Placement<f64>; 2]) -> ToolPlan,
     options: &RunOptions,
 ) -> Result<ToolRun, String> {
+    run_tool_gated(name, task, extra_tasks, q0, changes, (duration_s, None), plan, options)
+}
+
+/// [`run_tool`] with the plan's clock held at `timing.1`, a [`ContactGate`], if any: the run
+/// lasts up to `timing.0` of plan time and the gate's timeout (the samples and the series end
+/// where the plan ends; the fault count and the smallest distance cover the whole run).
+#[allow(clippy::too_many_arguments, reason = "one call per scenario, every argument differs")]
+pub fn run_tool_gated(
+    name: &str,
+    task: &ServiceTask,
+    extra_tasks: &[TaskSpec],
+    q0: &SVector<f64, { justin::N }>,
+    changes: ConfigChanges,
+    timing: (f64, Option<ContactGate>),
+    plan: impl FnOnce([Placement<f64>; 2]) -> ToolPlan,
+    options: &RunOptions,
+) -> Result<ToolRun, String> {
+    let (duration_s, gate) = timing;
+    let mut clock = PlanClock { gate, waited_s: 0.0, released: None };
+    let run_s = duration_s + gate.map_or(0.0, |g| g.timeout_s);
     let mut rig = wbc::rig(q0, &[], changes, &whole_body::fig_6_3_hierarchy(ArmId::RIGHT), options)?;
     let start = [
         rig.sim.frame_placement(justin::RIGHT_TCP).map_err(|e| e.to_string())?,
@@ -332,7 +407,7 @@ pub fn run_tool(
     }
     let mut samples: Vec<ToolSample> = Vec::new();
     let mut first_fault = None;
-    let series = rig.run(duration_s, |rig: &mut Rig, info| {
+    let series = rig.run(run_s, |rig: &mut Rig, info| {
         if info.cycle == 0 {
             for hand in task.hands {
                 rig.apply(&Command::SetCartesian { hand: *hand, parameters })
@@ -351,6 +426,7 @@ pub fn run_tool(
             limited: Vec::new(),
             estimate: Vec::new(),
             correction: Vec::new(),
+            error: Vec::new(),
             base: [rig.sim.q()[0], rig.sim.q()[1], rig.sim.q()[2]],
         };
         for index in 0..contacts.len() {
@@ -365,26 +441,37 @@ pub fn run_tool(
             .collect();
         sample.friction = wbc::friction_contact_shares(&rig.sim, &pressed)?;
         let telemetry = rig.controller.telemetry();
-        let (limited, applied, corrections) =
-            (telemetry.tcp_force_limited, telemetry.contact_wrench, telemetry.force_limit_correction);
+        let (limited, applied, corrections, errors) = (
+            telemetry.tcp_force_limited,
+            telemetry.contact_wrench,
+            telemetry.force_limit_correction,
+            telemetry.tcp_error,
+        );
         for reference in &references {
             let frame = if reference.hand == ArmId::RIGHT { justin::RIGHT_TCP } else { justin::LEFT_TCP };
             sample.measured.push(rig.sim.frame_placement(frame).map_err(|e| e.to_string())?.translation.vector);
-            sample.reference.push(reference.at(info.time_s).0.translation.vector);
             sample.limited.push(limited.get(reference.hand.index()).is_some_and(|l| l.iter().any(|x| *x)));
-            let forces = |w: &[nalgebra::Vector6<f64>; 2]| {
+            let linear = |w: &[nalgebra::Vector6<f64>; 2]| {
                 w.get(reference.hand.index()).map_or_else(Vector3::zeros, |w| w.fixed_rows::<3>(0).into_owned())
             };
-            sample.estimate.push(forces(&applied));
-            sample.correction.push(forces(&corrections));
-            rig.apply(&reference.command(info.time_s)).map_err(|e| format!("TcpSample: {e}"))?;
+            sample.estimate.push(linear(&applied));
+            sample.correction.push(linear(&corrections));
+            sample.error.push(linear(&errors));
+        }
+        let plan_s = clock.plan_time(info.time_s, gate.is_some_and(|g| (g.touched)(&sample)));
+        if plan_s >= duration_s {
+            return Ok(());
+        }
+        for reference in &references {
+            sample.reference.push(reference.at(plan_s).0.translation.vector);
+            rig.apply(&reference.command(plan_s)).map_err(|e| format!("TcpSample: {e}"))?;
         }
         samples.push(sample);
         if first_fault.is_none() {
             first_fault = rig.controller.telemetry().fault.map(|f| (info.time_s, format!("{f:?}")));
         }
         if info.cycle % 100 == 0 {
-            options.progress.report(name, info.time_s, duration_s);
+            options.progress.report(name, plan_s, duration_s);
         }
         Ok(())
     })?;
@@ -404,6 +491,7 @@ pub fn run_tool(
         min_distance_m: rig.min_distance_m,
         finite,
         first_fault,
+        gate: clock.record(),
     })
 }
 
@@ -862,6 +950,28 @@ mod tests {
         assert!((tool.matrix().column(0) - Vector3::x()).norm() < 1e-12);
     }
 
+    /// The plan's clock runs with the run until the gate, stands while the contact is missing,
+    /// then runs on shifted by the wait; without the contact it gives up after the timeout.
+    #[test]
+    fn plan_clock_waits_at_the_gate_until_the_contact_or_the_timeout() {
+        let gate = ContactGate { at_s: 1.0, timeout_s: 0.5, touched: |_| false };
+        let mut clock = PlanClock { gate: Some(gate), waited_s: 0.0, released: None };
+        assert_eq!(clock.plan_time(0.5, false), 0.5);
+        assert_eq!(clock.plan_time(1.0, false), 1.0);
+        assert_eq!(clock.plan_time(1.2, false), 1.0);
+        // The contact: the clock runs on from where it stood, one cycle later.
+        assert!((clock.plan_time(1.3, true) - 1.1).abs() < 1e-12);
+        assert!((clock.plan_time(2.0, false) - 1.8).abs() < 1e-12, "released: no further wait");
+        let record = clock.record().unwrap();
+        assert!(record.touched && (record.waited_s - 0.2).abs() < 1e-12, "{record:?}");
+        let mut clock = PlanClock { gate: Some(gate), waited_s: 0.0, released: None };
+        for t in [1.0, 1.2, 1.4, 1.5, 1.6] {
+            clock.plan_time(t, false);
+        }
+        assert_eq!(clock.record(), Some(GateRecord { waited_s: 0.5, touched: false }));
+        assert!((clock.plan_time(2.0, false) - 1.5).abs() < 1e-12);
+    }
+
     /// Samples of one contact at `t = 0, 0.1, …` with the normal forces `forces` and the
     /// friction bounds `bounds`.
     fn samples(forces: &[f64], bounds: &[f64]) -> Vec<ToolSample> {
@@ -879,6 +989,7 @@ mod tests {
                 limited: Vec::new(),
                 estimate: Vec::new(),
                 correction: Vec::new(),
+                error: Vec::new(),
                 base: [0.0; 3],
             })
             .collect()
