@@ -18,6 +18,7 @@ use crate::tasks::torso_workspace::TorsoWorkspaceConfig;
 
 pub use super::capacity::{MAX_LEVELS, MAX_ROWS, MAX_TASKS, MAX_TASK_ROWS};
 pub use super::faults::InputLimits;
+use super::layout::collect_truncated;
 pub use super::layout::{ArmId, JointGroup, PerArm, RobotLayout, MAX_ARMS};
 
 /// The two collision-avoidance fields of Fig. 6.3.
@@ -83,15 +84,18 @@ impl TaskKind {
     /// group of [`JointGroup::all`]. `4 A + 10` kinds, 18 for Justin.
     pub fn all<const A: usize>() -> heapless::Vec<TaskKind, MAX_TASK_KINDS> {
         let arms = || ArmId::all::<A>().into_iter().take(MAX_ARMS);
-        let groups = || JointGroup::all::<A>().into_iter();
-        arms()
-            .map(TaskKind::CartesianImpedance)
-            .chain([Field::Strong, Field::Weak].map(TaskKind::CollisionAvoidance))
-            .chain(arms().map(TaskKind::SingularityAvoidance))
-            .chain([TaskKind::EndStops, TaskKind::TorsoWorkspace])
-            .chain(groups().map(TaskKind::JointImpedance))
-            .chain(groups().map(TaskKind::JointDamping))
-            .collect()
+        // By reference: the drop of heapless' `IntoIter` indexes a slice (a panic path).
+        let all_groups = JointGroup::all::<A>();
+        let groups = || all_groups.iter().copied();
+        collect_truncated(
+            arms()
+                .map(TaskKind::CartesianImpedance)
+                .chain([Field::Strong, Field::Weak].map(TaskKind::CollisionAvoidance))
+                .chain(arms().map(TaskKind::SingularityAvoidance))
+                .chain([TaskKind::EndStops, TaskKind::TorsoWorkspace])
+                .chain(groups().map(TaskKind::JointImpedance))
+                .chain(groups().map(TaskKind::JointDamping)),
+        )
     }
 
     /// A short name for logs, column headers and configuration files, e.g. `cartesian_right`,

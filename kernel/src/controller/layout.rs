@@ -80,12 +80,27 @@ pub enum JointGroup {
     UpperBody,
 }
 
+/// The first `C` items in a fixed-capacity list. heapless' `collect` panics when the items do
+/// not fit, and the controller's setup path is linked without a panic handler
+/// (`firmware/wcet/panic_check.sh`); the lists built here fit by construction.
+pub(crate) fn collect_truncated<X, const C: usize>(items: impl IntoIterator<Item = X>) -> Vec<X, C> {
+    let mut list = Vec::new();
+    for item in items {
+        if list.push(item).is_err() {
+            break;
+        }
+    }
+    list
+}
+
 impl JointGroup {
     /// Every group of a robot with `A` arms, whether it has coordinates or not:
     /// platform, torso, the arms, upper body.
     pub fn all<const A: usize>() -> Vec<JointGroup, MAX_GROUPS> {
         let arms = ArmId::all::<A>().into_iter().take(MAX_ARMS).map(JointGroup::Arm);
-        [JointGroup::Platform, JointGroup::Torso].into_iter().chain(arms).chain([JointGroup::UpperBody]).collect()
+        collect_truncated(
+            [JointGroup::Platform, JointGroup::Torso].into_iter().chain(arms).chain([JointGroup::UpperBody]),
+        )
     }
 
     /// The group's storage position: platform 0, torso 1, upper body 2, arm `a` at `3 + a`.
@@ -135,7 +150,9 @@ impl<const N: usize, const A: usize> RobotLayout<N, A> {
 
     /// The groups that have coordinates, in the order of [`JointGroup::all`].
     pub fn groups(&self) -> Vec<JointGroup, MAX_GROUPS> {
-        JointGroup::all::<A>().into_iter().filter(|group| self.coordinates(*group).contains(&true)).collect()
+        collect_truncated(
+            JointGroup::all::<A>().iter().copied().filter(|group| self.coordinates(*group).contains(&true)),
+        )
     }
 }
 

@@ -174,7 +174,8 @@ impl<T: RealField + Copy, const N: usize, const A: usize> TaskSet<T, N, A> {
         groups.sort_unstable_by_key(|group| group.index());
         let mut joint = [Vec::new(), Vec::new()];
         let mut populated = [false; MAX_GROUPS];
-        for group in groups {
+        // By reference: the drop of heapless' `IntoIter` indexes a slice (a panic path).
+        for &group in groups.iter() {
             let [impedance, damping] = &mut joint;
             let full = ConfigError::InvalidParameter { name: "arms: more than MAX_ARMS" };
             impedance.push(joint_task(group, config.joint_stiffness, config.joint_damping)?).map_err(|_| full)?;
