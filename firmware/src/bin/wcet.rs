@@ -56,7 +56,7 @@ static mut COLLISION: Option<JustinCollisionModel<S>> = None;
 static mut COLLISION_DATA: Option<CollisionData<S, { justin::collision::VOLUMES }, { justin::collision::PAIRS }>> =
     None;
 static mut ROWS_OUT: Rows = TaskRows::new();
-static mut STACK: Stack<S, N, ROWS> = Stack::new();
+static mut STACK: Option<Stack<S, N, ROWS>> = None;
 static mut HIERARCHY: Option<Hierarchy> = None;
 
 fn run() -> Result<(), &'static str> {
@@ -68,14 +68,8 @@ fn run() -> Result<(), &'static str> {
             .insert(justin::collision::collision_model(&model).map_err(|_| "collision model")?);
         let collision_data = (*core::ptr::addr_of_mut!(COLLISION_DATA)).insert(CollisionData::new(collision));
         let hierarchy = (*core::ptr::addr_of_mut!(HIERARCHY)).insert(Hierarchy::default());
-        (
-            data,
-            &*collision,
-            collision_data,
-            &mut *core::ptr::addr_of_mut!(ROWS_OUT),
-            &mut *core::ptr::addr_of_mut!(STACK),
-            hierarchy,
-        )
+        let stack = (*core::ptr::addr_of_mut!(STACK)).insert(Stack::new());
+        (data, &*collision, collision_data, &mut *core::ptr::addr_of_mut!(ROWS_OUT), stack, hierarchy)
     };
     // d0 = 1 m: most pairs are active, the row path runs many times (worst-input flavour).
     let parameters = CollisionParameters::try_new(c(25.0), c(1.0), c(0.7), c(0.0), c(1.0)).map_err(|_| "parameters")?;
