@@ -4,9 +4,10 @@
 # BIN=wcet-step-panda profiles the imported Panda's step image instead (-> out/TAG/wcet-step-panda.elf).
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"; tag=$1; samples=${2:-all}; bin=${BIN:-wcet-step}
+features=""; [ "$bin" = wcet-step-panda ] && features="--features wcet-panda"
 cd "$here/../.."
 CARGO_TARGET_DIR="$PWD/target/wcet-m7-f32" RUSTFLAGS="-C link-arg=-Tlink.x -C target-cpu=cortex-m7" \
-    cargo build ${CARGO_LOCKED---locked} --release --bin "$bin" >&2
+    cargo build ${CARGO_LOCKED---locked} --release --bin "$bin" $features >&2
 [ -f "$here/wcet_prof.so" ] || gcc -O2 -shared -fPIC -fvisibility=hidden -o "$here/wcet_prof.so" "$here/wcet_prof.c"
 out="$here/out/$tag"; mkdir -p "$out"
 elf=target/wcet-m7-f32/thumbv7em-none-eabihf/release/$bin
