@@ -4,6 +4,8 @@
 #   m7-f32  Cortex-M7 (mps2-an500), target-cpu=cortex-m7, f32
 #   m7-f64  Cortex-M7 (mps2-an500), target-cpu=cortex-m7 (double-precision FPU), f64
 #   m4-f32  Cortex-M4F (mps2-an386), target-cpu=cortex-m4, f32
+# and the full step of Justin (`wcet-step`) on each, of the imported Panda (`wcet-step-panda`) on
+# m7-f32 (lines "panda-m7-f32").
 # Each variant runs twice; the script fails if any count differs between the runs.
 # With --callgrind, also counts the same stages on the host (x86-64, valgrind callgrind, one
 # process per case and precision; the bench in wcet/host shares wcet/stages with the images).
