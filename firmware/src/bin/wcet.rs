@@ -68,8 +68,14 @@ fn run() -> Result<(), &'static str> {
             .insert(justin::collision::collision_model(&model).map_err(|_| "collision model")?);
         let collision_data = (*core::ptr::addr_of_mut!(COLLISION_DATA)).insert(CollisionData::new(collision));
         let hierarchy = (*core::ptr::addr_of_mut!(HIERARCHY)).insert(Hierarchy::default());
-        let stack = (*core::ptr::addr_of_mut!(STACK)).insert(Stack::new());
-        (data, &*collision, collision_data, &mut *core::ptr::addr_of_mut!(ROWS_OUT), stack, hierarchy)
+        (
+            data,
+            &*collision,
+            collision_data,
+            &mut *core::ptr::addr_of_mut!(ROWS_OUT),
+            (*core::ptr::addr_of_mut!(STACK)).insert(Stack::new()),
+            hierarchy,
+        )
     };
     // d0 = 1 m: most pairs are active, the row path runs many times (worst-input flavour).
     let parameters = CollisionParameters::try_new(c(25.0), c(1.0), c(0.7), c(0.0), c(1.0)).map_err(|_| "parameters")?;
