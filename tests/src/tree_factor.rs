@@ -268,7 +268,8 @@ fn justin_barrier_inverse_matches<T: RealField + Copy>(tolerance: f64, accuracy:
         let task = torque.map(convert::<f64, T>);
         let barrier = |source: InverseInertia<'_, T, N>| {
             let drive = |t: &SVector<T, N>| source.apply(&(task + t));
-            speed_barrier(&parameters, &v, limits, |i| source.mobility(i), drive, &upper).map(f64_of)
+            speed_barrier(&parameters, &v, limits, |i| source.mobility(i), drive, &upper, &mut [T::zero(); N])
+                .map(f64_of)
         };
         let (fast, reference) = (barrier(dense), barrier(factor));
         let effort = model.limits.effort.map(f64_of).amax();

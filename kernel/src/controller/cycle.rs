@@ -162,6 +162,7 @@ impl<
                 .map_err(Fault::Platform)?;
         // `Cᵀ q̇` for the observer: from the barrier's fused pass when it ran.
         let mut coriolis_transpose = None;
+        let mut held = self.state.barrier_hold;
         let compensation = terms.torque(self.settings.config.platform.compensation)
             + self.speed_barrier(
                 &v,
@@ -171,7 +172,9 @@ impl<
                     InverseInertia::Factor(inertia)
                 },
                 &mut coriolis_transpose,
+                &mut held,
             );
+        self.state.barrier_hold = held;
         let compensation = self.blend_from_hold(&compensation, &v);
         let torque = self.guard_torque(&compensation, inertia, dt);
         let coriolis_transpose =
@@ -379,6 +382,7 @@ impl<
         v: &SVector<T, N>,
         inverse: InverseInertia<'_, T, N>,
         coriolis_transpose: &mut Option<SVector<T, N>>,
+        held: &mut [T; N],
     ) -> SVector<T, N> {
         let active = self.settings.config.layout.coordinates(JointGroup::UpperBody);
         let limits =
@@ -406,7 +410,7 @@ impl<
             }
             inverse.apply(&torque)
         };
-        speed_barrier(&self.settings.config.speed_barrier, v, limits, |i| inverse.mobility(i), drive, &active)
+        speed_barrier(&self.settings.config.speed_barrier, v, limits, |i| inverse.mobility(i), drive, &active, held)
     }
 
     /// While returning from the safe output ([`super::recovery`]): the levels' torques scaled by the

@@ -46,6 +46,8 @@ pub(super) struct ControllerState<T: RealField, const N: usize, const U: usize, 
     /// The last torque and platform command, for the rate limits.
     pub(super) previous_torque: SVector<T, N>,
     pub(super) previous_base_velocity: Vector3<T>,
+    /// The speed barrier's held feedforward activations ([`super::speed_barrier::speed_barrier`]).
+    pub(super) barrier_hold: [T; N],
     pub(super) telemetry: Telemetry<T, N, A>,
     pub(super) output: ActuatorFrame<T, U>,
 }
@@ -75,6 +77,7 @@ impl<T: RealField + Copy, const N: usize, const U: usize, const A: usize> Contro
             hold_gravity: SVector::zeros(),
             previous_torque: SVector::zeros(),
             previous_base_velocity: Vector3::zeros(),
+            barrier_hold: [T::zero(); N],
             telemetry: Telemetry::empty(),
             output: ActuatorFrame::initial(),
         }
