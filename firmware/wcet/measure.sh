@@ -4,6 +4,8 @@
 #   m7-f32  Cortex-M7 (mps2-an500), target-cpu=cortex-m7, f32
 #   m7-f64  Cortex-M7 (mps2-an500), target-cpu=cortex-m7 (double-precision FPU), f64
 #   m4-f32  Cortex-M4F (mps2-an386), target-cpu=cortex-m4, f32
+# and the full step of Justin (`wcet-step`) on each, of the imported Panda (`wcet-step-panda`) on
+# m7-f32 (lines "panda-m7-f32").
 # Each variant runs twice; the script fails if any count differs between the runs.
 # With --callgrind, also counts the same stages on the host (x86-64, valgrind callgrind, one
 # process per case and precision; the bench in wcet/host shares wcet/stages with the images).
@@ -33,25 +35,40 @@ declare -A cpu=([m7-f32]=cortex-m7 [m7-f64]=cortex-m7 [m4-f32]=cortex-m4)
 declare -A machine=([m7-f32]=mps2-an500 [m7-f64]=mps2-an500 [m4-f32]=mps2-an386)
 declare -A features=([m7-f32]="" [m7-f64]="--features wcet-f64" [m4-f32]="")
 stages=(dynamics self_collision projection)
+# The imported Panda's full step (`wcet-step-panda`, wcet/stages/src/panda.rs) is measured on
+# this variant only; its step lines are the variant "panda-<variant>".
+panda_on=m7-f32
+step_variants=("${variants[@]}")
+if [[ " ${variants[*]} " == *" $panda_on "* ]]; then step_variants+=("panda-$panda_on"); fi
 
 for v in "${variants[@]}"; do
+    panda=""; [ "$v" = "$panda_on" ] && panda="--bin wcet-step-panda"
     echo "==> build $v (target-cpu=${cpu[$v]} ${features[$v]})" >&2
     # shellcheck disable=SC2086
     CARGO_TARGET_DIR="$fw/target/wcet-$v" RUSTFLAGS="-C link-arg=-Tlink.x -C target-cpu=${cpu[$v]}" \
         cargo build --locked --release --bin wcet --bin wcet-step ${features[$v]} >&2
+    # The Panda's image in a build of its own: its feature would change Justin's images.
+    # shellcheck disable=SC2086
+    [ -z "$panda" ] || CARGO_TARGET_DIR="$fw/target/wcet-$v" RUSTFLAGS="-C link-arg=-Tlink.x -C target-cpu=${cpu[$v]}" \
+        cargo build --locked --release $panda --features wcet-panda ${features[$v]} >&2
     elf="$fw/target/wcet-$v/thumbv7em-none-eabihf/release/wcet"
     cp "$elf" "$out/wcet-$v.elf"
     cp "$elf-step" "$out/wcet-step-$v.elf"
+    [ -z "$panda" ] || cp "$elf-step-panda" "$out/wcet-step-panda-$v.elf"
     for run in 1 2; do
         echo "==> run $v on ${machine[$v]} ($run/2)" >&2
         QEMU_MACHINE=${machine[$v]} QEMU_TIMEOUT=600 ./run-qemu.sh "$elf" \
             -plugin "$plugin,out=$out/$v.counts.$run" > "$out/$v.log.$run"
         QEMU_MACHINE=${machine[$v]} QEMU_TIMEOUT=600 ./run-qemu.sh "$elf-step" \
             -plugin "$plugin,out=$out/$v.step-counts.$run" > "$out/$v.step-log.$run"
+        [ -z "$panda" ] || QEMU_MACHINE=${machine[$v]} QEMU_TIMEOUT=600 ./run-qemu.sh "$elf-step-panda" \
+            -plugin "$plugin,out=$out/panda-$v.step-counts.$run" > "$out/panda-$v.step-log.$run"
     done
-    for f in counts log step-counts step-log; do
-        if ! cmp -s "$out/$v.$f.1" "$out/$v.$f.2"; then
-            echo "error: $v $f differ between two runs" >&2
+    files=("$v.counts" "$v.log" "$v.step-counts" "$v.step-log")
+    [ -z "$panda" ] || files+=("panda-$v.step-counts" "panda-$v.step-log")
+    for f in "${files[@]}"; do
+        if ! cmp -s "$out/$f.1" "$out/$f.2"; then
+            echo "error: $f differ between two runs" >&2
             exit 1
         fi
     done
@@ -80,9 +97,9 @@ for v in "${variants[@]}"; do
     done
 done
 echo
-echo "Full Controller::step per input class (wcet-step image; insns min / median / max; frames of wcet/stages)"
+echo "Full Controller::step per input class (wcet-step images; insns min / median / max; frames of wcet/stages)"
 printf '%-8s %-12s %6s %12s %12s %12s\n' variant class frames min median max
-for v in "${variants[@]}"; do
+for v in "${step_variants[@]}"; do
     # per-sample counts (plugin: 'wcet region=0 sample=K insns=X fp_div_sqrt=D') joined with the
     # classes of the log: "insns class fp_div_sqrt"
     paste -d' ' <(sed -n 's/^wcet region=0 sample=[0-9]* insns=\([0-9]*\).*/\1/p' "$out/$v.step-counts.1") \
@@ -103,7 +120,7 @@ done
 # each on the M4 and M7, one cycle per other instruction: a planning figure, not a measurement).
 echo
 status=0
-for v in "${variants[@]}"; do
+for v in "${step_variants[@]}"; do
     median=$(awk '$2 == "nominal" { print $1 }' "$out/$v.step" | sort -n | awk '{ a[NR] = $1 } END { print a[int((NR + 1) / 2)] }')
     line=$(awk -v v="$v" -v median="$median" '
         $2 != "capacity" && $1 > worst { worst = $1 }

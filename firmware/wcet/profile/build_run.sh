@@ -1,15 +1,17 @@
 #!/usr/bin/env bash
 # Build the M7 f32 wcet-step image from this checkout and profile it with wcet_prof.so.
 # usage: profile/build_run.sh TAG [samples]   -> profile/out/TAG/{sample-K.txt,nodes.txt,disas.txt,log.txt,wcet-step.elf}
+# BIN=wcet-step-panda profiles the imported Panda's step image instead (-> out/TAG/wcet-step-panda.elf).
 set -euo pipefail
-here="$(cd "$(dirname "$0")" && pwd)"; tag=$1; samples=${2:-all}
+here="$(cd "$(dirname "$0")" && pwd)"; tag=$1; samples=${2:-all}; bin=${BIN:-wcet-step}
+features=""; [ "$bin" = wcet-step-panda ] && features="--features wcet-panda"
 cd "$here/../.."
 CARGO_TARGET_DIR="$PWD/target/wcet-m7-f32" RUSTFLAGS="-C link-arg=-Tlink.x -C target-cpu=cortex-m7" \
-    cargo build ${CARGO_LOCKED---locked} --release --bin wcet-step >&2
+    cargo build ${CARGO_LOCKED---locked} --release --bin "$bin" $features >&2
 [ -f "$here/wcet_prof.so" ] || gcc -O2 -shared -fPIC -fvisibility=hidden -o "$here/wcet_prof.so" "$here/wcet_prof.c"
 out="$here/out/$tag"; mkdir -p "$out"
-elf=target/wcet-m7-f32/thumbv7em-none-eabihf/release/wcet-step
-cp "$elf" "$out/wcet-step.elf"
+elf=target/wcet-m7-f32/thumbv7em-none-eabihf/release/$bin
+cp "$elf" "$out/$bin.elf"
 QEMU_MACHINE=mps2-an500 QEMU_TIMEOUT=600 ./run-qemu.sh "$elf" -plugin "$here/wcet_prof.so,dir=$out,samples=$samples" > "$out/log.txt"
 # per-sample totals with classes (nominal median = sample 13, worst adversarial = sample 24 in the base build)
 frames=$(ls "$out"/sample-*.txt | wc -l)

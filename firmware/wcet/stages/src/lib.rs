@@ -1,8 +1,13 @@
 //! The measured kernel stages and their inputs, shared by the Cortex-M images
-//! (`firmware/src/bin/{wcet,wcet_step,panic_check}.rs`) and the host callgrind bench
-//! (`wcet/host`). See `wcet/measure.sh`. The scalar is `f32`, or `f64` with the `wcet-f64`
-//! feature.
+//! (`firmware/src/bin/{wcet,wcet_step,wcet_step_panda,panic_check}.rs`) and the host callgrind
+//! bench (`wcet/host`); the imported Panda's step is in `panda` (feature `panda`). See `wcet/measure.sh`. The
+//! scalar is `f32`, or `f64` with the `wcet-f64` feature.
 #![no_std]
+
+#[cfg(feature = "panda")]
+pub mod collision_file;
+#[cfg(feature = "panda")]
+pub mod panda;
 
 use fixtures::justin;
 use fixtures::justin::collision::JustinCollisionModel;
