@@ -229,3 +229,25 @@ fn imported_layouts_follow_the_chains() {
     }
     assert!(tiago.platform.axes().iter().all(|axis| axis.coordinate().is_none()));
 }
+
+/// The import's default configuration is compiled in (`fixtures/build.rs`) with the rule of
+/// `host_sim::import::config`: joint stiffness a tenth of the effort limit per radian, damping
+/// 0.1 s of it, torque rate 100 times the limit per second; the parts are the layout's.
+#[test]
+fn imported_configurations_follow_the_default_rule() {
+    use fixtures::robots::panda::config as panda_config;
+    let effort = panda::model::<f64>().unwrap().limits.effort;
+    let expected = |rule: &dyn Fn(f64) -> f64| effort.iter().map(|e| rule(*e)).collect::<Vec<f64>>();
+    assert_eq!(panda_config::robot::ARMS, ["arm_0"]);
+    assert_eq!((panda_config::robot::TORSO, panda_config::robot::PLATFORM), (false, false));
+    assert_eq!(panda_config::joint::stiffness::ARM.to_vec(), expected(&|e| e / 10.0));
+    assert_eq!(panda_config::joint::stiffness::ARM[0], 8.7, "87 Nm / 10 rad");
+    for (damping, stiffness) in panda_config::joint::damping::ARM.iter().zip(panda_config::joint::stiffness::ARM) {
+        assert_eq!(*damping, 0.1 * stiffness);
+    }
+    assert_eq!(panda_config::output_limits::torque_rate::ARM.to_vec(), expected(&|e| 100.0 * e));
+    use fixtures::robots::tiago_dual::config as tiago_config;
+    assert_eq!(tiago_config::robot::ARMS, ["arm_0", "arm_1"]);
+    assert_eq!((tiago_config::robot::TORSO, tiago_config::robot::PLATFORM), (true, false));
+    assert_eq!(tiago_config::hierarchy::fig_6_3::LEVELS.len(), 8);
+}

@@ -18,12 +18,16 @@
 //! 4. **Layout** ([`layout`]): one arm per TCP, the torso and the platform, derived from the
 //!    chains to the TCPs, as `ARMS`, `ARM_COORDINATES`, `TORSO_COORDINATES` and `layout()` in
 //!    `mod.rs`.
-//! 5. **`README.md`**: the command, the controlled, frozen and TCP frames, the collision model.
+//! 5. **Configuration** ([`config`]): the default `config.toml` (the rule from the model is in
+//!    its module docs), validated by `robot-config`; `fixtures/build.rs` compiles it into the
+//!    module `config` of `mod.rs`.
+//! 6. **`README.md`**: the command, the controlled, frozen and TCP frames, the collision model.
 //!
 //! [`generate`] computes the files without writing them (the tests compare them with the
 //! checked-in copies); [`run`] writes them.
 
 pub mod collision;
+pub mod config;
 pub mod layout;
 
 use std::collections::{HashMap, HashSet};
@@ -115,8 +119,10 @@ pub fn generate(options: &ImportOptions) -> Result<Files, String> {
         planar_base: options.planar_base,
     };
     let robot_layout = layout::derive(&description, &options.tcps, options.planar_base)?;
-    let source =
-        codegen::model_source(&description, &options.urdf, &Module::Robot(&module)) + &layout::source(&robot_layout);
+    let config_file = config::default_file(&options.name, &description, &robot_layout)?;
+    let source = codegen::model_source(&description, &options.urdf, &Module::Robot(&module))
+        + &layout::source(&robot_layout)
+        + &config::module_source(&options.name);
     let packages = options.package_path.as_ref().map(|dir| options.root.join(dir));
     let robot = urdf_rs::read_from_string(&prepared.text).map_err(|e| format!("{}: {e}", options.urdf))?;
     let fitted = collision::without_contained(&description, collision::fit(&robot, packages.as_deref())?)?;
@@ -127,6 +133,7 @@ pub fn generate(options: &ImportOptions) -> Result<Files, String> {
         ("mod.rs".to_owned(), source),
         (format!("{}.collision", options.name), collision_file),
         ("README.md".to_owned(), readme),
+        ("config.toml".to_owned(), config_file),
     ])
 }
 
