@@ -4,7 +4,8 @@
 //! limits, the hierarchies as levels of named tasks, the service-task parameterisations and
 //! the platform's parameters. [`parse`] refuses a bad file with a one-line [`ConfigError`],
 //! `<file>:<line>: <key>: <problem>`: a missing or unknown key, a negative or non-finite
-//! stiffness, damping or limit, an unknown task or hand, a hierarchy with more levels or tasks
+//! stiffness, damping or limit, a task or hand of a part the robot does not have (its parts are
+//! the file's `[robot]` table: the arms by name, a torso, a platform), a hierarchy with more levels or tasks
 //! than the kernel holds, a task twice. [`rust_constants`] turns a valid configuration into
 //! Rust constants, one module per TOML table, which the `no_std` fixtures compile in through
 //! their build script: the board needs neither `std` nor a parser.
@@ -18,8 +19,21 @@ pub use codegen::rust_constants;
 pub use error::ConfigError;
 pub use schema::RobotConfig;
 
-/// Parses and validates the configuration `text`; `origin` names the file in errors.
+/// Parses and validates the configuration `text`; `origin` names the file in errors. The
+/// `[robot]` table is read first: the task and hand names of the rest are checked against it.
 pub fn parse(text: &str, origin: &str) -> Result<RobotConfig, ConfigError> {
+    let head: RobotHead = read(text, origin)?;
+    head.robot.reading(|| read(text, origin))
+}
+
+/// The `[robot]` table of a file, the other tables left for [`parse`].
+#[derive(serde::Deserialize)]
+struct RobotHead {
+    robot: values::Robot,
+}
+
+/// `text` deserialized as `C`, or the one-line error.
+fn read<C: serde::de::DeserializeOwned>(text: &str, origin: &str) -> Result<C, ConfigError> {
     let deserializer = toml::Deserializer::parse(text)
         .map_err(|error| ConfigError::new(origin, text, error.span().map(|s| s.start), "", error.message()))?;
     serde_path_to_error::deserialize(deserializer).map_err(|error| {

@@ -4,12 +4,14 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::values::{ForceBound, HandName, Levels, NonNegative};
+use crate::values::{ForceBound, HandName, Levels, NonNegative, Robot};
 
 /// A robot's whole-body configuration.
 #[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct RobotConfig {
+    /// The robot's parts: its arms by name, a torso, a platform.
+    pub robot: Robot,
     /// Cycle time and the hierarchy's transitions and shaping.
     pub controller: Controller,
     /// The Cartesian impedance of every TCP.

@@ -1,7 +1,7 @@
 //! The value types of the file: each refuses a bad value while it is read, so the error
 //! carries the key and the line.
 
-use kernel::controller::config::{ArmId, TaskKind, MAX_LEVELS, MAX_TASKS};
+use kernel::controller::config::{ArmId, JointGroup, TaskKind, MAX_ARMS, MAX_LEVELS, MAX_TASKS};
 use serde::de::Error as _;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
@@ -42,55 +42,111 @@ impl<'de> Deserialize<'de> for ForceBound {
     }
 }
 
-/// A task by the kernel's name for it ([`TaskKind::name`], e.g. `cartesian_right`).
+/// The robot's parts, the file's `[robot]`: its arms by name (one per TCP, in the order of
+/// the robot's TCPs), whether it has a torso and a platform. Task and hand names are checked
+/// against it.
+#[derive(Clone, Debug, Default, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Robot {
+    /// The arms' names (lower case letters, digits, `_`), arm 0 first.
+    pub arms: Vec<String>,
+    /// `true` if the robot has a torso.
+    pub torso: bool,
+    /// `true` if the robot has the admitted platform `(x, y, θ)`.
+    pub platform: bool,
+}
+
+impl Robot {
+    /// The name of `kind` on this robot (`cartesian_<arm>`, `singularity_<arm>`,
+    /// `joint_impedance_<arm>_arm`, `joint_damping_<arm>_arm`; the others the kernel's
+    /// [`TaskKind::name`]), `None` for a task of a part the robot does not have.
+    pub fn task_name(&self, kind: TaskKind) -> Option<String> {
+        let arm = |arm: ArmId| self.arms.get(arm.index());
+        let group = |group: JointGroup| match group {
+            JointGroup::Arm(a) => arm(a).map(|name| format!("{name}_arm")),
+            JointGroup::Torso => self.torso.then(|| "torso".to_owned()),
+            JointGroup::Platform => self.platform.then(|| "platform".to_owned()),
+            JointGroup::UpperBody => Some("upper_body".to_owned()),
+        };
+        match kind {
+            TaskKind::CartesianImpedance(a) => arm(a).map(|name| format!("cartesian_{name}")),
+            TaskKind::SingularityAvoidance(a) => arm(a).map(|name| format!("singularity_{name}")),
+            TaskKind::JointImpedance(g) => group(g).map(|name| format!("joint_impedance_{name}")),
+            TaskKind::JointDamping(g) => group(g).map(|name| format!("joint_damping_{name}")),
+            TaskKind::TorsoWorkspace => self.torso.then(|| kind.name().to_owned()),
+            TaskKind::CollisionAvoidance(_) | TaskKind::EndStops => Some(kind.name().to_owned()),
+        }
+    }
+
+    /// Every task the robot has, with its name.
+    fn tasks(&self) -> Vec<(String, TaskKind)> {
+        TaskKind::all::<MAX_ARMS>().into_iter().filter_map(|kind| Some((self.task_name(kind)?, kind))).collect()
+    }
+
+    /// Runs `read` with this robot as the one task and hand names are read against.
+    pub(crate) fn reading<R>(&self, read: impl FnOnce() -> R) -> R {
+        let previous = READ_AGAINST.with(|robot| robot.replace(self.clone()));
+        let result = read();
+        READ_AGAINST.with(|robot| robot.replace(previous));
+        result
+    }
+}
+
+thread_local! {
+    /// The robot whose file is being read or written ([`Robot::reading`]): serde's
+    /// `Deserialize` takes no context.
+    static READ_AGAINST: std::cell::RefCell<Robot> = std::cell::RefCell::new(Robot::default());
+}
+
+fn robot_read_against() -> Robot {
+    READ_AGAINST.with(|robot| robot.borrow().clone())
+}
+
+/// A task by its name on the robot ([`Robot::task_name`], e.g. `cartesian_right`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TaskName(pub TaskKind);
 
 impl Serialize for TaskName {
     fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-        serializer.serialize_str(self.0.name())
+        let name = robot_read_against().task_name(self.0);
+        let name = name.ok_or_else(|| serde::ser::Error::custom(format!("no name for {:?}", self.0)))?;
+        serializer.serialize_str(&name)
     }
 }
 
 impl<'de> Deserialize<'de> for TaskName {
     fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
         let name = String::deserialize(deserializer)?;
-        let all = TaskKind::all::<ARMS>();
-        match all.iter().find(|kind| kind.name() == name) {
-            Some(kind) => Ok(Self(*kind)),
+        let tasks = robot_read_against().tasks();
+        match tasks.iter().find(|(known, _)| *known == name) {
+            Some((_, kind)) => Ok(Self(*kind)),
             None => {
-                let known: Vec<&str> = all.iter().map(|kind| kind.name()).collect();
+                let known: Vec<&str> = tasks.iter().map(|(known, _)| known.as_str()).collect();
                 Err(D::Error::custom(format!("unknown task `{name}` (known: {})", known.join(", "))))
             }
         }
     }
 }
 
-/// The arms a configuration file names: two, Justin's right and left ([`ArmId::name`]).
-pub const ARMS: usize = 2;
-
-/// A TCP by its arm's name ([`ArmId::name`]): `right` or `left`.
+/// A TCP by its arm's name (`[robot] arms`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct HandName(pub ArmId);
 
-impl HandName {
-    fn name(self) -> &'static str {
-        self.0.name()
-    }
-}
-
 impl Serialize for HandName {
     fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
-        serializer.serialize_str(self.name())
+        let robot = robot_read_against();
+        let name = robot.arms.get(self.0.index());
+        serializer.serialize_str(name.ok_or_else(|| serde::ser::Error::custom(format!("no arm {}", self.0 .0)))?)
     }
 }
 
 impl<'de> Deserialize<'de> for HandName {
     fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
         let name = String::deserialize(deserializer)?;
-        match ArmId::all::<ARMS>().into_iter().map(HandName).find(|hand| hand.name() == name) {
-            Some(hand) => Ok(hand),
-            None => Err(D::Error::custom(format!("unknown hand `{name}` (known: right, left)"))),
+        let robot = robot_read_against();
+        match robot.arms.iter().position(|arm| *arm == name).and_then(|i| u8::try_from(i).ok()) {
+            Some(index) => Ok(HandName(ArmId(index))),
+            None => Err(D::Error::custom(format!("unknown hand `{name}` (known: {})", robot.arms.join(", ")))),
         }
     }
 }

@@ -197,3 +197,36 @@ fn a_stiffness_edited_in_the_file_is_the_compiled_constant() {
         "pub const HANDS: [::kernel::controller::config::ArmId; 1] = [::kernel::controller::config::ArmId(0)];"
     ));
 }
+
+/// The task names follow `[robot]`: with the arms renamed, Justin's hierarchy names tasks of arms
+/// the robot does not have; a robot without a torso refuses its torso tasks; the renamed tasks
+/// read as the same kernel tasks.
+#[test]
+fn tasks_are_checked_against_the_robots_parts() {
+    let one_arm = justin().replacen("arms = [\"right\", \"left\"]", "arms = [\"right\"]", 1);
+    let error = parse(&one_arm, ORIGIN).expect_err("Justin's hierarchy names the left arm").to_string();
+    assert_eq!(
+        error,
+        format!(
+            "justin/config.toml:{}: hierarchy.fig_6_3.levels[1][5]: unknown task `joint_impedance_left_arm` (known: \
+             cartesian_right, collision_strong, collision_weak, singularity_right, end_stops, torso_workspace, \
+             joint_impedance_platform, joint_impedance_torso, joint_impedance_right_arm, joint_impedance_upper_body, \
+             joint_damping_platform, joint_damping_torso, joint_damping_right_arm, joint_damping_upper_body)",
+            line_of("[hierarchy.fig_6_3]") + 3 // the line of level 1
+        )
+    );
+    let no_torso = justin().replacen("torso = true", "torso = false", 1);
+    let error = parse(&no_torso, ORIGIN).expect_err("Justin's hierarchy names the torso").to_string();
+    assert!(error.contains("levels[1][3]: unknown task `torso_workspace` (known: "), "{error}");
+    let renamed = justin()
+        .replacen("arms = [\"right\", \"left\"]", "arms = [\"tool\", \"camera\"]", 1)
+        .replace("_right", "_tool")
+        .replace("_left", "_camera")
+        .replace("hands = [\"right\"]", "hands = [\"tool\"]")
+        .replace("hands = [\"right\", \"left\"]", "hands = [\"tool\", \"camera\"]");
+    let renamed = parse(&renamed, ORIGIN).unwrap();
+    let original = parse(&justin(), ORIGIN).unwrap();
+    assert_eq!(renamed.hierarchy, original.hierarchy);
+    assert_eq!(renamed.service_tasks, original.service_tasks);
+    assert_eq!(renamed.hierarchy.fig_6_3.levels.0[0][1].0, TaskKind::CartesianImpedance(ArmId::RIGHT));
+}

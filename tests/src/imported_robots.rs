@@ -12,6 +12,7 @@ use std::path::PathBuf;
 
 use fixtures::robots::{panda, tiago_dual};
 use host_sim::import::collision::primitive_points;
+use host_sim::import::layout::derive_file;
 use host_sim::import::{generate, robots_index, ImportOptions, ROBOTS_DIR};
 use kernel::model::Frame;
 use kernel::tasks::collision::SweptSphere;
@@ -190,4 +191,63 @@ fn contains_the_primitives(options: &ImportOptions, count: usize, frames: &[Fram
     println!("{}: {points} primitive points, largest signed distance to the volumes {worst:.2e} m", options.name);
     assert!(points > 1000);
     assert!(worst <= 1e-12, "a point of a collision primitive lies {worst} m outside its volumes");
+}
+
+/// The import's layout rule (`host_sim::import::layout`) applied to Justin's URDF and TCPs gives
+/// the layout Justin's controller is written with: platform 0..3, torso 3..6, right arm 6..13,
+/// left arm 13..20.
+#[test]
+fn the_derived_layout_of_justin_is_its_controllers() {
+    use fixtures::justin;
+    let tcps = [justin::FRAME_NAMES[justin::RIGHT_TCP.0], justin::FRAME_NAMES[justin::LEFT_TCP.0]];
+    let tcps: Vec<String> = tcps.iter().map(|t| (*t).to_owned()).collect();
+    let derived = derive_file(&repository().join("fixtures/urdf/justin.urdf"), &tcps, true).unwrap();
+    let expected = justin::whole_body::controller_config::<f64>().unwrap().layout;
+    let arms: Vec<Vec<bool>> = expected.arms.iter().map(|arm| arm.to_vec()).collect();
+    assert_eq!(derived.arms, arms);
+    assert_eq!(derived.torso, expected.torso.map(|torso| torso.to_vec()));
+    assert_eq!(derived.torso.as_ref().map(|t| t.iter().filter(|c| **c).count()), Some(3));
+    let platform: Vec<bool> = (0..justin::N).map(|k| expected.platform.is_platform(k)).collect();
+    assert_eq!(platform[..3], [true; 3]);
+    assert!(derived.planar_base && !platform[3..].contains(&true));
+}
+
+/// The generated `layout()` of the imported robots: the Panda one arm of all 7 coordinates, no
+/// torso; TIAGo++ the lift as torso and two arms of 7.
+#[test]
+fn imported_layouts_follow_the_chains() {
+    let panda = panda::layout().unwrap();
+    assert_eq!((panda.arms, panda.torso, panda.tcp), ([[true; 7]], None, panda::TCPS));
+    let tiago = tiago_dual::layout().unwrap();
+    let torso: Vec<&str> =
+        (0..tiago_dual::N).filter(|k| tiago.torso.is_some_and(|t| t[*k])).map(|k| tiago_dual::JOINT_NAMES[k]).collect();
+    assert_eq!(torso, ["torso_lift_joint"]);
+    for (arm, side) in tiago.arms.iter().zip(["left", "right"]) {
+        let joints: Vec<&str> = (0..tiago_dual::N).filter(|k| arm[*k]).map(|k| tiago_dual::JOINT_NAMES[k]).collect();
+        assert_eq!(joints.len(), 7, "{side}: {joints:?}");
+        assert!(joints.iter().all(|joint| joint.starts_with(&format!("arm_{side}_"))), "{joints:?}");
+    }
+    assert!(tiago.platform.axes().iter().all(|axis| axis.coordinate().is_none()));
+}
+
+/// The import's default configuration is compiled in (`fixtures/build.rs`) with the rule of
+/// `host_sim::import::config`: joint stiffness a tenth of the effort limit per radian, damping
+/// 0.1 s of it, torque rate 100 times the limit per second; the parts are the layout's.
+#[test]
+fn imported_configurations_follow_the_default_rule() {
+    use fixtures::robots::panda::config as panda_config;
+    let effort = panda::model::<f64>().unwrap().limits.effort;
+    let expected = |rule: &dyn Fn(f64) -> f64| effort.iter().map(|e| rule(*e)).collect::<Vec<f64>>();
+    assert_eq!(panda_config::robot::ARMS, ["arm_0"]);
+    assert_eq!((panda_config::robot::TORSO, panda_config::robot::PLATFORM), (false, false));
+    assert_eq!(panda_config::joint::stiffness::ARM.to_vec(), expected(&|e| e / 10.0));
+    assert_eq!(panda_config::joint::stiffness::ARM[0], 8.7, "87 Nm / 10 rad");
+    for (damping, stiffness) in panda_config::joint::damping::ARM.iter().zip(panda_config::joint::stiffness::ARM) {
+        assert_eq!(*damping, 0.1 * stiffness);
+    }
+    assert_eq!(panda_config::output_limits::torque_rate::ARM.to_vec(), expected(&|e| 100.0 * e));
+    use fixtures::robots::tiago_dual::config as tiago_config;
+    assert_eq!(tiago_config::robot::ARMS, ["arm_0", "arm_1"]);
+    assert_eq!((tiago_config::robot::TORSO, tiago_config::robot::PLATFORM), (true, false));
+    assert_eq!(tiago_config::hierarchy::fig_6_3::LEVELS.len(), 8);
 }

@@ -15,12 +15,20 @@
 //! 3. **Collision model** ([`collision`]): swept-sphere volumes fitted to the URDF's
 //!    `<collision>` geometry, less those inside another volume of their body, and the pair survey, written to `<name>.collision` in the format of
 //!    `fixtures/collision/justin.collision`.
-//! 4. **`README.md`**: the command, the controlled, frozen and TCP frames, the collision model.
+//! 4. **Layout** ([`layout`]): one arm per TCP, the torso and the platform, derived from the
+//!    chains to the TCPs, as `ARMS`, `ARM_COORDINATES`, `TORSO_COORDINATES` and `layout()` in
+//!    `mod.rs`.
+//! 5. **Configuration** ([`config`]): the default `config.toml` (the rule from the model is in
+//!    its module docs), validated by `robot-config`; `fixtures/build.rs` compiles it into the
+//!    module `config` of `mod.rs`.
+//! 6. **`README.md`**: the command, the controlled, frozen and TCP frames, the collision model.
 //!
 //! [`generate`] computes the files without writing them (the tests compare them with the
 //! checked-in copies); [`run`] writes them.
 
 pub mod collision;
+pub mod config;
+pub mod layout;
 
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
@@ -110,7 +118,11 @@ pub fn generate(options: &ImportOptions) -> Result<Files, String> {
         tcps: options.tcps.clone(),
         planar_base: options.planar_base,
     };
-    let source = codegen::model_source(&description, &options.urdf, &Module::Robot(&module));
+    let robot_layout = layout::derive(&description, &options.tcps, options.planar_base)?;
+    let config_file = config::default_file(&options.name, &description, &robot_layout)?;
+    let source = codegen::model_source(&description, &options.urdf, &Module::Robot(&module))
+        + &layout::source(&robot_layout)
+        + &config::module_source(&options.name);
     let packages = options.package_path.as_ref().map(|dir| options.root.join(dir));
     let robot = urdf_rs::read_from_string(&prepared.text).map_err(|e| format!("{}: {e}", options.urdf))?;
     let fitted = collision::without_contained(&description, collision::fit(&robot, packages.as_deref())?)?;
@@ -121,6 +133,7 @@ pub fn generate(options: &ImportOptions) -> Result<Files, String> {
         ("mod.rs".to_owned(), source),
         (format!("{}.collision", options.name), collision_file),
         ("README.md".to_owned(), readme),
+        ("config.toml".to_owned(), config_file),
     ])
 }
 
@@ -375,8 +388,19 @@ fn check_identifier(name: &str, what: &str) -> Result<(), String> {
 
 /// Every link name gives a distinct constant that clashes with none the module defines.
 fn check_names(d: &Description) -> Result<(), String> {
-    const RESERVED: [&str; 8] =
-        ["N", "BODIES", "FRAMES", "FROZEN_JOINTS", "TCPS", "JOINT_NAMES", "FRAME_NAMES", "BODY_NAMES"];
+    const RESERVED: [&str; 11] = [
+        "N",
+        "BODIES",
+        "FRAMES",
+        "FROZEN_JOINTS",
+        "TCPS",
+        "JOINT_NAMES",
+        "FRAME_NAMES",
+        "BODY_NAMES",
+        "ARMS",
+        "ARM_COORDINATES",
+        "TORSO_COORDINATES",
+    ];
     let mut seen = HashSet::new();
     for frame in &d.frames {
         check_identifier(&frame.link, "link name")?;
