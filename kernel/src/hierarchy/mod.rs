@@ -25,8 +25,9 @@ mod projection;
 mod stack;
 mod transition;
 
+pub use crate::math::switching::transition_weight;
 pub use config::{HierarchyConfig, Recursion, Shaping, Weighting};
 pub use error::HierarchyError;
 pub use projection::{project, HierarchyData, LevelDiagnostics, RowDiagnostics};
 pub use stack::{Stack, StackRow, TaskWindow};
-pub use transition::{push_scaled, push_transitioning, transition_weight};
+pub use transition::{push_scaled, push_transitioning};

@@ -22,7 +22,7 @@
 use nalgebra::{RealField, RowSVector};
 
 use super::error::HierarchyError;
-use super::transition::transition_weight;
+use crate::math::switching::transition_weight;
 use crate::tasks::{RowSink, TaskError, TaskRow, TaskRows};
 
 /// One task row on a priority level (0 = highest priority).

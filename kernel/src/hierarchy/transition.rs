@@ -4,7 +4,7 @@ use nalgebra::RealField;
 
 use super::error::HierarchyError;
 use super::stack::Stack;
-use crate::math::switching::transition_activation;
+use crate::math::switching::transition_weight;
 use crate::tasks::TaskRows;
 
 /// Puts a task's rows on the stack while the task moves from level `from` to level `to`
@@ -27,16 +27,6 @@ pub fn push_transitioning<T: RealField + Copy, const N: usize, const R: usize, c
     let sigma = transition_weight(progress);
     let sides = [T::one() - sigma, sigma].iter().filter(|w| **w > T::zero()).count();
     stack.copy_task(rows, sides * rows.len())?.place_transitioning(from, to, progress)
-}
-
-/// The cubic (4.68) weight of a transition's `progress ∈ [0, 1]`: 0 at the start, 1 at the end,
-/// zero slope at both ends. Non-finite progress gives 0.
-pub fn transition_weight<T: RealField + Copy>(progress: T) -> T {
-    if progress.is_finite() {
-        T::one() - transition_activation(progress, T::zero(), T::one())
-    } else {
-        T::zero()
-    }
 }
 
 /// Puts a task's rows on `level` with force and activation scaled by `weight ∈ [0, 1]` (a task

@@ -33,6 +33,16 @@ pub fn transition_activation<T: RealField + Copy>(theta: T, full: T, start: T) -
     T::one() - sigma * sigma * (three - two * sigma)
 }
 
+/// The cubic (4.68) weight of a transition's `progress ∈ [0, 1]`: 0 at the start, 1 at the end,
+/// zero slope at both ends. Non-finite progress gives 0.
+pub fn transition_weight<T: RealField + Copy>(progress: T) -> T {
+    if progress.is_finite() {
+        T::one() - transition_activation(progress, T::zero(), T::one())
+    } else {
+        T::zero()
+    }
+}
+
 /// The transition band `[ϑ₁, ϑ₂]` of (4.68) for the largest admissible slope `N'_max` (4.69):
 /// the conditions of Table 4.4 fix the width `ϑ₂ − ϑ₁ = 3 / (2 N'_max)`. Returns `ϑ₁` for the
 /// given `ϑ₂` (Table 4.5: `ϑ₂ = 0.13 m`, `N'_max = 18.75 1/m` gives `ϑ₁ = 0.05 m`), or `None`
