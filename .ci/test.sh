@@ -60,6 +60,9 @@ for machine in mps2-an500 mps2-an386; do
     (cd firmware && QEMU_MACHINE=$machine QEMU_TIMEOUT=120 cargo run --locked --release)
 done
 
+step "clippy on the firmware (both step images' stages)"
+(cd firmware && cargo clippy --locked --features wcet-panda -- -D warnings)
+
 step "no panic path from Controller::step in the release image (link fails on any)"
 bash firmware/wcet/panic_check.sh m7-f32 m7-f64 m4-f32
 

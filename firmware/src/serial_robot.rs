@@ -18,6 +18,8 @@ use link::{
 };
 
 /// What one call of [`SerialRobot::receive`] found.
+// The payloads are bounded buffers held by value: there is no heap to box them into.
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug, PartialEq)]
 pub enum Received {
     /// No complete frame yet.

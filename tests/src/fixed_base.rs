@@ -4,26 +4,18 @@
 //! and f32. The same `Controller` type and code path as Justin's.
 #![allow(clippy::unwrap_used, clippy::indexing_slicing, clippy::panic, reason = "test code")]
 
+use fixtures::fixed_base::{self, FixedBaseGains};
 use fixtures::robots::panda;
 use hal::{JointSample, PlatformSample, LEGS};
 use kernel::controller::config::*;
 use kernel::controller::error::CommandError;
-use kernel::controller::force_limit::ForceLimitParameters;
 use kernel::controller::messages::{Command, Pose};
-use kernel::controller::recovery::RecoveryParameters;
-use kernel::controller::speed_barrier::SpeedBarrierParameters;
 use kernel::controller::{Controller, SensorFrame};
 use kernel::dynamics::frame_jacobian;
-use kernel::hierarchy::{Recursion, Shaping};
-use kernel::platform::admittance::AdmittanceConfig;
-use kernel::platform::avoidance::AvoidanceConfig;
 use kernel::platform::coupling_compensation::CompensationSwitch;
-use kernel::platform::icr::IcrRepulsionConfig;
-use kernel::platform::legs::{LegAdmittanceConfig, ReturnGains};
 use kernel::platform::{PlatformAxis, PlatformLayout};
-use kernel::tasks::cartesian_impedance::AxisMask;
 use kernel::tasks::collision::CollisionModelBuilder;
-use nalgebra::{convert, RealField, SMatrix, SVector, Vector3, Vector6};
+use nalgebra::{convert, RealField, SMatrix, SVector, Vector3};
 
 /// The Panda's controller: N = U = 7 (fixed base), no collision volumes, one arm.
 type Panda<T> = Controller<T, { panda::N }, { panda::BODIES }, { panda::FRAMES }, { panda::N }, 0, 0, 1>;
@@ -50,6 +42,9 @@ fn hierarchy() -> [TaskSpec; 4] {
 /// Every gain of the Panda's controller: a fixed base (every platform axis absent; the platform
 /// parameters are valid but drive nothing, the leg motion on so that a running platform loop
 /// would show), one arm of all seven joints, no torso.
+/// The fixed-base configuration ([`fixtures::fixed_base`]) of the Panda, with the platform's
+/// admittance, ICR avoidance, leg motion and coupling compensation all switched on: the test
+/// `a_controller_without_a_platform_runs_no_admittance` checks that a fixed base runs none of them anyway.
 fn config<T: RealField + Copy>() -> ControllerConfig<T, { panda::N }, 1> {
     let cartesian = CartesianParameters {
         translational_stiffness: [c(STIFFNESS); 3],
@@ -65,92 +60,29 @@ fn config<T: RealField + Copy>() -> ControllerConfig<T, { panda::N }, 1> {
         activation_full: c(0.0),
         activation_zero: c(0.1),
     };
-    let avoidance = AvoidanceConfig {
-        repulsion: IcrRepulsionConfig {
-            leg_directions: [45.0_f64, 135.0, 225.0, 315.0].map(|d| c(d.to_radians())),
-            max_extension: c(0.12),
-            extension_ratio: c(0.4),
-            max_force: c(0.8),
-            min_yaw_rate: c(1e-3),
-        },
-        legs: LegAdmittanceConfig {
-            mass: c(0.2),
-            damping: c(1.0),
-            cubic_stiffness: c(1e3),
-            nominal_length: c(0.4),
-            min_length: c(0.3),
-            max_length: c(0.5),
-        },
-        return_gains: ReturnGains::critically_damped(c(2.0), c(0.05)),
-        icr_avoidance: true,
-        leg_motion: true,
+    let layout = RobotLayout {
+        tcp: panda::TCPS,
+        platform: PlatformLayout::try_new::<{ panda::N }>([PlatformAxis::Absent; 3]).unwrap(),
+        torso: None,
+        arms: [[true; panda::N]],
     };
-    ControllerConfig {
+    let gains = FixedBaseGains {
         period_s: c(1e-3),
-        layout: RobotLayout {
-            tcp: panda::TCPS,
-            platform: PlatformLayout::try_new::<{ panda::N }>([PlatformAxis::Absent; 3]).unwrap(),
-            torso: None,
-            arms: [[true; panda::N]],
-        },
-        recursion: Recursion::Augmented,
-        consistency: Consistency::Dynamic,
-        shaping: Shaping::Continuous { singular_full: c(0.05), singular_start: c(0.15) },
-        transition_s: c(1.0),
         cartesian: [cartesian],
-        cartesian_fallback_damping: Vector6::repeat(c(10.0)),
         collision: [field; 2],
-        singularity: SingularityParameters {
-            rows: AxisMask::new([true, true, true, false, false, false]),
-            threshold: c(0.01),
-            full_activation: c(0.002),
-            stiffness: c(100.0),
-            damping: c(1.0),
-        },
         end_stops: EndStopParameters { margin: c(0.1), stiffness: c(50.0), damping: c(2.0) },
-        torso_workspace: None,
         joint_stiffness: SVector::repeat(c(20.0)),
         joint_damping: SVector::repeat(c(2.0)),
-        safe_damping: SVector::repeat(c(2.0)),
-        platform: PlatformParameters {
-            admittance: AdmittanceConfig {
-                mass: Vector3::new(c(50.0), c(50.0), c(10.0)),
-                damping: Vector3::new(c(200.0), c(200.0), c(40.0)),
-                force_limit: Vector3::new(c(100.0), c(100.0), c(40.0)),
-                free_axes: [true; 3],
-            },
-            avoidance,
-            compensation: CompensationSwitch::ON,
-            force_deadband: [T::zero(); 3],
-        },
-        output_limits: OutputLimits {
-            torque_rate: SVector::repeat(c(1e5)),
-            base_velocity: Vector3::repeat(c(1.0)),
-            base_acceleration: Vector3::repeat(c(2.0)),
-            leg_rate: c(0.2),
-        },
-        input_limits: InputLimits {
-            position_tolerance: c(0.05),
-            velocity_factor: c(1.5),
-            max_cycle_gap: 5,
-            brake_after_cycles: 100,
-        },
-        observer: ObserverParameters { gain: c(50.0), contact_threshold: c(5.0) },
-        force_limit: ForceLimitParameters {
-            enabled: false,
-            margin: c(0.05),
-            gain: c(3.0),
-            max_correction: c(10.0),
-            regularisation: c(1e-4),
-        },
-        speed_barrier: SpeedBarrierParameters {
-            onset: c(0.5),
-            full: c(0.9),
-            braking_time_s: c(0.002),
-            max_torque_fraction: c(0.25),
-        },
-        recovery: RecoveryParameters { valid_cycles: 10, margin: c(0.2), blend_s: c(0.1) },
-    }
+        force_limit: false,
+    };
+    // Every platform switch on: with every axis absent the step must still run no admittance
+    // and no leg loop, which the test below checks.
+    let mut config = fixed_base::controller_config(layout, gains);
+    config.platform.admittance.free_axes = [true; 3];
+    config.platform.avoidance.icr_avoidance = true;
+    config.platform.avoidance.leg_motion = true;
+    config.platform.compensation = CompensationSwitch::ON;
+    config
 }
 
 fn controller<T: RealField + Copy>() -> Box<Panda<T>> {

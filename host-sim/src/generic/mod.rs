@@ -22,27 +22,18 @@
 pub mod posture_push;
 pub mod reach;
 
+use fixtures::fixed_base::{self, FixedBaseGains};
 use fixtures::robots::{panda, tiago_dual};
 use hal::{JointTorqueInterface, PlatformVelocityInterface};
 use kernel::controller::config::*;
 use kernel::controller::faults::SafeOutput;
-use kernel::controller::force_limit::ForceLimitParameters;
 use kernel::controller::messages::{Command, Pose};
-use kernel::controller::recovery::RecoveryParameters;
-use kernel::controller::speed_barrier::SpeedBarrierParameters;
 use kernel::controller::{Controller, SensorFrame};
 use kernel::dynamics::{crba, forward_kinematics, frame_jacobian};
-use kernel::hierarchy::{Recursion, Shaping};
 use kernel::model::{Data, FrameId, Model};
-use kernel::platform::admittance::AdmittanceConfig;
-use kernel::platform::avoidance::AvoidanceConfig;
-use kernel::platform::coupling_compensation::CompensationSwitch;
-use kernel::platform::icr::IcrRepulsionConfig;
-use kernel::platform::legs::{LegAdmittanceConfig, ReturnGains};
 use kernel::platform::{PlatformAxis, PlatformLayout};
-use kernel::tasks::cartesian_impedance::AxisMask;
 use kernel::tasks::collision::CollisionModelBuilder;
-use nalgebra::{convert, RealField, SMatrix, SVector, Vector3, Vector6};
+use nalgebra::{convert, RealField, SMatrix, SVector, Vector3};
 
 use crate::output::TimeSeries;
 use crate::scalar::Scalar;
@@ -245,97 +236,28 @@ fn config<T: RealField + Copy, const N: usize, const A: usize>(
         activation_full: c(0.0),
         activation_zero: c(0.1),
     };
-    let joint_damping = SVector::from(gains.joint_damping.map(c));
-    Ok(ControllerConfig {
-        period_s: c(crate::sim::CONTROL_PERIOD_S),
-        layout: RobotLayout {
-            tcp: spec.tcps,
-            platform: PlatformLayout::try_new::<N>([PlatformAxis::Absent; 3]).map_err(|e| format!("layout: {e}"))?,
-            torso: spec.torso,
-            arms: spec.arms,
-        },
-        recursion: Recursion::Augmented,
-        consistency: Consistency::Dynamic,
-        shaping: Shaping::Continuous { singular_full: c(0.05), singular_start: c(0.15) },
-        transition_s: c(1.0),
-        cartesian,
-        cartesian_fallback_damping: Vector6::repeat(c(10.0)),
-        collision: [field; 2],
-        singularity: SingularityParameters {
-            rows: AxisMask::new([true, true, true, false, false, false]),
-            threshold: c(0.01),
-            full_activation: c(0.002),
-            stiffness: c(100.0),
-            damping: c(1.0),
-        },
-        end_stops: EndStopParameters { margin: c(0.1), stiffness: c(gains.end_stop.0), damping: c(gains.end_stop.1) },
-        torso_workspace: None,
-        joint_stiffness: SVector::zeros(),
-        joint_damping,
-        safe_damping: joint_damping,
-        platform: fixed_base_platform(),
-        output_limits: OutputLimits {
-            torque_rate: SVector::repeat(c(1e5)),
-            base_velocity: Vector3::repeat(c(1.0)),
-            base_acceleration: Vector3::repeat(c(2.0)),
-            leg_rate: c(0.2),
-        },
-        input_limits: InputLimits {
-            position_tolerance: c(0.05),
-            velocity_factor: c(1.5),
-            max_cycle_gap: 5,
-            brake_after_cycles: 100,
-        },
-        observer: ObserverParameters { gain: c(50.0), contact_threshold: c(5.0) },
-        force_limit: ForceLimitParameters {
-            enabled: false,
-            margin: c(0.05),
-            gain: c(3.0),
-            max_correction: c(10.0),
-            regularisation: c(1e-4),
-        },
-        speed_barrier: SpeedBarrierParameters {
-            onset: c(0.5),
-            full: c(0.9),
-            braking_time_s: c(0.002),
-            max_torque_fraction: c(0.25),
-        },
-        recovery: RecoveryParameters { valid_cycles: 10, margin: c(0.2), blend_s: c(0.1) },
-    })
-}
-
-/// Platform parameters of a fixed base: valid, unused (every platform axis is absent).
-fn fixed_base_platform<T: RealField + Copy>() -> PlatformParameters<T> {
-    PlatformParameters {
-        admittance: AdmittanceConfig {
-            mass: Vector3::new(c(50.0), c(50.0), c(10.0)),
-            damping: Vector3::new(c(200.0), c(200.0), c(40.0)),
-            force_limit: Vector3::new(c(100.0), c(100.0), c(40.0)),
-            free_axes: [false; 3],
-        },
-        avoidance: AvoidanceConfig {
-            repulsion: IcrRepulsionConfig {
-                leg_directions: [45.0_f64, 135.0, 225.0, 315.0].map(|d| c(d.to_radians())),
-                max_extension: c(0.12),
-                extension_ratio: c(0.4),
-                max_force: c(0.8),
-                min_yaw_rate: c(1e-3),
+    let layout = RobotLayout {
+        tcp: spec.tcps,
+        platform: PlatformLayout::try_new::<N>([PlatformAxis::Absent; 3]).map_err(|e| format!("layout: {e}"))?,
+        torso: spec.torso,
+        arms: spec.arms,
+    };
+    Ok(fixed_base::controller_config(
+        layout,
+        FixedBaseGains {
+            period_s: c(crate::sim::CONTROL_PERIOD_S),
+            cartesian,
+            collision: [field; 2],
+            end_stops: EndStopParameters {
+                margin: c(0.1),
+                stiffness: c(gains.end_stop.0),
+                damping: c(gains.end_stop.1),
             },
-            legs: LegAdmittanceConfig {
-                mass: c(0.2),
-                damping: c(1.0),
-                cubic_stiffness: c(1e3),
-                nominal_length: c(0.4),
-                min_length: c(0.3),
-                max_length: c(0.5),
-            },
-            return_gains: ReturnGains::critically_damped(c(2.0), c(0.05)),
-            icr_avoidance: false,
-            leg_motion: false,
+            joint_stiffness: SVector::zeros(),
+            joint_damping: SVector::from(gains.joint_damping.map(c)),
+            force_limit: false,
         },
-        compensation: CompensationSwitch::OFF,
-        force_deadband: [T::zero(); 3],
-    }
+    ))
 }
 
 /// The controller of an imported robot: `U = N` (fixed base), no collision volumes, `A` arms.

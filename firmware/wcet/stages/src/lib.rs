@@ -376,7 +376,7 @@ pub fn step_frame(k: u32, speed: &SVector<S, N>) -> Frame {
     }
     // Nonzero velocities: 60 % of the joint speed limit, alternating signs; platform moving.
     let v = SVector::<S, N>::from_fn(|i, _| {
-        let sign = if (i + a as usize) % 2 == 0 { c(1.0) } else { c(-1.0) };
+        let sign = if (i + a as usize).is_multiple_of(2) { c(1.0) } else { c(-1.0) };
         if i < justin::BASE_DOF {
             sign * c(0.3)
         } else {

@@ -9,24 +9,15 @@
 //! exactly and both fields fill their rows, over the postures of [`CAPACITY_POSTURES`] at 60 % of
 //! the joint speed limits).
 
+use fixtures::fixed_base::{self, FixedBaseGains};
 use fixtures::robots::panda;
 use hal::{JointSample, PlatformSample, LEGS};
 use kernel::controller::config::*;
-use kernel::controller::force_limit::ForceLimitParameters;
 use kernel::controller::messages::{Command, Pose};
-use kernel::controller::recovery::RecoveryParameters;
-use kernel::controller::speed_barrier::SpeedBarrierParameters;
 use kernel::controller::{Controller, SensorFrame};
-use kernel::hierarchy::{Recursion, Shaping};
-use kernel::platform::admittance::AdmittanceConfig;
-use kernel::platform::avoidance::AvoidanceConfig;
-use kernel::platform::coupling_compensation::CompensationSwitch;
-use kernel::platform::icr::IcrRepulsionConfig;
-use kernel::platform::legs::{LegAdmittanceConfig, ReturnGains};
 use kernel::platform::{PlatformAxis, PlatformLayout};
-use kernel::tasks::cartesian_impedance::AxisMask;
 use kernel::tasks::collision::CollisionModel;
-use nalgebra::{ComplexField, SVector, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{ComplexField, SVector, UnitQuaternion, Vector3};
 
 use crate::{c, collision_file, S};
 
@@ -70,44 +61,10 @@ fn collision_fields() -> [CollisionFieldParameters<S>; 2] {
     [field(150.0, 0.05, 0.01), field(25.0, 0.15, 0.0)]
 }
 
-/// The platform parameters a fixed base carries (every axis absent: valid, but they drive nothing).
-fn unused_platform() -> PlatformParameters<S> {
-    let avoidance = AvoidanceConfig {
-        repulsion: IcrRepulsionConfig {
-            leg_directions: [45.0_f64, 135.0, 225.0, 315.0].map(|d| c(d.to_radians())),
-            max_extension: c(0.12),
-            extension_ratio: c(0.4),
-            max_force: c(0.8),
-            min_yaw_rate: c(1e-3),
-        },
-        legs: LegAdmittanceConfig {
-            mass: c(0.2),
-            damping: c(1.0),
-            cubic_stiffness: c(1e3),
-            nominal_length: c(0.4),
-            min_length: c(0.3),
-            max_length: c(0.5),
-        },
-        return_gains: ReturnGains::critically_damped(c(2.0), c(0.05)),
-        icr_avoidance: false,
-        leg_motion: false,
-    };
-    PlatformParameters {
-        admittance: AdmittanceConfig {
-            mass: Vector3::new(c(50.0), c(50.0), c(10.0)),
-            damping: Vector3::new(c(200.0), c(200.0), c(40.0)),
-            force_limit: Vector3::new(c(100.0), c(100.0), c(40.0)),
-            free_axes: [true; 3],
-        },
-        avoidance,
-        compensation: CompensationSwitch::ON,
-        force_deadband: [c(0.0); 3],
-    }
-}
-
-/// The gains of `tests/src/fixed_base.rs` (400 N/m, 30 Nm/rad at the TCP) with the collision
-/// fields of [`collision_fields`] and the Cartesian force limits on (±20 N, Table 7.1's "Clean
-/// the mug!"), so that the contact-force limiter runs in every frame as in Justin's measurement.
+/// The gains of `tests/src/fixed_base.rs` (400 N/m, 30 Nm/rad at the TCP) in the fixed-base
+/// configuration of [`fixtures::fixed_base`], with the collision fields of [`collision_fields`]
+/// and the Cartesian force limits on (±20 N, Table 7.1's "Clean the mug!"), so that the
+/// contact-force limiter runs in every frame as in Justin's measurement.
 pub fn controller_config() -> Option<ControllerConfig<S, { panda::N }, 1>> {
     let cartesian = CartesianParameters {
         translational_stiffness: [c(400.0); 3],
@@ -116,62 +73,24 @@ pub fn controller_config() -> Option<ControllerConfig<S, { panda::N }, 1>> {
         force_lower: [c(-20.0); 6],
         force_upper: [c(20.0); 6],
     };
-    Some(ControllerConfig {
-        period_s: c(1e-3),
-        layout: RobotLayout {
-            tcp: panda::TCPS,
-            platform: PlatformLayout::try_new::<{ panda::N }>([PlatformAxis::Absent; 3]).ok()?,
-            torso: None,
-            arms: [[true; panda::N]],
+    let layout = RobotLayout {
+        tcp: panda::TCPS,
+        platform: PlatformLayout::try_new::<{ panda::N }>([PlatformAxis::Absent; 3]).ok()?,
+        torso: None,
+        arms: [[true; panda::N]],
+    };
+    Some(fixed_base::controller_config(
+        layout,
+        FixedBaseGains {
+            period_s: c(1e-3),
+            cartesian: [cartesian],
+            collision: collision_fields(),
+            end_stops: EndStopParameters { margin: c(0.1), stiffness: c(50.0), damping: c(2.0) },
+            joint_stiffness: SVector::repeat(c(20.0)),
+            joint_damping: SVector::repeat(c(2.0)),
+            force_limit: true,
         },
-        recursion: Recursion::Augmented,
-        consistency: Consistency::Dynamic,
-        shaping: Shaping::Continuous { singular_full: c(0.05), singular_start: c(0.15) },
-        transition_s: c(1.0),
-        cartesian: [cartesian],
-        cartesian_fallback_damping: Vector6::repeat(c(10.0)),
-        collision: collision_fields(),
-        singularity: SingularityParameters {
-            rows: AxisMask::new([true, true, true, false, false, false]),
-            threshold: c(0.01),
-            full_activation: c(0.002),
-            stiffness: c(100.0),
-            damping: c(1.0),
-        },
-        end_stops: EndStopParameters { margin: c(0.1), stiffness: c(50.0), damping: c(2.0) },
-        torso_workspace: None,
-        joint_stiffness: SVector::repeat(c(20.0)),
-        joint_damping: SVector::repeat(c(2.0)),
-        safe_damping: SVector::repeat(c(2.0)),
-        platform: unused_platform(),
-        output_limits: OutputLimits {
-            torque_rate: SVector::repeat(c(1e5)),
-            base_velocity: Vector3::repeat(c(1.0)),
-            base_acceleration: Vector3::repeat(c(2.0)),
-            leg_rate: c(0.2),
-        },
-        input_limits: InputLimits {
-            position_tolerance: c(0.05),
-            velocity_factor: c(1.5),
-            max_cycle_gap: 5,
-            brake_after_cycles: 100,
-        },
-        observer: ObserverParameters { gain: c(50.0), contact_threshold: c(5.0) },
-        force_limit: ForceLimitParameters {
-            enabled: true,
-            margin: c(0.05),
-            gain: c(3.0),
-            max_correction: c(10.0),
-            regularisation: c(1e-4),
-        },
-        speed_barrier: SpeedBarrierParameters {
-            onset: c(0.5),
-            full: c(0.9),
-            braking_time_s: c(0.002),
-            max_torque_fraction: c(0.25),
-        },
-        recovery: RecoveryParameters { valid_cycles: 10, margin: c(0.2), blend_s: c(0.1) },
-    })
+    ))
 }
 
 /// The Panda's collision model, read from [`COLLISION_FILE`].
@@ -272,7 +191,7 @@ pub fn step_frame(k: u32, speed: &SVector<S, { panda::N }>) -> PandaFrame {
     let cycle = u64::from(k) + 1;
     let (q, v) = match CAPACITY_POSTURES.get(k.saturating_sub(CAPACITY_START) as usize) {
         Some(posture) if k >= CAPACITY_START => {
-            let sign = |i: usize| if (i + k as usize) % 2 == 0 { c(1.0) } else { c(-1.0) };
+            let sign = |i: usize| if (i + k as usize).is_multiple_of(2) { c(1.0) } else { c(-1.0) };
             (posture.map(c), core::array::from_fn(|i| sign(i) * c(0.6) * speed[i]))
         }
         _ => {
