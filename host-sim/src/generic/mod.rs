@@ -24,6 +24,7 @@
 
 pub mod posture_push;
 pub mod reach;
+pub mod self_collision;
 
 use fixtures::collision_table::{self, VolumeSpec};
 use fixtures::fixed_base::{self, FixedBaseGains};
@@ -405,13 +406,19 @@ where
 
     /// Moves the goal of `arm` by `offset` (m, world) from its current target, as a step.
     pub fn step_goal(&mut self, arm: usize, offset: Vector3<f64>) -> Result<(), String> {
+        self.move_goal(arm, offset, 0.0)
+    }
+
+    /// Moves the goal of `arm` by `offset` (m, world) from its current target along the kernel's
+    /// cubic of `duration_s` (0: a step), keeping the orientation.
+    pub fn move_goal(&mut self, arm: usize, offset: Vector3<f64>, duration_s: f64) -> Result<(), String> {
         let id = *ArmId::all::<A>().get(arm).ok_or("no such arm")?;
         let target = self.controller.tcp_target(id).ok_or("no TCP target")?.pose;
         let rotation = nalgebra::UnitQuaternion::from_rotation_matrix(&target.rotation);
         let goal = target.translation.vector + offset.map(c::<T>);
         let pose = Pose { position: goal.into(), orientation: [rotation.w, rotation.i, rotation.j, rotation.k] };
         self.controller
-            .apply(&Command::TcpGoal { hand: id, pose, duration_s: T::zero() })
+            .apply(&Command::TcpGoal { hand: id, pose, duration_s: c(duration_s) })
             .map_err(|e| format!("TcpGoal: {e}"))
     }
 
