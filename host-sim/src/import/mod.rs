@@ -14,7 +14,9 @@
 //!    `fixtures::robots` (the index `fixtures/robots/mod.rs` is rewritten to list every robot).
 //! 3. **Collision model** ([`collision`]): swept-sphere volumes fitted to the URDF's
 //!    `<collision>` geometry, less those inside another volume of their body, and the pair survey, written to `<name>.collision` in the format of
-//!    `fixtures/collision/justin.collision`.
+//!    `fixtures/collision/justin.collision` with a `capacity` line; `mod.rs` gets the module
+//!    `collision`, which `fixtures/build.rs` compiles from that file (`collision_model::<T>(&model)`).
+//!    [`collision_model`] gives the same fit on the bodies, for the constructor's test.
 //! 4. **Layout** ([`layout`]): one arm per TCP, the torso and the platform, derived from the
 //!    chains to the TCPs, as `ARMS`, `ARM_COORDINATES`, `TORSO_COORDINATES` and `layout()` in
 //!    `mod.rs`.
