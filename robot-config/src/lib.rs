@@ -11,6 +11,7 @@
 //! their build script: the board needs neither `std` nor a parser.
 
 mod codegen;
+pub mod collision;
 mod error;
 pub mod schema;
 pub mod values;

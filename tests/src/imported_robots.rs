@@ -13,11 +13,11 @@ use std::path::PathBuf;
 use fixtures::robots::{panda, tiago_dual};
 use host_sim::import::collision::primitive_points;
 use host_sim::import::layout::derive_file;
-use host_sim::import::{generate, robots_index, ImportOptions, ROBOTS_DIR};
+use host_sim::import::{collision_model, generate, robots_index, ImportOptions, ROBOTS_DIR};
 use kernel::model::Frame;
-use kernel::tasks::collision::SweptSphere;
+use kernel::tasks::collision::{CollisionModel, Core, SweptSphere};
 use kernel::BodyId;
-use nalgebra::{Point3, Vector3};
+use nalgebra::{Point3, RealField, Vector3};
 
 fn repository() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
@@ -126,6 +126,57 @@ fn tiago_dual_controls_its_torso_lift_and_arms_and_freezes_the_rest() {
     // `arm_*_1_link` sits on the triangle inequality's edge (margin 1.5e-12 kg m²): physical in
     // f32 too, within the scalar's rounding.
     assert!(tiago_dual::model::<f32>().is_ok());
+}
+
+/// The `no_std` constructors `fixtures::robots::<name>::collision::collision_model` (compiled from
+/// the `.collision` files by `fixtures/build.rs`) build the import's fit: every volume on its body
+/// with its end points and radius (the file's 0.1 mm resolution, to the scalar's rounding), and
+/// exactly the pairs the survey and the kernel's rules leave, in f64 and f32.
+#[test]
+fn the_collision_constructors_build_the_imports_fit() {
+    let fit = collision_model(&panda_import()).unwrap();
+    assert_eq!((fit.volumes.len(), fit.pairs.len()), (21, 80));
+    let build = |model| panda::collision::collision_model(&model).unwrap();
+    equals_the_fit(&fit, &build(panda::model::<f64>().unwrap()), 1e-12);
+    equals_the_fit(&fit, &panda::collision::collision_model(&panda::model::<f32>().unwrap()).unwrap(), 2e-6);
+    let fit = collision_model(&tiago_dual_import()).unwrap();
+    assert_eq!((fit.volumes.len(), fit.pairs.len()), (33, 336));
+    let tiago = |model| tiago_dual::collision::collision_model(&model).unwrap();
+    equals_the_fit(&fit, &tiago(tiago_dual::model::<f64>().unwrap()), 1e-12);
+    equals_the_fit(&fit, &tiago_dual::collision::collision_model(&tiago_dual::model::<f32>().unwrap()).unwrap(), 2e-6);
+}
+
+/// `built` has the volumes (bodies, points and radii within `tolerance`, m) and pairs of `fit`.
+fn equals_the_fit<T, const V: usize, const P: usize>(
+    fit: &host_sim::import::collision::Imported,
+    built: &CollisionModel<T, V, P>,
+    tolerance: f64,
+) where
+    T: RealField + Copy + Into<f64>,
+{
+    assert_eq!(built.volumes().len(), fit.volumes.len());
+    for ((volume, (body, shape)), name) in built.volumes().iter().zip(&fit.volumes).zip(&fit.names) {
+        assert_eq!(volume.body.map(|b| b.0), *body, "{name}");
+        assert!((volume.shape.radius.into() - shape.radius).abs() <= tolerance, "{name}");
+        let corners = |core: &Core<f64>| match core {
+            Core::Point(p) => vec![*p],
+            Core::Segment(points) => points.to_vec(),
+            Core::Triangle(points) => points.to_vec(),
+        };
+        let built_core = match &volume.shape.core {
+            Core::Point(p) => Core::Point(p.map(Into::into)),
+            Core::Segment([a, b]) => Core::Segment([a.map(Into::into), b.map(Into::into)]),
+            Core::Triangle([a, b, c]) => Core::Triangle([a.map(Into::into), b.map(Into::into), c.map(Into::into)]),
+        };
+        let (expected, got) = (corners(&shape.core), corners(&built_core));
+        assert_eq!(expected.len(), got.len(), "{name}: another shape");
+        for (e, g) in expected.iter().zip(&got) {
+            assert!((e - g).amax() <= tolerance, "{name}: {g} != {e}");
+        }
+    }
+    let pairs: Vec<(usize, usize)> = built.pairs().iter().map(|p| (p.first.0, p.second.0)).collect();
+    assert_eq!(pairs, fit.pairs);
+    assert_eq!(pairs.len(), P, "the capacity is the enabled pairs");
 }
 
 /// The volumes of the collision file (the file format of `fixtures/collision/justin.collision`),

@@ -3,10 +3,13 @@
 //!
 //! The layout is a fixed base (`U = N`, every platform axis absent), one arm per TCP of the
 //! import (`A = TCPS.len()`), and the robot's torso coordinates if it has any (TIAGo++'s lift).
-//! The hierarchy ([`hierarchy`]): end stops over the Cartesian impedance of every arm over each
-//! arm's singularity avoidance over the joint damping of the upper body. Collision avoidance is
-//! not in it yet: the import writes the swept-sphere model as a text file
-//! (`fixtures/robots/<name>/<name>.collision`) without a Rust constructor.
+//! The hierarchy ([`hierarchy`]): end stops over the Cartesian impedance of every arm with the
+//! strong self-collision avoidance (Fig. 6.3's top level) over each arm's singularity avoidance
+//! with the weak collision avoidance (Fig. 6.3's null-space level) over the joint damping of the
+//! upper body. The collision model is the robot's imported one
+//! (`fixtures::robots::<name>::collision`, from `<name>.collision`) in the capacities
+//! [`COLLISION_VOLUMES`] and [`COLLISION_PAIRS`] of the largest robot; the two fields are the
+//! robot's `config.toml` (`[collision.strong]`, `[collision.weak]`).
 //!
 //! Every gain follows from the model by one rule, [`gains`]: the Cartesian stiffness per arm is
 //! `K = λ ω_c²` with `λ` the largest eigenvalue of the translational reflected inertia
@@ -21,7 +24,9 @@
 
 pub mod posture_push;
 pub mod reach;
+pub mod self_collision;
 
+use fixtures::collision_table::{self, VolumeSpec};
 use fixtures::fixed_base::{self, FixedBaseGains};
 use fixtures::robots::{panda, tiago_dual};
 use hal::{JointTorqueInterface, PlatformVelocityInterface};
@@ -32,7 +37,7 @@ use kernel::controller::{Controller, SensorFrame};
 use kernel::dynamics::{crba, forward_kinematics, frame_jacobian};
 use kernel::model::{Data, FrameId, Model};
 use kernel::platform::{PlatformAxis, PlatformLayout};
-use kernel::tasks::collision::CollisionModelBuilder;
+use kernel::tasks::collision::VolumeId;
 use nalgebra::{convert, RealField, SMatrix, SVector, Vector3};
 
 use crate::output::TimeSeries;
@@ -85,6 +90,38 @@ pub struct RobotSpec<const N: usize, const A: usize> {
     pub elbow: FrameId,
     /// URDF joint of each coordinate.
     pub joint_names: [&'static str; N],
+    /// The collision volumes (`fixtures::robots::<name>::collision::VOLUME_SPECS`).
+    pub collision_volumes: &'static [VolumeSpec],
+    /// The pairs the collision file excludes (`…::collision::EXCLUDED`).
+    pub collision_excluded: &'static [(VolumeId, VolumeId)],
+    /// The strong and the weak collision field (the robot's `config.toml`).
+    pub collision_fields: [CollisionFieldParameters<f64>; 2],
+}
+
+/// Volume capacity of the rig's collision model: the largest imported robot's.
+pub const COLLISION_VOLUMES: usize = larger(panda::collision::VOLUMES, tiago_dual::collision::VOLUMES);
+/// Pair capacity of the rig's collision model: the largest imported robot's.
+pub const COLLISION_PAIRS: usize = larger(panda::collision::PAIRS, tiago_dual::collision::PAIRS);
+
+const fn larger(a: usize, b: usize) -> usize {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
+/// A collision field from the module of a compiled `config.toml` table (`[collision.strong]`).
+macro_rules! collision_field {
+    ($($table:ident)::+) => {
+        CollisionFieldParameters {
+            max_force: $($table)::+::MAX_FORCE,
+            influence_distance: $($table)::+::INFLUENCE_DISTANCE,
+            damping_ratio: $($table)::+::DAMPING_RATIO,
+            activation_full: $($table)::+::ACTIVATION_FULL,
+            activation_zero: $($table)::+::ACTIVATION_ZERO,
+        }
+    };
 }
 
 /// The Panda: one arm of all seven joints; the home posture of `tests/src/fixed_base.rs`.
@@ -96,6 +133,12 @@ pub const PANDA: RobotSpec<{ panda::N }, 1> = RobotSpec {
     home: [0.0, -0.3, 0.0, -2.0, 0.0, 1.8, 0.8],
     elbow: panda::PANDA_LINK4,
     joint_names: panda::JOINT_NAMES,
+    collision_volumes: &panda::collision::VOLUME_SPECS,
+    collision_excluded: &panda::collision::EXCLUDED,
+    collision_fields: [
+        collision_field!(panda::config::collision::strong),
+        collision_field!(panda::config::collision::weak),
+    ],
 };
 
 /// TIAGo++: the lift (coordinate 0) as the torso, the left arm (1–7, TCP 0) and the right arm
@@ -109,6 +152,12 @@ pub const TIAGO_DUAL: RobotSpec<{ tiago_dual::N }, 2> = RobotSpec {
     home: [0.15, 0.4, 0.3, 0.0, 1.5, 0.0, 0.5, 0.0, 0.4, 0.3, 0.0, 1.5, 0.0, 0.5, 0.0],
     elbow: tiago_dual::ARM_LEFT_4_LINK,
     joint_names: tiago_dual::JOINT_NAMES,
+    collision_volumes: &tiago_dual::collision::VOLUME_SPECS,
+    collision_excluded: &tiago_dual::collision::EXCLUDED,
+    collision_fields: [
+        collision_field!(tiago_dual::config::collision::strong),
+        collision_field!(tiago_dual::config::collision::weak),
+    ],
 };
 
 /// A coordinate in a mask (`I`) or not (`O`), for the masks above.
@@ -205,12 +254,15 @@ pub fn gains<const N: usize, const B: usize, const F: usize, const A: usize>(
     Ok(Gains { translational_stiffness, rotational_stiffness, joint_damping, end_stop })
 }
 
-/// The hierarchy: end stops; the Cartesian impedance of every arm; each arm's singularity
-/// avoidance; the upper body's joint damping.
+/// The hierarchy: end stops; the Cartesian impedance of every arm with the strong collision
+/// avoidance; each arm's singularity avoidance with the weak collision avoidance; the upper
+/// body's joint damping (the collision tasks at the levels of Fig. 6.3).
 pub fn hierarchy<const A: usize>() -> Vec<TaskSpec> {
     let arms = ArmId::all::<A>();
     let mut tasks = vec![TaskSpec { kind: TaskKind::EndStops, level: 0 }];
+    tasks.push(TaskSpec { kind: TaskKind::CollisionAvoidance(Field::Strong), level: 1 });
     tasks.extend(arms.iter().map(|arm| TaskSpec { kind: TaskKind::CartesianImpedance(*arm), level: 1 }));
+    tasks.push(TaskSpec { kind: TaskKind::CollisionAvoidance(Field::Weak), level: 2 });
     tasks.extend(arms.iter().map(|arm| TaskSpec { kind: TaskKind::SingularityAvoidance(*arm), level: 2 }));
     tasks.push(TaskSpec { kind: TaskKind::JointDamping(JointGroup::UpperBody), level: 3 });
     tasks
@@ -229,12 +281,12 @@ fn config<T: RealField + Copy, const N: usize, const A: usize>(
         force_lower: [c(f64::NEG_INFINITY); 6],
         force_upper: [c(f64::INFINITY); 6],
     });
-    let field = CollisionFieldParameters {
-        max_force: c(20.0),
-        influence_distance: c(0.1),
-        damping_ratio: c(DAMPING_RATIO),
-        activation_full: c(0.0),
-        activation_zero: c(0.1),
+    let field = |f: &CollisionFieldParameters<f64>| CollisionFieldParameters {
+        max_force: c(f.max_force),
+        influence_distance: c(f.influence_distance),
+        damping_ratio: c(f.damping_ratio),
+        activation_full: c(f.activation_full),
+        activation_zero: c(f.activation_zero),
     };
     let layout = RobotLayout {
         tcp: spec.tcps,
@@ -247,7 +299,7 @@ fn config<T: RealField + Copy, const N: usize, const A: usize>(
         FixedBaseGains {
             period_s: c(crate::sim::CONTROL_PERIOD_S),
             cartesian,
-            collision: [field; 2],
+            collision: spec.collision_fields.each_ref().map(field),
             end_stops: EndStopParameters {
                 margin: c(0.1),
                 stiffness: c(gains.end_stop.0),
@@ -260,9 +312,10 @@ fn config<T: RealField + Copy, const N: usize, const A: usize>(
     ))
 }
 
-/// The controller of an imported robot: `U = N` (fixed base), no collision volumes, `A` arms.
+/// The controller of an imported robot: `U = N` (fixed base), the rig's collision capacities,
+/// `A` arms.
 pub type GenericController<T, const N: usize, const B: usize, const F: usize, const A: usize> =
-    Controller<T, N, B, F, N, 0, 0, A>;
+    Controller<T, N, B, F, N, COLLISION_VOLUMES, COLLISION_PAIRS, A>;
 
 /// The simulated imported robot and its controller, wired.
 pub struct GenericRig<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const A: usize> {
@@ -282,18 +335,29 @@ impl<T, const N: usize, const B: usize, const F: usize, const A: usize> GenericR
 where
     T: RealField + Copy + Into<f64>,
 {
-    /// The robot at its home posture at rest on the plant of `options`, the controller on `model`.
+    /// The robot at its home posture at rest on the plant of `options`, the controller on `model`
+    /// with the rig's [`hierarchy`].
     pub fn new(
         spec: &RobotSpec<N, A>,
         model: Model<T, N, B, F>,
         plant: Model<f64, N, B, F>,
         options: &RunOptions,
     ) -> Result<Self, String> {
+        Self::with_hierarchy(spec, model, plant, options, &hierarchy::<A>())
+    }
+
+    /// [`Self::new`] with the hierarchy `tasks` instead of the rig's.
+    pub fn with_hierarchy(
+        spec: &RobotSpec<N, A>,
+        model: Model<T, N, B, F>,
+        plant: Model<f64, N, B, F>,
+        options: &RunOptions,
+        tasks: &[TaskSpec],
+    ) -> Result<Self, String> {
         let gains = gains(spec, &plant)?;
-        let collision = CollisionModelBuilder::<T, 0, 0>::new()
-            .try_build(&model, &[])
+        let collision = collision_table::build(&model, spec.collision_volumes, spec.collision_excluded)
             .map_err(|e| format!("collision model: {e}"))?;
-        let controller = GenericController::try_new(model, collision, config(spec, &gains)?, &hierarchy::<A>())
+        let controller = GenericController::try_new(model, collision, config(spec, &gains)?, tasks)
             .map_err(|e| format!("controller: {e}"))?;
         let mut sim = options.simulator(plant, SimConfig::default())?;
         sim.set_state(SVector::from(spec.home), SVector::zeros())?;
@@ -342,13 +406,19 @@ where
 
     /// Moves the goal of `arm` by `offset` (m, world) from its current target, as a step.
     pub fn step_goal(&mut self, arm: usize, offset: Vector3<f64>) -> Result<(), String> {
+        self.move_goal(arm, offset, 0.0)
+    }
+
+    /// Moves the goal of `arm` by `offset` (m, world) from its current target along the kernel's
+    /// cubic of `duration_s` (0: a step), keeping the orientation.
+    pub fn move_goal(&mut self, arm: usize, offset: Vector3<f64>, duration_s: f64) -> Result<(), String> {
         let id = *ArmId::all::<A>().get(arm).ok_or("no such arm")?;
         let target = self.controller.tcp_target(id).ok_or("no TCP target")?.pose;
         let rotation = nalgebra::UnitQuaternion::from_rotation_matrix(&target.rotation);
         let goal = target.translation.vector + offset.map(c::<T>);
         let pose = Pose { position: goal.into(), orientation: [rotation.w, rotation.i, rotation.j, rotation.k] };
         self.controller
-            .apply(&Command::TcpGoal { hand: id, pose, duration_s: T::zero() })
+            .apply(&Command::TcpGoal { hand: id, pose, duration_s: c(duration_s) })
             .map_err(|e| format!("TcpGoal: {e}"))
     }
 

@@ -14,7 +14,9 @@
 //!    `fixtures::robots` (the index `fixtures/robots/mod.rs` is rewritten to list every robot).
 //! 3. **Collision model** ([`collision`]): swept-sphere volumes fitted to the URDF's
 //!    `<collision>` geometry, less those inside another volume of their body, and the pair survey, written to `<name>.collision` in the format of
-//!    `fixtures/collision/justin.collision`.
+//!    `fixtures/collision/justin.collision` with a `capacity` line; `mod.rs` gets the module
+//!    `collision`, which `fixtures/build.rs` compiles from that file (`collision_model::<T>(&model)`).
+//!    [`collision_model`] gives the same fit on the bodies, for the constructor's test.
 //! 4. **Layout** ([`layout`]): one arm per TCP, the torso and the platform, derived from the
 //!    chains to the TCPs, as `ARMS`, `ARM_COORDINATES`, `TORSO_COORDINATES` and `layout()` in
 //!    `mod.rs`.
@@ -108,10 +110,7 @@ pub fn generate(options: &ImportOptions) -> Result<Files, String> {
     if options.tcps.is_empty() {
         return Err("no TCP frame: give at least one --tcp <link>".to_owned());
     }
-    let path = options.root.join(&options.urdf);
-    let text = std::fs::read_to_string(&path).map_err(|e| format!("cannot read URDF {}: {e}", path.display()))?;
-    let (prepared, description) =
-        describe(&text, &options.tcps, options.planar_base).map_err(|e| format!("{}: {e}", options.urdf))?;
+    let (prepared, description) = described(options)?;
     let module = RobotModule {
         command: options.command(),
         frozen_joints: prepared.frozen.clone(),
@@ -122,12 +121,10 @@ pub fn generate(options: &ImportOptions) -> Result<Files, String> {
     let config_file = config::default_file(&options.name, &description, &robot_layout)?;
     let source = codegen::model_source(&description, &options.urdf, &Module::Robot(&module))
         + &layout::source(&robot_layout)
-        + &config::module_source(&options.name);
-    let packages = options.package_path.as_ref().map(|dir| options.root.join(dir));
-    let robot = urdf_rs::read_from_string(&prepared.text).map_err(|e| format!("{}: {e}", options.urdf))?;
-    let fitted = collision::without_contained(&description, collision::fit(&robot, packages.as_deref())?)?;
-    let survey = collision::survey(&description, &fitted.volumes)?;
-    let collision_file = collision::file(options, &fitted, &survey);
+        + &config::module_source(&options.name)
+        + &collision::module_source(&options.name);
+    let (fitted, survey) = fitted_collision(options, &prepared, &description)?;
+    let collision_file = collision::file(options, &description, &fitted, &survey)?;
     let readme = readme(options, &description, &module, &prepared.welded, &fitted, &survey);
     Ok(vec![
         ("mod.rs".to_owned(), source),
@@ -135,6 +132,33 @@ pub fn generate(options: &ImportOptions) -> Result<Files, String> {
         ("README.md".to_owned(), readme),
         ("config.toml".to_owned(), config_file),
     ])
+}
+
+/// The collision model the import fits to the robot of `options` (what `<name>.collision` holds).
+pub fn collision_model(options: &ImportOptions) -> Result<collision::Imported, String> {
+    let (prepared, description) = described(options)?;
+    let (fitted, survey) = fitted_collision(options, &prepared, &description)?;
+    collision::imported(&description, &fitted, &survey)
+}
+
+/// The URDF of `options`, prepared and described.
+fn described(options: &ImportOptions) -> Result<(Prepared, Description), String> {
+    let path = options.root.join(&options.urdf);
+    let text = std::fs::read_to_string(&path).map_err(|e| format!("cannot read URDF {}: {e}", path.display()))?;
+    describe(&text, &options.tcps, options.planar_base).map_err(|e| format!("{}: {e}", options.urdf))
+}
+
+/// The fitted volumes (less the contained ones) and the pair survey.
+fn fitted_collision(
+    options: &ImportOptions,
+    prepared: &Prepared,
+    description: &Description,
+) -> Result<(collision::Fitted, collision::Survey), String> {
+    let packages = options.package_path.as_ref().map(|dir| options.root.join(dir));
+    let robot = urdf_rs::read_from_string(&prepared.text).map_err(|e| format!("{}: {e}", options.urdf))?;
+    let fitted = collision::without_contained(description, collision::fit(&robot, packages.as_deref())?)?;
+    let survey = collision::survey(description, &fitted.volumes)?;
+    Ok((fitted, survey))
 }
 
 /// Imports the robot: writes its files and rewrites the index `fixtures/robots/mod.rs`.
@@ -444,7 +468,7 @@ fn readme(
         "| `{name}.collision` | swept-sphere collision model ({} volumes) and its pair exclusions ({} listed, {} pairs enabled) |\n\n",
         fitted.volumes.len(),
         survey.excluded.len(),
-        survey.enabled
+        survey.enabled.len()
     ));
     s.push_str(&format!(
         "**Controlled joints** (the chains from the root link to the TCPs, in coordinate order): {}.\n\n",

@@ -235,6 +235,7 @@ const SCENARIOS: &[Entry] = &[
     rig_entry!(soak),
     generic_entry!(reach),
     generic_entry!(posture_push),
+    generic_entry!(self_collision),
 ];
 
 /// The scenarios: `(name, one-line description)`.

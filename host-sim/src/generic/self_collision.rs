@@ -1,0 +1,289 @@
+//! `self_collision` on an imported robot (`--robot`): TCP goals that drive two links into each
+//! other, and the self-collision avoidance that keeps every pair apart.
+//!
+//! Setup: the rig of [`super::GenericRig`] (collision avoidance at the levels of Fig. 6.3) at the
+//! robot's home posture. From [`GOAL_AT_S`] the goals move along the kernel's cubic of
+//! [`GOAL_S`]: with two or more arms, arms 0 and 1 both to the midpoint of their TCPs (TIAGo++:
+//! hand into hand); with one arm, its TCP onto the vertical axis through the root at its own
+//! height (the Panda: the hand into its shoulder, links 1 to 3). The rest is the hold.
+//!
+//! The same goals run a second time without the two collision tasks (the reference): there the
+//! closest pair's volumes interpenetrate, which shows that the goals would collide.
+//!
+//! Claims:
+//! - **every pair apart**: the smallest distance of every enabled pair of the robot's collision
+//!   model, measured on the simulated robot's geometry every control cycle, stays above
+//!   [`MARGIN_M`]; the reference's goes below zero.
+//! - **the TCP stops short of the goal by what the repulsion needs**: the reference reaches its
+//!   goals (shortfall of a few mm) with the closest pair interpenetrating by `−d_ref`; with the
+//!   avoidance the pairs end at `d_end > 0`. The TCPs give up the distance the pairs gain, shared
+//!   by the driven arms: the mean shortfall is `(d_end − d_ref) / arms` within a factor
+//!   [`SHORTFALL_FACTOR`] (the closest points lie between the shoulder and the hand, and an
+//!   interpenetration is not a TCP distance: measured 1.5 on the Panda, 1.9 on TIAGo++).
+//! - **torques within limits**: every applied joint torque within its effort limit.
+//! - **no fault, no NaN**.
+
+use kernel::controller::config::{TaskKind, TaskSpec};
+use kernel::dynamics::forward_kinematics;
+use kernel::model::{Data, Model};
+use kernel::tasks::collision::{CollisionData, CollisionModel};
+use nalgebra::{RealField, SVector, Vector3};
+
+use super::{hierarchy, record, GenericRig, RobotSpec, Scenario, COLLISION_PAIRS, COLLISION_VOLUMES};
+use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
+use crate::scenarios::{Outcome, RunOptions};
+use crate::sim::{run_loop, CONTROL_PERIOD_S};
+
+/// Registry name.
+pub const NAME: &str = "self_collision";
+/// One-line description.
+pub const DESCRIPTION: &str = "imported robot (--robot): TCP goals that drive the hand into the shoulder (one arm) or \
+     the hands into each other (two arms); the collision avoidance keeps every pair apart";
+/// Start of the goal motion (s).
+pub const GOAL_AT_S: f64 = 0.5;
+/// Duration of the goal motion (s).
+pub const GOAL_S: f64 = 1.5;
+/// Simulated time (s): the motion and 2 s to come to rest.
+pub const DURATION_S: f64 = GOAL_AT_S + GOAL_S + 2.0;
+/// The smallest pair distance the avoidance keeps (m).
+pub const MARGIN_M: f64 = 0.005;
+/// Allowed factor between the shortfall and the distance the pairs gain per driven arm.
+pub const SHORTFALL_FACTOR: f64 = 2.5;
+
+/// The scenario.
+pub struct SelfCollision;
+
+/// The distances of every enabled pair on the simulated robot's geometry.
+struct PairDistances<const N: usize, const B: usize, const F: usize> {
+    model: CollisionModel<f64, COLLISION_VOLUMES, COLLISION_PAIRS>,
+    collision: CollisionData<f64, COLLISION_VOLUMES, COLLISION_PAIRS>,
+    data: Data<f64, N, B, F>,
+}
+
+impl<const N: usize, const B: usize, const F: usize> PairDistances<N, B, F> {
+    fn new<const A: usize>(spec: &RobotSpec<N, A>, plant: &Model<f64, N, B, F>) -> Result<Self, String> {
+        let model = fixtures::collision_table::build(plant, spec.collision_volumes, spec.collision_excluded)
+            .map_err(|e| format!("collision model: {e}"))?;
+        let collision = CollisionData::new(&model);
+        Ok(Self { model, collision, data: Data::new(plant) })
+    }
+
+    /// The world origin (m) at `q` of the body of arm 0's first coordinate (a body per coordinate,
+    /// in coordinate order, as the import builds it).
+    fn shoulder<const A: usize>(
+        &mut self,
+        spec: &RobotSpec<N, A>,
+        plant: &Model<f64, N, B, F>,
+        q: &SVector<f64, N>,
+    ) -> Result<Vector3<f64>, String> {
+        let first = spec.arms.first().and_then(|arm| arm.iter().position(|c| *c)).ok_or("arm 0 has no coordinate")?;
+        forward_kinematics(plant, &mut self.data, q, &SVector::zeros()).map_err(|e| e.to_string())?;
+        Ok(self.data.body_placements.get(first).ok_or("no such body")?.translation.vector)
+    }
+
+    /// The smallest distance (m) and its pair's volume indices at `q`.
+    fn smallest(&mut self, plant: &Model<f64, N, B, F>, q: &SVector<f64, N>) -> Result<(f64, (usize, usize)), String> {
+        forward_kinematics(plant, &mut self.data, q, &SVector::zeros()).map_err(|e| e.to_string())?;
+        self.model.update(&self.data, &mut self.collision);
+        let distances = self.collision.proximities.iter().map(|p| p.distance);
+        Ok(self
+            .model
+            .pairs()
+            .iter()
+            .zip(distances)
+            .map(|(pair, d)| (d, (pair.first.0, pair.second.0)))
+            .fold((f64::INFINITY, (0, 0)), |best, next| if next.0 < best.0 { next } else { best }))
+    }
+}
+
+/// What one run measured.
+struct Run {
+    series: TimeSeries,
+    /// `(t, smallest pair distance)` per control cycle (m).
+    distances: Vec<(f64, f64)>,
+    /// Smallest distance from the start of the goal motion on (m).
+    smallest: f64,
+    closest: (usize, usize),
+    /// Smallest distance at home (m).
+    home_distance: f64,
+    final_distance: f64,
+    /// Mean distance of the driven TCPs from their goals at the end (m).
+    shortfall: f64,
+    /// Number of arms with a goal.
+    driven: usize,
+    /// Largest `|τ_i| / τ_max,i`.
+    torque_ratio: f64,
+    faulty_cycles: u64,
+    non_finite_cycles: u64,
+}
+
+/// The goal offsets (m, world) of each arm from the TCP positions at home (module docs); `shoulder`
+/// is the origin of arm 0's first body.
+fn goal_offsets(tcps: &[Vector3<f64>], shoulder: Vector3<f64>) -> Vec<Vector3<f64>> {
+    match tcps {
+        [only] => vec![shoulder - only],
+        [first, second, rest @ ..] => {
+            let middle = (first + second) / 2.0;
+            [middle - first, middle - second].into_iter().chain(rest.iter().map(|_| Vector3::zeros())).collect()
+        }
+        [] => Vec::new(),
+    }
+}
+
+/// Runs the goals with the hierarchy `tasks`.
+fn run<T, const N: usize, const B: usize, const F: usize, const A: usize>(
+    spec: &RobotSpec<N, A>,
+    model: Model<T, N, B, F>,
+    plant: Model<f64, N, B, F>,
+    options: &RunOptions,
+    tasks: &[TaskSpec],
+) -> Result<Run, String>
+where
+    T: RealField + Copy + Into<f64>,
+{
+    let mut pairs = PairDistances::new(spec, &plant)?;
+    let mut rig = GenericRig::with_hierarchy(spec, model, plant, options, tasks)?;
+    let home: Vec<Vector3<f64>> = (0..A).map(|arm| rig.tcp_position(spec, arm)).collect::<Result<_, _>>()?;
+    let offsets = goal_offsets(&home, pairs.shoulder(spec, rig.sim.model(), rig.sim.q())?);
+    let goals: Vec<Vector3<f64>> = home.iter().zip(&offsets).map(|(p, o)| p + o).collect();
+    let effort = rig.sim.model().limits.effort;
+    let mut series = TimeSeries::new(super::columns(spec));
+    let mut distances = Vec::new();
+    let (mut smallest, mut closest, mut torque_ratio, mut home_distance) = (f64::INFINITY, (0, 0), 0.0_f64, f64::NAN);
+    run_loop(&mut rig, DURATION_S, CONTROL_PERIOD_S, |rig, info| {
+        options.progress.report(NAME, info.time_s, DURATION_S);
+        if info.cycle == (GOAL_AT_S / CONTROL_PERIOD_S).round() as u64 {
+            for (arm, offset) in offsets.iter().enumerate() {
+                rig.move_goal(arm, *offset, GOAL_S)?;
+            }
+        }
+        rig.cycle(info)?;
+        let (distance, pair) = pairs.smallest(rig.sim.model(), rig.sim.q())?;
+        if info.cycle == 0 {
+            home_distance = distance;
+        }
+        if info.time_s >= GOAL_AT_S && distance < smallest {
+            (smallest, closest) = (distance, pair);
+        }
+        distances.push((info.time_s, distance));
+        let ratio = rig.sim.applied_torque().zip_map(&effort, |tau, limit| tau.abs() / limit).max();
+        torque_ratio = torque_ratio.max(ratio);
+        record(rig, spec, info.time_s, &mut series)
+    })?;
+    options.progress.finish();
+    let driven: Vec<f64> = goals
+        .iter()
+        .zip(&offsets)
+        .enumerate()
+        .filter(|(_, (_, offset))| offset.norm() > 0.0)
+        .map(|(arm, (goal, _))| rig.tcp_position(spec, arm).map(|p| (goal - p).norm()))
+        .collect::<Result<_, _>>()?;
+    Ok(Run {
+        series,
+        final_distance: distances.last().map_or(f64::NAN, |(_, d)| *d),
+        distances,
+        smallest,
+        closest,
+        home_distance,
+        shortfall: driven.iter().sum::<f64>() / driven.len().max(1) as f64,
+        driven: driven.len(),
+        torque_ratio,
+        faulty_cycles: rig.faulty_cycles,
+        non_finite_cycles: rig.non_finite_cycles,
+    })
+}
+
+impl Scenario for SelfCollision {
+    fn simulate<T, const N: usize, const B: usize, const F: usize, const A: usize>(
+        spec: &RobotSpec<N, A>,
+        model: Model<T, N, B, F>,
+        plant: Model<f64, N, B, F>,
+        options: &RunOptions,
+    ) -> Result<Outcome, String>
+    where
+        T: RealField + Copy + Into<f64>,
+    {
+        let tasks = hierarchy::<A>();
+        let without: Vec<TaskSpec> =
+            tasks.iter().filter(|t| !matches!(t.kind, TaskKind::CollisionAvoidance(_))).copied().collect();
+        let reference = run(spec, model.clone(), plant.clone(), options, &without)?;
+        let avoided = run(spec, model, plant, options, &tasks)?;
+        let predicted = (avoided.final_distance - reference.smallest) / avoided.driven.max(1) as f64;
+        let name = |i: usize| spec.collision_volumes.get(i).map_or("?", |v| v.name);
+        let (a, b) = avoided.closest;
+
+        let mut summary = Summary::new(NAME);
+        summary.value("robot", spec.name).value("controller", format!("host {}", options.scalar.name()));
+        summary.value("closest_pair", format!("{} – {}", name(a), name(b)));
+        summary
+            .metric("smallest_distance_m", avoided.smallest)
+            .metric("final_distance_m", avoided.final_distance)
+            .metric("reference_smallest_distance_m", reference.smallest)
+            .metric("home_distance_m", avoided.home_distance)
+            .metric("shortfall_m", avoided.shortfall)
+            .metric("predicted_shortfall_m", predicted)
+            .metric("reference_shortfall_m", reference.shortfall)
+            .metric("largest_torque_ratio", avoided.torque_ratio)
+            .metric("faulty_cycles", avoided.faulty_cycles as f64)
+            .metric("non_finite_cycles", avoided.non_finite_cycles as f64);
+        summary.claim(
+            &format!(
+                "every pair apart: smallest distance {:.1} mm > {:.1} mm ({} – {}); without avoidance {:.1} mm",
+                avoided.smallest * 1e3,
+                MARGIN_M * 1e3,
+                name(a),
+                name(b),
+                reference.smallest * 1e3
+            ),
+            avoided.smallest > MARGIN_M && reference.smallest < 0.0,
+        );
+        summary.claim(
+            &format!(
+                "TCP stops short by {:.1} mm ≈ (d_end {:.1} mm − d_ref {:.1} mm) / {} arm(s) = {:.1} mm (× {:.2}, \
+                 within × {SHORTFALL_FACTOR}); reference {:.1} mm",
+                avoided.shortfall * 1e3,
+                avoided.final_distance * 1e3,
+                reference.smallest * 1e3,
+                avoided.driven,
+                predicted * 1e3,
+                avoided.shortfall / predicted,
+                reference.shortfall * 1e3
+            ),
+            avoided.shortfall <= SHORTFALL_FACTOR * predicted && avoided.shortfall * SHORTFALL_FACTOR >= predicted,
+        );
+        summary.claim(
+            &format!("torques within limits: largest |τ|/τ_max = {:.2}", avoided.torque_ratio),
+            avoided.torque_ratio <= 1.0,
+        );
+        summary.claim(
+            &format!("no fault ({} cycles), no NaN ({} cycles)", avoided.faulty_cycles, avoided.non_finite_cycles),
+            avoided.faulty_cycles == 0 && avoided.non_finite_cycles == 0,
+        );
+        let figure = figure(spec.name, &avoided.distances, &reference.distances);
+        Ok(Outcome { summary, series: avoided.series, figures: vec![("self_collision_distance.svg", figure)] })
+    }
+}
+
+/// The smallest pair distance over time, with and without the avoidance.
+fn figure(robot: &str, avoided: &[(f64, f64)], reference: &[(f64, f64)]) -> Figure {
+    let mm = |points: &[(f64, f64)]| points.iter().map(|(t, d)| (*t, d * 1e3)).collect();
+    Figure {
+        title: format!("self_collision on {robot}: smallest distance of the enabled pairs"),
+        x_label: "time (s)".into(),
+        panels: vec![Panel {
+            title: "smallest pair distance".into(),
+            y_label: "distance (mm)".into(),
+            lines: vec![
+                Line::new("with collision avoidance", mm(avoided)),
+                Line::dashed("without (reference)", mm(reference)),
+                Line::dashed("margin", vec![(0.0, MARGIN_M * 1e3), (DURATION_S, MARGIN_M * 1e3)]),
+            ],
+            spans: vec![Span { label: "goal motion".into(), from: GOAL_AT_S, to: GOAL_AT_S + GOAL_S }],
+        }],
+    }
+}
+
+/// `host-sim run self_collision`.
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
+    super::simulate::<SelfCollision>(options)
+}
