@@ -428,8 +428,62 @@ pub fn evaluate(m: &SoakMetrics, series: TimeSeries) -> Result<Outcome, String> 
 
 #[cfg(test)]
 mod tests {
-    #![allow(clippy::unwrap_used, reason = "tests")]
+    #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
     use super::*;
+    use kernel::controller::layout::JointGroup;
+    use kernel::dynamics::{crba, forward_kinematics};
+    use kernel::model::Data;
+    use kernel::platform::storage::closed_loop_inertia_into;
+    use kernel::tasks::manipulability::manipulability;
+    use nalgebra::SMatrix;
+
+    /// The right arm's singularity row where the realistic one-hour soak with seed 3 entered it
+    /// (t = 634.988 s; the state as recorded: base, torso, right arm, left arm), with Justin's
+    /// configuration: `m` = 0.0249 at the threshold 0.025, `ṁ = ∇m q̇` ≈ −0.17 m³/s, and the
+    /// row's inverse inertia `w = ∇m M̃⁻¹ ∇mᵀ` ≈ 2.0 (mostly arm joint 3, 69 1/(kg m²)).
+    /// The loop of the row's spring `2 k_msa` and damping `d` sampled at `Δt` (the module docs
+    /// of `kernel::tasks::manipulability`, "Sampling"): with the former `k_msa` = 2·10⁵ its
+    /// frequency was `ω Δt` = 0.90 and its torque rose on joint 3 by 1.07 × the joint's rate
+    /// limit per cycle — the guard scaled level 1, then level 0, in alternate cycles, and the
+    /// right arm's joints 1 and 3 swung to 2 × their limit. Now `ω Δt` ≤ ⅓, the entry ramp
+    /// is below a fifth of every rate limit, and the damping gain `Δt d w` stays within half
+    /// the delayed damper's bound 0.88.
+    #[test]
+    fn the_singularity_row_where_seed_3_entered_it_fits_the_sampled_loop() {
+        let model = justin::model::<f64>().unwrap();
+        let config = justin::whole_body::controller_config::<f64>().unwrap();
+        let q = SVector::<f64, { justin::N }>::from_column_slice(&[
+            -0.0988, 0.2432, 0.2475, 0.0507, -0.1749, 0.6338, 0.2732, 0.0886, -1.5154, 1.4494, 0.7270, -0.0069, 0.0440,
+            0.4860, 0.4929, 0.4997, 1.5093, -0.4999, -0.4984, -0.2016,
+        ]);
+        let v = SVector::<f64, { justin::N }>::from_column_slice(&[
+            -0.026, 0.123, 0.105, 0.264, 0.140, 0.192, -1.190, -1.084, -0.027, 1.144, 0.119, -0.049, -2.450, 0.025,
+            -0.012, 0.019, 0.060, -0.004, 0.006, -0.012,
+        ]);
+        let mut data = Data::new(&model);
+        forward_kinematics(&model, &mut data, &q, &v).unwrap();
+        let mass = *crba(&model, &mut data);
+        let mut closed_loop = SMatrix::zeros();
+        closed_loop_inertia_into(&mass, &config.layout.platform, &config.platform.admittance.mass, &mut closed_loop);
+        let s = &config.singularity;
+        let arm = config.layout.coordinates(JointGroup::Arm(ArmId::RIGHT));
+        let measure = manipulability(&model, &data, justin::RIGHT_TCP, s.rows, &arm).unwrap();
+        assert!((measure.value - s.threshold).abs() < 2e-4, "entering the band: m = {}", measure.value);
+        let gradient = measure.gradient.transpose();
+        let rate = gradient.dot(&v);
+        assert!((rate + 0.17).abs() < 0.03, "ṁ = {rate}");
+        let w = (measure.gradient * closed_loop.try_inverse().unwrap() * gradient).x;
+        assert!((w - 2.0).abs() < 0.2, "w = {w}");
+        let dt = config.period_s;
+        let frequency = dt * (2.0 * s.stiffness * w).sqrt();
+        assert!(frequency <= 1.0 / 3.0, "ω Δt = {frequency}");
+        let limits = &config.output_limits.torque_rate;
+        let ramp = gradient.iter().zip(limits.iter()).map(|(g, r)| 2.0 * s.stiffness * rate.abs() * g.abs() / r);
+        let ramp = ramp.skip(PLATFORM_DOF).fold(0.0, f64::max);
+        assert!(ramp <= 0.2, "entry ramp {ramp} × the rate limit");
+        let damping = dt * s.damping * w;
+        assert!(damping <= 0.44, "Δt d w = {damping}");
+    }
 
     #[test]
     fn a_short_soak_holds_its_claims() {

@@ -26,6 +26,18 @@
 //! **Exact singularity.** If `J Jᵀ` fails its Cholesky factorization, `m = 0` is reported with
 //! `singular = true` and the row's Jacobian is zero (`m` is not differentiable there); the
 //! force and potential keep their values at `m = 0`.
+//!
+//! **Sampling.** Along the row, the spring `2 k_msa` acts on the inertia `1 / w`,
+//! `w = ∇m M̃⁻¹ ∇mᵀ`, and `w` is large where `∇m` points into light joints: near `q₂ = 0` of a
+//! 7-joint arm (axes 1 and 3 aligned), `m` falls with `q₂` and the light joint 3 with it. The
+//! spring switches on with its full stiffness at `m_kin,0` while the damping `a d` starts
+//! from 0, so the row enters undamped; sampled at `Δt` and applied a cycle late, it then
+//! gains energy at each entry (roughly by `π ω τ` of its kinetic energy, `ω = √(2 k_msa w)`,
+//! `τ` the loop's delay), and its torque rises by `2 k_msa |ṁ| |∂m/∂q_i| Δt` per cycle on
+//! joint `i`. Choose `k_msa` so that `ω Δt` stays small and that ramp inside the joints'
+//! torque-rate limits, and `d` so that `Δt d w` stays below the delayed damper's bound
+//! (`controller::speed_barrier`, ≈ 0.88). Justin's values and the soak event that set them are
+//! in `fixtures/robots/justin/config.toml` (`[singularity]`).
 
 use nalgebra::{RealField, RowSVector, Vector3};
 
