@@ -6,7 +6,7 @@ use nalgebra::{convert, RealField, SVector, Vector3, Vector6};
 
 use hal::{PlatformCommand, LEGS};
 
-use super::capacity::{MAX_ACTIVE, MAX_FORCE_LIMITED_ARMS, MAX_LEVELS, MAX_TASK_ROWS};
+use super::capacity::{MAX_ACTIVE, MAX_LEVELS, MAX_TASK_ROWS};
 use super::config::{Consistency, TaskKind};
 use super::faults::{validate_frame, Fault, SafeOutput};
 use super::force_limit::HandLimits;
@@ -276,7 +276,7 @@ impl<
             collision: &mut self.work.collision_data,
             geometry_current: false,
             pair_rows: PairRowCache::default(),
-            cartesian_damping: [Vector6::zeros(); MAX_FORCE_LIMITED_ARMS],
+            cartesian_damping: [Vector6::zeros(); A],
         };
         for (index, entry) in self.state.hierarchy.entries().iter().enumerate() {
             // The task writes its rows into the stack's slots; `place` tags and weights them.
