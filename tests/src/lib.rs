@@ -34,6 +34,8 @@ mod simulation;
 #[cfg(test)]
 mod support;
 #[cfg(test)]
+mod three_arms;
+#[cfg(test)]
 mod torso_workspace;
 #[cfg(test)]
 mod tree_factor;

@@ -12,6 +12,7 @@ pub const MAX_ROWS: usize = 128;
 pub const MAX_TASK_ROWS: usize = 32;
 /// Most hierarchy entries at once: the tasks of the current hierarchy plus those fading out.
 pub const MAX_ACTIVE: usize = 2 * MAX_TASKS;
-/// Most arms of a controller: the contact-force limiter ([`super::force_limit`]) estimates the
-/// wrenches of two TCPs in one 12 × 12 system (a single arm leaves the second TCP's rows zero).
-pub const MAX_FORCE_LIMITED_ARMS: usize = 2;
+/// TCP errors in the telemetry message on the wire ([`super::telemetry::TelemetryMessage`]): the
+/// first two arms' (zero for an arm the robot does not have). serde has no `Serialize` for an
+/// array of a generic length `A`.
+pub const WIRE_TCP_ERRORS: usize = 2;

@@ -6,7 +6,7 @@ use nalgebra::{convert, RealField, SVector, Vector3, Vector6};
 
 use hal::{PlatformCommand, LEGS};
 
-use super::capacity::{MAX_ACTIVE, MAX_FORCE_LIMITED_ARMS, MAX_LEVELS, MAX_TASK_ROWS};
+use super::capacity::{MAX_ACTIVE, MAX_LEVELS, MAX_TASK_ROWS};
 use super::config::{Consistency, TaskKind};
 use super::faults::{validate_frame, Fault, SafeOutput};
 use super::force_limit::HandLimits;
@@ -73,6 +73,9 @@ impl<
 {
     /// The model's platform coordinates ahead of the `U` joints: 3, or 0 for a fixed base.
     const PLATFORM_COORDINATES: usize = N - U;
+    /// No platform coordinates: the cycle skips the platform-only work (the decoupling of `M̃`'s
+    /// factor and the coupling compensation's tree pass), known at compile time.
+    const FIXED_BASE: bool = Self::PLATFORM_COORDINATES == 0;
 
     /// One control cycle: never panics, always writes a checked output (the whole-body torque,
     /// or the safe output of [`super::faults`] with the fault in the telemetry).
@@ -122,7 +125,8 @@ impl<
         // The closed-loop inertia's tree factor, the one factor of every consumer of `M̃⁻¹`
         // (collision, torso, projection, force limit): the platform rows and columns decoupled
         // from the factor of `M` (or factored anew when `M` is not positive definite). Fails
-        // with `MassMatrixNotPositiveDefinite` when `M̃` is not positive definite.
+        // with `MassMatrixNotPositiveDefinite` when `M̃` is not positive definite. A fixed base
+        // (no platform coordinates in the model) decouples nothing: `M̃ = M`, the factor of `M`.
         inertia.assign(mass);
         let mut decoupled = [false; N];
         for c in layout.axes().iter().filter_map(|a| a.coordinate()) {
@@ -130,8 +134,12 @@ impl<
                 *flag = true;
             }
         }
-        if mass_factored { inertia.decouple(&decoupled, closed_loop) } else { inertia.factorize(closed_loop) }
-            .map_err(Fault::Dynamics)?;
+        match (mass_factored, Self::FIXED_BASE) {
+            (true, true) => Ok(()),
+            (true, false) => inertia.decouple(&decoupled, closed_loop),
+            (false, _) => inertia.factorize(closed_loop),
+        }
+        .map_err(Fault::Dynamics)?;
         let (mass, inertia) = (mass_factored.then_some(&*mass), &*inertia);
         if !self.state.started {
             self.start(&q, frame)?;
@@ -157,9 +165,9 @@ impl<
         project(&config, &self.work.stack, &mut self.work.projection).map_err(Fault::Hierarchy)?;
 
         let platform = self.platform_command(frame, dt)?;
-        let terms =
-            coupling_compensation_recursive(&self.settings.model, &self.work.data, &layout, &platform.acceleration)
-                .map_err(Fault::Platform)?;
+        let (model, data) = (&self.settings.model, &self.work.data);
+        let terms = coupling_compensation_recursive(model, data, &layout, &platform.acceleration, Self::FIXED_BASE)
+            .map_err(Fault::Platform)?;
         // `Cᵀ q̇` for the observer: from the barrier's fused pass when it ran.
         let mut coriolis_transpose = None;
         let mut held = self.state.barrier_hold;
@@ -268,7 +276,7 @@ impl<
             collision: &mut self.work.collision_data,
             geometry_current: false,
             pair_rows: PairRowCache::default(),
-            cartesian_damping: [Vector6::zeros(); MAX_FORCE_LIMITED_ARMS],
+            cartesian_damping: [Vector6::zeros(); A],
         };
         for (index, entry) in self.state.hierarchy.entries().iter().enumerate() {
             // The task writes its rows into the stack's slots; `place` tags and weights them.

@@ -89,7 +89,6 @@ pub use error::ConfigError;
 pub use frames::{ActuatorFrame, SensorFrame, PLATFORM_DOF};
 pub use telemetry::Telemetry;
 
-use capacity::MAX_FORCE_LIMITED_ARMS;
 use command::{decode_command, Command, CommandTarget};
 use config::{ArmId, ControllerConfig, TaskSpec, MAX_TASK_ROWS};
 use cycle::Cycle;
@@ -306,7 +305,7 @@ impl<
                 "N must be U joints after the platform's 3 coordinates, or U joints on a fixed base"
             )
         };
-        const { assert!(A >= 1 && A <= MAX_FORCE_LIMITED_ARMS, "one or two arms (the contact-force limiter's TCPs)") };
+        const { assert!(A >= 1 && A <= layout::MAX_ARMS, "one to MAX_ARMS arms (the task names and joint groups)") };
         const { assert!(N <= MAX_TASK_ROWS, "a joint-space task emits up to N rows") };
         // Everything fallible first, out of line, with a small result ([`Derived::try_new`]);
         // then the controller in one infallible expression of its final fields: no by-value

@@ -6,7 +6,7 @@
 use nalgebra::{RealField, SMatrix, SVector, Vector3, Vector6};
 
 use super::active_hierarchy::ActiveHierarchy;
-use super::capacity::{MAX_FORCE_LIMITED_ARMS, MAX_LEVELS, MAX_ROWS};
+use super::capacity::{MAX_LEVELS, MAX_ROWS};
 use super::config::ControllerConfig;
 use super::force_limit::ForceLimiter;
 use super::frames::ActuatorFrame;
@@ -35,7 +35,7 @@ pub(super) struct ControllerState<T: RealField, const N: usize, const U: usize, 
     /// The admittance's integrated pose, the reference of the ICR avoidance.
     pub(super) reference_pose: Vector3<T>,
     pub(super) observer: MomentumObserver<T, N>,
-    pub(super) force_limiter: ForceLimiter<T, N>,
+    pub(super) force_limiter: ForceLimiter<T, N, A>,
     /// `true` once a valid frame set the targets.
     pub(super) started: bool,
     pub(super) recovery: Recovery<T>,
@@ -103,8 +103,8 @@ pub(super) struct Workspace<
     pub(super) stack: Stack<T, N, MAX_ROWS>,
     pub(super) projection: HierarchyData<T, N, MAX_ROWS, MAX_LEVELS>,
     /// The Cartesian damping force of each arm this cycle (task axes), outside the force limits,
-    /// in the contact-force limiter's two slots.
-    pub(super) cartesian_damping: [Vector6<T>; MAX_FORCE_LIMITED_ARMS],
+    /// per arm.
+    pub(super) cartesian_damping: PerArm<Vector6<T>, A>,
     /// The world-aligned TCP Jacobians of this cycle (contact-force limiter and Cartesian tasks).
     pub(super) tcp_jacobians: PerArm<SMatrix<T, 6, N>, A>,
     /// The closed-loop inertia `M̃` (5.17) of this cycle.
@@ -152,7 +152,7 @@ impl<
             collision_data,
             stack: Stack::new(),
             projection: HierarchyData::default(),
-            cartesian_damping: [Vector6::zeros(); MAX_FORCE_LIMITED_ARMS],
+            cartesian_damping: [Vector6::zeros(); A],
             tcp_jacobians: [SMatrix::zeros(); A],
             closed_loop: SMatrix::zeros(),
             inverse_inertia: SMatrix::zeros(),

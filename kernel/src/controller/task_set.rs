@@ -6,7 +6,7 @@
 use heapless::Vec;
 use nalgebra::{Matrix3, RealField, SMatrix, SVector, Vector3, Vector6};
 
-use super::capacity::{MAX_FORCE_LIMITED_ARMS, MAX_TASK_ROWS};
+use super::capacity::MAX_TASK_ROWS;
 use super::config::{CartesianParameters, CollisionFieldParameters, ControllerConfig, TaskKind};
 use super::error::ConfigError;
 use super::faults::Fault;
@@ -191,13 +191,12 @@ impl<T: RealField + Copy, const N: usize, const A: usize> TaskSet<T, N, A> {
 /// What the task evaluations of one cycle share: the collision geometry and whether it is
 /// current (updated this cycle), the pair rows the collision fields evaluated (the strong
 /// field's pairs are mostly among the weak field's), and the Cartesian damping force of each
-/// arm (task axes, the limiter's two slots) for the command-side force limit
-/// ([`super::force_limit`]).
-pub(super) struct Scratch<'a, T: RealField, const N: usize, const V: usize, const P: usize> {
+/// arm (task axes) for the command-side force limit ([`super::force_limit`]).
+pub(super) struct Scratch<'a, T: RealField, const N: usize, const V: usize, const P: usize, const A: usize> {
     pub(super) collision: &'a mut CollisionData<T, V, P>,
     pub(super) geometry_current: bool,
     pub(super) pair_rows: PairRowCache<T, N, P, MAX_TASK_ROWS>,
-    pub(super) cartesian_damping: [Vector6<T>; MAX_FORCE_LIMITED_ARMS],
+    pub(super) cartesian_damping: PerArm<Vector6<T>, A>,
 }
 
 /// Read-only inputs of a task evaluation.
@@ -240,7 +239,7 @@ pub(super) fn evaluate<
     kind: TaskKind,
     cx: &EvaluationContext<'_, T, N, B, F, V, P, A>,
     data: &mut Data<T, N, B, F>,
-    scratch: &mut Scratch<'_, T, N, V, P>,
+    scratch: &mut Scratch<'_, T, N, V, P, A>,
     rows: &mut impl RowSink<T, N, MAX_TASK_ROWS>,
     telemetry: &mut Telemetry<T, N, A>,
 ) -> Result<(), Fault> {

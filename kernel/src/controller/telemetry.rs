@@ -6,7 +6,7 @@ use heapless::Vec;
 use nalgebra::{RealField, SVector, Vector3, Vector6};
 use serde::{Deserialize, Serialize};
 
-use super::capacity::MAX_FORCE_LIMITED_ARMS;
+use super::capacity::WIRE_TCP_ERRORS;
 use super::capacity::{MAX_ACTIVE, MAX_LEVELS};
 use super::config::TaskKind;
 use super::error::CommandError;
@@ -136,8 +136,8 @@ pub struct TelemetryMessage<T> {
     /// Fault code (0 = none), see [`fault_code`].
     pub fault: u8,
     /// TCP errors per arm ([`ArmId`](super::layout::ArmId)): `(x, y, z, rx, ry, rz)` (m, rad-like);
-    /// two slots on the wire, zero for an arm the robot does not have.
-    pub tcp_error: [[T; 6]; MAX_FORCE_LIMITED_ARMS],
+    /// the first [`WIRE_TCP_ERRORS`] arms on the wire, zero for an arm the robot does not have.
+    pub tcp_error: [[T; 6]; WIRE_TCP_ERRORS],
     /// Storage function (potential) per level (J).
     pub level_storage: Vec<T, MAX_LEVELS>,
     /// Its rate per level (W).

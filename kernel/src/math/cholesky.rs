@@ -95,13 +95,34 @@ pub fn solve_lower_transpose_in_place<T: RealField + Copy>(l: &[T], y: &mut [T])
 /// result, bit for bit) with fixed-length loops. Returns `false` on a pivot that is not
 /// positive.
 pub fn cholesky_fixed<T: RealField + Copy, const D: usize>(a: &mut [[T; D]; D]) -> bool {
-    for j in 0..D {
+    left_looking(a, |column| column.as_slice(), |column| column.as_mut_slice())
+}
+
+/// [`cholesky_fixed`] for a `6A × 6A` matrix stored as `A × A` blocks of six rows, column-major
+/// (`a[b][j][k][i]` is row `6k + i`, column `6b + j`: the stacked systems of the contact-force
+/// limiter, whose size `6A` cannot be an array length in code generic over `A`). The same
+/// operations in the same order, with fixed-length loops for every `A`.
+pub fn cholesky_blocks<T: RealField + Copy, const A: usize>(a: &mut [[[[T; 6]; A]; 6]; A]) -> bool {
+    left_looking(a.as_flattened_mut(), |column| column.as_flattened(), |column| column.as_flattened_mut())
+}
+
+/// The left-looking factorisation of [`cholesky_in_place`] on the columns `a` (as many as each
+/// has entries, read through `entries` and `entries_mut`); inlined into each fixed-size caller,
+/// so that every trip count is a constant.
+#[inline(always)]
+fn left_looking<T: RealField + Copy, C>(
+    a: &mut [C],
+    entries: impl Fn(&C) -> &[T],
+    entries_mut: impl Fn(&mut C) -> &mut [T],
+) -> bool {
+    let d = a.len();
+    for j in 0..d {
         let Some((previous, rest)) = a.split_at_mut_checked(j) else { return false };
-        let Some(column) = rest.first_mut() else { return false };
-        for l_column in previous.iter() {
+        let Some(column) = rest.first_mut().map(&entries_mut) else { return false };
+        for l_column in previous.iter().map(&entries) {
             let Some(&l_jk) = l_column.get(j) else { return false };
             if l_jk != T::zero() {
-                for i in j..D {
+                for i in j..d {
                     if let (Some(x), Some(l)) = (column.get_mut(i), l_column.get(i)) {
                         *x -= l_jk * *l;
                     }
@@ -114,7 +135,7 @@ pub fn cholesky_fixed<T: RealField + Copy, const D: usize>(a: &mut [[T; D]; D]) 
         }
         let root = sqrt(*diagonal);
         *diagonal = root;
-        for i in (j + 1)..D {
+        for i in (j + 1)..d {
             if let Some(x) = column.get_mut(i) {
                 *x /= root;
             }

@@ -126,12 +126,21 @@ pub fn coupling_compensation<T: RealField + Copy, const N: usize, const B: usize
 /// the tree pass [`crate::dynamics::coriolis_product`] instead of the columns of
 /// `data.coriolis`: needs [`crate::dynamics::forward_kinematics`], `crba` and `gravity` at the
 /// same state, not `coriolis_matrix`. Errors: a non-finite acceleration. Cost O(B).
+///
+/// `fixed_base`: the model has no platform coordinates (every axis of `layout` absent; the
+/// controller knows it at compile time). A fixed base has no couplings: the terms are `g_q`
+/// alone and the tree pass, which would multiply by a zero platform rate, does not run (cost
+/// O(N)).
 pub fn coupling_compensation_recursive<T: RealField + Copy, const N: usize, const B: usize, const F: usize>(
     model: &Model<T, N, B, F>,
     data: &Data<T, N, B, F>,
     layout: &PlatformLayout,
     base_acceleration: &Vector3<T>,
+    fixed_base: bool,
 ) -> Result<CouplingTerms<T, N>, PlatformError> {
+    if fixed_base {
+        return compensation_terms(data, layout, base_acceleration, |_| T::zero());
+    }
     let mut platform_rate = SVector::<T, N>::zeros();
     for c in layout.axes().iter().filter_map(|axis| axis.coordinate()) {
         if let (Some(slot), Some(rate)) = (platform_rate.get_mut(c), data.v.get(c)) {
@@ -204,7 +213,7 @@ mod tests {
             let c_qq = data.coriolis * upper_v;
             let reference = *rnea(&model, &mut data, &qdd).unwrap() - c_qq;
             let tau = terms.torque(CompensationSwitch::ON);
-            let recursive = coupling_compensation_recursive(&model, &data, &layout, &acceleration).unwrap();
+            let recursive = coupling_compensation_recursive(&model, &data, &layout, &acceleration, false).unwrap();
             assert_eq!((recursive.inertia, recursive.gravity), (terms.inertia, terms.gravity));
             let scale = nalgebra::convert::<f64, T>(tolerance * 1e-2) * (T::one() + terms.coriolis.amax());
             assert!((recursive.coriolis - terms.coriolis).amax() <= scale, "seed {seed}: C_qr ṙ");
@@ -223,6 +232,31 @@ mod tests {
     #[test]
     fn equals_the_coupling_rows_of_the_rigid_body_dynamics_f32() {
         matches_rnea::<f32>(1e-3);
+    }
+
+    /// On a fixed base the terms are the gravity torque alone and the tree pass is skipped: with
+    /// non-finite body velocities in `data` (which the pass reads and a zero platform rate does
+    /// not cancel, `NaN · 0 = NaN`) the couplings stay exactly zero; without the skip the same
+    /// data gives NaN.
+    #[test]
+    fn a_fixed_base_has_gravity_only_and_runs_no_tree_pass() {
+        let model = branched::<f64>();
+        let mut data = crate::Data::new(&model);
+        forward_kinematics(&model, &mut data, &state(5, 1.0), &state(6, 1.0)).unwrap();
+        crba(&model, &mut data);
+        gravity(&model, &mut data);
+        let fixed = PlatformLayout::try_new::<N>([PlatformAxis::Absent; 3]).unwrap();
+        let acceleration = Vector3::new(0.4, -0.2, 0.1);
+        let finite = coupling_compensation_recursive(&model, &data, &fixed, &acceleration, true).unwrap();
+        assert_eq!(finite.torque(CompensationSwitch::ON), data.gravity_torque);
+        assert!(data.gravity_torque.amax() > 0.1, "{}", data.gravity_torque);
+        for velocity in data.body_velocities.iter_mut() {
+            *velocity = nalgebra::Vector6::repeat(f64::NAN);
+        }
+        let poisoned = coupling_compensation_recursive(&model, &data, &fixed, &acceleration, true).unwrap();
+        assert_eq!(poisoned, finite);
+        let unskipped = coupling_compensation_recursive(&model, &data, &fixed, &acceleration, false).unwrap();
+        assert!(unskipped.coriolis.iter().all(|x| x.is_nan()), "{}", unskipped.coriolis);
     }
 
     #[test]

@@ -4,20 +4,21 @@
 
 use nalgebra::{Cholesky, Const, RealField, SMatrix, SVector, Vector6};
 
-use super::limiter::ForceLimiter;
+use super::limiter::{ForceLimiter, Stacked};
+use crate::controller::layout::MAX_ARMS;
 use crate::dynamics::{InertiaFactor, TreeFactorization};
 use crate::math::cholesky::{cholesky_in_place, solve_lower_in_place, solve_lower_transpose_in_place};
 
 /// What the command-side limit did: the torque to add and the axes it acted on.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CommandLimit<T, const N: usize> {
+pub struct CommandLimit<T, const N: usize, const A: usize> {
     /// `−J_Lᵀ e` (upper-body rows; zero without excess).
     pub torque: SVector<T, N>,
     /// Per hand and axis: the commanded contact force left its bounds.
-    pub limited: [[bool; 6]; 2],
+    pub limited: [[bool; 6]; A],
 }
 
-impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
+impl<T: RealField + Copy, const N: usize, const A: usize> ForceLimiter<T, N, A> {
     /// The command-side limit (module docs) for the projected task torque `τ = Σ_i N_i τ_i` of
     /// this cycle, after [`Self::update`]: `regularisation` is `μ` of the parameters, `factor`
     /// a factor of the closed-loop inertia ([`InertiaFactor`]: dense or tree-sparse), `damping`
@@ -26,18 +27,20 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
     /// the module docs). Zero without an enabled limit or if a solve fails.
     /// The `k` limited rows are packed: one substitution with `factor` per limited row plus
     /// one for `τ` (`reflected_dense`, `reflected_tree`; on the tree factor four rows at once
-    /// while `k ≤ 3`), one `k × k` Cholesky.
+    /// while `k ≤ 3`, 13 while `k ≤ 12`, the `6 MAX_ARMS + 1` of every arm beyond), one `k × k`
+    /// Cholesky.
     pub fn limit_command<'m>(
         &self,
         regularisation: T,
         task_torque: &SVector<T, N>,
         factor: impl Into<InertiaFactor<'m, T, N>>,
-        damping: &[Vector6<T>; 2],
-    ) -> CommandLimit<T, N> {
-        let none = CommandLimit { torque: SVector::zeros(), limited: [[false; 6]; 2] };
+        damping: &[Vector6<T>; A],
+    ) -> CommandLimit<T, N, A> {
+        let none = CommandLimit { torque: SVector::zeros(), limited: [[false; 6]; A] };
         // The limited rows L (indices into the stacked J_u, ascending): an axis of a hand with
         // an enabled limit and a finite bound.
-        let mut rows = [0_usize; 12];
+        let mut packed: Stacked<usize, A> = [[0; 6]; A];
+        let rows = packed.as_flattened_mut();
         let mut count = 0;
         for (h, bounds) in self.effective.iter().enumerate() {
             let Some((lower, upper)) = bounds else { continue };
@@ -52,17 +55,22 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
             return none;
         };
         // J_L M⁻¹ J_Lᵀ + μ I (count × count, column-major, lower triangle) and J_L M⁻¹ τ.
-        let mut reflected = [T::zero(); 144];
-        let mut force = [T::zero(); 12];
+        let mut reflected_storage = [[[[T::zero(); 6]; A]; 6]; A];
+        let reflected = reflected_storage.as_flattened_mut().as_flattened_mut().as_flattened_mut();
+        let mut force_storage: Stacked<T, A> = [[T::zero(); 6]; A];
+        let force = force_storage.as_flattened_mut();
         let solved = match factor.into() {
             InertiaFactor::Dense(factor) => {
-                self.reflected_dense(regularisation, task_torque, factor, rows, &mut reflected, &mut force)
+                self.reflected_dense(regularisation, task_torque, factor, rows, reflected, force)
             }
             InertiaFactor::Tree(factor) if count < 4 => {
-                self.reflected_tree::<4>(regularisation, task_torque, factor, rows, &mut reflected, &mut force)
+                self.reflected_tree::<4>(regularisation, task_torque, factor, rows, reflected, force)
+            }
+            InertiaFactor::Tree(factor) if A <= 2 || count < 13 => {
+                self.reflected_tree::<13>(regularisation, task_torque, factor, rows, reflected, force)
             }
             InertiaFactor::Tree(factor) => {
-                self.reflected_tree::<13>(regularisation, task_torque, factor, rows, &mut reflected, &mut force)
+                self.reflected_tree::<{ 6 * MAX_ARMS + 1 }>(regularisation, task_torque, factor, rows, reflected, force)
             }
         };
         let (Some(reflected), Some(force)) = (reflected.get_mut(..count * count), force.get_mut(..count)) else {
@@ -75,8 +83,9 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
         if !(solved && force.iter().all(|x| x.is_finite())) {
             return none;
         }
-        let mut excess = [T::zero(); 12];
-        let mut limited = [[false; 6]; 2];
+        let mut excess_storage: Stacked<T, A> = [[T::zero(); 6]; A];
+        let excess = excess_storage.as_flattened_mut();
+        let mut limited = [[false; 6]; A];
         for ((row, f), e) in rows.iter().zip(force.iter()).zip(excess.iter_mut()) {
             let (h, axis) = (row / 6, row % 6);
             let (Some(Some((lower, upper))), Some(damping), Some(flags)) =
@@ -96,7 +105,8 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
         }
         // −J_Lᵀ e: one dot product over the limited rows per column of the stacked Jacobian.
         let mut torque = SVector::<T, N>::zeros();
-        for (t, column) in torque.as_mut_slice().iter_mut().zip(self.stacked.data.0.iter()) {
+        for (t, column) in torque.as_mut_slice().iter_mut().zip(self.stacked.iter()) {
+            let column = column.as_flattened();
             *t = -rows
                 .iter()
                 .zip(excess.iter())
@@ -116,31 +126,28 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
         task_torque: &SVector<T, N>,
         factor: &Cholesky<T, Const<N>>,
         rows: &[usize],
-        reflected: &mut [T; 144],
-        force: &mut [T; 12],
+        reflected: &mut [T],
+        force: &mut [T],
     ) -> bool {
         let count = rows.len();
         let l = factor.l_dirty().as_slice();
         let mut z = *task_torque;
-        let mut reduced = SMatrix::<T, N, 12>::zeros();
+        let mut reduced_storage: Stacked<[T; N], A> = [[[T::zero(); N]; 6]; A];
+        let reduced = reduced_storage.as_flattened_mut();
         let mut solved = solve_lower_in_place(l, z.as_mut_slice());
-        for (column, r) in reduced.as_mut_slice().chunks_exact_mut(N).zip(rows.iter()) {
-            for (y, j) in column.iter_mut().zip(self.stacked.data.0.iter()) {
-                *y = j.get(*r).copied().unwrap_or_else(T::zero);
+        for (column, r) in reduced.iter_mut().zip(rows.iter()) {
+            for (y, j) in column.iter_mut().zip(self.stacked.iter()) {
+                *y = j.as_flattened().get(*r).copied().unwrap_or_else(T::zero);
             }
             solved &= solve_lower_in_place(l, column);
         }
         let dot = |a: &[T], b: &[T]| a.iter().zip(b.iter()).fold(T::zero(), |s, (x, y)| s + *x * *y);
-        for (i, (yi, (r_column, f))) in reduced
-            .as_slice()
-            .chunks_exact(N)
-            .zip(reflected.chunks_exact_mut(count.max(1)).zip(force.iter_mut()))
-            .take(count)
-            .enumerate()
+        for (i, (yi, (r_column, f))) in
+            reduced.iter().zip(reflected.chunks_exact_mut(count.max(1)).zip(force.iter_mut())).take(count).enumerate()
         {
             *f = dot(yi, z.as_slice());
             // Column i, rows j ≥ i (the lower triangle the factorisation reads).
-            for (j, (yj, x)) in reduced.as_slice().chunks_exact(N).zip(r_column.iter_mut()).enumerate().skip(i) {
+            for (j, (yj, x)) in reduced.iter().zip(r_column.iter_mut()).enumerate().skip(i) {
                 *x = dot(yi, yj) + if i == j { regularisation } else { T::zero() };
             }
         }
@@ -158,15 +165,16 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
         task_torque: &SVector<T, N>,
         factor: &TreeFactorization<T, N>,
         rows: &[usize],
-        reflected: &mut [T; 144],
-        force: &mut [T; 12],
+        reflected: &mut [T],
+        force: &mut [T],
     ) -> bool {
         let count = rows.len();
         if count >= R || count == 0 {
             return false;
         }
         let mut x = SMatrix::<T, R, N>::zeros();
-        for ((column, j), t) in x.data.0.iter_mut().zip(self.stacked.data.0.iter()).zip(task_torque.iter()) {
+        for ((column, j), t) in x.data.0.iter_mut().zip(self.stacked.iter()).zip(task_torque.iter()) {
+            let j = j.as_flattened();
             for (c, r) in column.iter_mut().zip(rows.iter()) {
                 *c = j.get(*r).copied().unwrap_or_else(T::zero);
             }

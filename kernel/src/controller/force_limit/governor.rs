@@ -4,10 +4,10 @@
 
 use nalgebra::{RealField, SMatrix, SVector, Vector6};
 
-use super::limiter::{ForceLimitParameters, ForceLimiter, HandLimits};
+use super::limiter::{ForceLimitParameters, ForceLimiter, HandLimits, Stacked};
 use crate::controller::layout::RobotLayout;
 
-impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
+impl<T: RealField + Copy, const N: usize, const A: usize> ForceLimiter<T, N, A> {
     /// The effective bounds `(lower, upper)` of hand `index` for the configured ones.
     pub fn bounds(&self, index: usize, lower: &Vector6<T>, upper: &Vector6<T>) -> (Vector6<T>, Vector6<T>) {
         let c = self.correction.get(index).copied().unwrap_or_else(Vector6::zeros);
@@ -15,23 +15,23 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
     }
 
     /// The governor and the platform relief of one period `dt` after a successful estimate:
-    /// `full` the TCP Jacobians of both hands (desired-frame axes), `external` the estimated
-    /// `F̂_ext` of both hands stacked. A hand with `None` limits (or a disabled limiter) is reset.
+    /// `full` the TCP Jacobians of every hand (desired-frame axes), `external` the estimated
+    /// `F̂_ext` of every hand stacked. A hand with `None` limits (or a disabled limiter) is reset.
     #[inline(always)]
-    pub(super) fn govern<const A: usize>(
+    pub(super) fn govern(
         &mut self,
         parameters: &ForceLimitParameters<T>,
         layout: &RobotLayout<N, A>,
         hands: &[Option<HandLimits<T>>; A],
-        full: &[SMatrix<T, 6, N>; 2],
-        external: &SVector<T, 12>,
+        full: &[SMatrix<T, 6, N>; A],
+        external: &Stacked<T, A>,
         dt: T,
     ) {
         self.relief = SVector::zeros();
         let step = parameters.gain * dt;
-        let wrenches: [Vector6<T>; 2] =
-            [external.fixed_rows::<6>(0).into_owned(), external.fixed_rows::<6>(6).into_owned()];
-        for (h, ((limits, jacobian), wrench)) in hands.iter().zip(full.iter()).zip(wrenches).enumerate() {
+        for (h, ((limits, jacobian), wrench)) in
+            hands.iter().zip(full.iter()).zip(external.map(Vector6::from)).enumerate()
+        {
             let applied = -wrench;
             if let Some(a) = self.applied.get_mut(h) {
                 *a = applied;

@@ -1,6 +1,6 @@
 //! The limiter's parameters, its per-cycle inputs and its state (module docs of [`super`]).
 
-use nalgebra::{Matrix3, RealField, SMatrix, SVector, Vector6};
+use nalgebra::{Matrix3, RealField, SVector, Vector6};
 
 /// Parameters of the contact-force limiter.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -33,34 +33,40 @@ pub struct HandLimits<T> {
     pub upper: Vector6<T>,
 }
 
-/// State of the limiter: per hand the estimated applied wrench and the governor corrections;
-/// the cycle's Jacobians and effective bounds for the command-side limit.
+/// The `6 A` rows of the `A` hands stacked, hand by hand, six axes each: a column of the
+/// stacked `J_u`, a right-hand side or a column of a `6 A × 6 A` matrix. An array of arrays (no
+/// `6 A` length in a generic type); `as_flattened` gives the `6 A` entries in order.
+pub type Stacked<X, const A: usize> = [[X; 6]; A];
+
+/// State of the limiter of `A` hands: per hand the estimated applied wrench and the governor
+/// corrections; the cycle's Jacobians and effective bounds for the command-side limit.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ForceLimiter<T, const N: usize> {
-    pub(super) applied: [Vector6<T>; 2],
-    pub(super) correction: [Vector6<T>; 2],
+pub struct ForceLimiter<T, const N: usize, const A: usize> {
+    pub(super) applied: [Vector6<T>; A],
+    pub(super) correction: [Vector6<T>; A],
     pub(super) relief: SVector<T, N>,
-    /// `J_u` of both hands, stacked (12 × N, desired-frame axes, platform columns zero).
-    pub(super) stacked: SMatrix<T, 12, N>,
+    /// `J_u` of every hand, stacked (`6 A × N`, a column per coordinate, desired-frame axes,
+    /// platform columns zero).
+    pub(super) stacked: [Stacked<T, A>; N],
     /// Effective bounds `(lower, upper)` per hand with an enabled limit, this cycle.
-    pub(super) effective: [Option<(Vector6<T>, Vector6<T>)>; 2],
+    pub(super) effective: [Option<(Vector6<T>, Vector6<T>)>; A],
 }
 
-impl<T: RealField + Copy, const N: usize> Default for ForceLimiter<T, N> {
+impl<T: RealField + Copy, const N: usize, const A: usize> Default for ForceLimiter<T, N, A> {
     fn default() -> Self {
         Self::new()
     }
 }
 
-impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
+impl<T: RealField + Copy, const N: usize, const A: usize> ForceLimiter<T, N, A> {
     /// A limiter at rest (no correction).
     pub fn new() -> Self {
         Self {
-            applied: [Vector6::zeros(); 2],
-            correction: [Vector6::zeros(); 2],
+            applied: [Vector6::zeros(); A],
+            correction: [Vector6::zeros(); A],
             relief: SVector::zeros(),
-            stacked: SMatrix::zeros(),
-            effective: [None; 2],
+            stacked: [[[T::zero(); 6]; A]; N],
+            effective: [None; A],
         }
     }
 
@@ -71,13 +77,13 @@ impl<T: RealField + Copy, const N: usize> ForceLimiter<T, N> {
 
     /// Estimated wrench the TCP of hand `index` applies on its environment, `a = −F̂_ext`
     /// (N, Nm, desired-frame axes).
-    pub fn applied(&self) -> [Vector6<T>; 2] {
+    pub fn applied(&self) -> [Vector6<T>; A] {
         self.applied
     }
 
     /// Governor corrections `c` per hand and axis (N, Nm): positive lowers the upper bound,
     /// negative raises the lower bound.
-    pub fn correction(&self) -> [Vector6<T>; 2] {
+    pub fn correction(&self) -> [Vector6<T>; A] {
         self.correction
     }
 

@@ -20,23 +20,22 @@
 //! with the gain `K_O`, on the upper-body coordinates. With the TCP Jacobians in the axes of
 //! the desired frames (those of the limits), `J_h = blockdiag(A_hᵀ, A_hᵀ) J_h,world`
 //! (`A_h = R_des,h`), restricted to the upper-body columns (`J_u`, the platform columns zero)
-//! and stacked for both hands (12 × N; a robot with one arm leaves the second hand's rows zero;
-//! the controller takes at most [`MAX_FORCE_LIMITED_ARMS`](super::capacity::MAX_FORCE_LIMITED_ARMS)
-//! arms), the contact wrenches (on the robot) are the regularised
-//! least-squares estimate
+//! and stacked for the `A` hands of the layout (`6 A × N`, [`ForceLimiter`] is generic over `A`,
+//! the controller takes up to [`MAX_ARMS`](super::layout::MAX_ARMS)), the contact wrenches (on
+//! the robot) are the regularised least-squares estimate
 //!
 //! `F̂_ext = (J_u J_uᵀ + μ I)⁻¹ J_u τ̂_ext`,
 //!
-//! one 12 × 12 Cholesky solve (`μ > 0` keeps it positive definite, also with one hand's rows
-//! zero). Both hands are always estimated together, so that a contact of one hand seen through
-//! the torso is not attributed to the other. It is an *estimate*: contacts away from the TCPs,
+//! one `6 A × 6 A` Cholesky solve (`μ > 0` keeps it positive definite, also with a hand's rows
+//! zero). All hands are always estimated together, so that a contact of one hand seen through
+//! the torso is not attributed to another. It is an *estimate*: contacts away from the TCPs,
 //! model errors and joint friction the torque sensors do not see (link-side friction, taken
 //! for an external torque) end up in it, and it lags the true force by the observer's time
 //! constant `1/K_O`. The force the hand applies on the environment is `a = −F̂_ext`.
 //!
 //! ## Command-side limit: the contact force the commanded torque produces
 //! What a commanded torque `τ = Σ_i N_i τ_i` (4.7) presses with is the force of a rigid contact
-//! along the limited axes `L` (the axes with a finite bound; rows `J_L` of `J_u`, both hands):
+//! along the limited axes `L` (the axes with a finite bound; rows `J_L` of `J_u`, every hand):
 //!
 //! `λ_L = (J_L M⁻¹ J_Lᵀ + μ I)⁻¹ J_L M⁻¹ τ`,
 //!
@@ -94,4 +93,4 @@ mod tests;
 
 pub use command_limit::CommandLimit;
 pub use governor::governor_step;
-pub use limiter::{ForceLimitParameters, ForceLimiter, HandLimits};
+pub use limiter::{ForceLimitParameters, ForceLimiter, HandLimits, Stacked};

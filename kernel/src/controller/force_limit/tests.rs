@@ -4,7 +4,7 @@
 
 use nalgebra::{Cholesky, Const, Matrix3, RealField, SMatrix, SVector, Vector6};
 
-use super::{governor_step, CommandLimit, ForceLimitParameters, ForceLimiter, HandLimits};
+use super::{governor_step, CommandLimit, ForceLimitParameters, ForceLimiter, HandLimits, Stacked};
 use crate::controller::layout::RobotLayout;
 use crate::dynamics::{frame_jacobian, DynamicsError, TreeFactorization};
 use crate::model::{Data, Model};
@@ -31,7 +31,12 @@ fn c<T: RealField + Copy>(x: f64) -> T {
 /// The plain limiter (nalgebra products, `Cholesky::new`/`solve`, 12 full solves with the
 /// N × N factor): the reference for the loops of [`ForceLimiter::update`] and
 /// [`ForceLimiter::limit_command`].
-struct Reference<T: RealField, const N: usize>(ForceLimiter<T, N>);
+struct Reference<T: RealField, const N: usize>(ForceLimiter<T, N, 2>);
+
+/// The limiter's stacked `J_u` of two hands as the 12 × N matrix.
+fn stacked_matrix<T: RealField + Copy, const N: usize>(stacked: &[Stacked<T, 2>; N]) -> SMatrix<T, 12, N> {
+    SMatrix::from_fn(|i, k| stacked[k].as_flattened()[i])
+}
 
 impl<T: RealField + Copy, const N: usize> Reference<T, N> {
     fn bounds(&self, index: usize, lower: &Vector6<T>, upper: &Vector6<T>) -> (Vector6<T>, Vector6<T>) {
@@ -73,7 +78,8 @@ impl<T: RealField + Copy, const N: usize> Reference<T, N> {
         stacked.fixed_rows_mut::<6>(0).copy_from(right);
         stacked.fixed_rows_mut::<6>(6).copy_from(left);
         let gram = stacked * stacked.transpose() + SMatrix::<T, 12, 12>::identity() * parameters.regularisation;
-        self.0.stacked = stacked;
+        self.0.stacked =
+            core::array::from_fn(|k| core::array::from_fn(|h| core::array::from_fn(|i| stacked[(6 * h + i, k)])));
         self.0.effective = [None; 2];
         let Some(factor) = Cholesky::new(gram) else {
             self.0.applied = [Vector6::zeros(); 2];
@@ -136,7 +142,7 @@ impl<T: RealField + Copy, const N: usize> Reference<T, N> {
         task_torque: &SVector<T, N>,
         factor: &Cholesky<T, Const<N>>,
         damping: &[Vector6<T>; 2],
-    ) -> CommandLimit<T, N> {
+    ) -> CommandLimit<T, N, 2> {
         let none = CommandLimit { torque: SVector::zeros(), limited: [[false; 6]; 2] };
         // The limited rows L: an axis of a hand with an enabled limit and a finite bound.
         let mut selected = [false; 12];
@@ -152,8 +158,9 @@ impl<T: RealField + Copy, const N: usize> Reference<T, N> {
             return none;
         }
         // M⁻¹ J_uᵀ, then the reflected inertia of L (identity on the other rows) and J_L M⁻¹ τ.
-        let mobility = factor.solve(&self.0.stacked.transpose());
-        let mut reflected = self.0.stacked * mobility;
+        let stacked = stacked_matrix(&self.0.stacked);
+        let mobility = factor.solve(&stacked.transpose());
+        let mut reflected = stacked * mobility;
         let mut rhs = mobility.transpose() * task_torque;
         for (i, mut row) in reflected.row_iter_mut().enumerate() {
             let row_selected = selected.get(i).copied().unwrap_or(false);
@@ -192,7 +199,7 @@ impl<T: RealField + Copy, const N: usize> Reference<T, N> {
                 *flag = over != T::zero();
             }
         }
-        CommandLimit { torque: -(self.0.stacked.transpose() * excess), limited }
+        CommandLimit { torque: -(stacked.transpose() * excess), limited }
     }
 }
 
@@ -234,7 +241,7 @@ fn governor_sides_and_bounds<T: RealField + Copy>() {
     assert_eq!(governor_step(T::zero(), c(-30.0), Some(c(-20.0)), None, step, c(10.0)), c(-1.0));
     // Relaxation stops at zero, never crosses to the other side.
     assert_eq!(governor_step(c(0.5), c(0.0), Some(c(-20.0)), Some(c(20.0)), step, c(10.0)), T::zero());
-    let limiter = ForceLimiter::<T, 3> {
+    let limiter = ForceLimiter::<T, 3, 2> {
         correction: [Vector6::new(c(2.0), c(-1.0), T::zero(), T::zero(), T::zero(), T::zero()), Vector6::zeros()],
         ..ForceLimiter::new()
     };
@@ -300,7 +307,7 @@ fn loops_match_the_reference<T: RealField + Copy>(regularisation: f64, tolerance
         torso: Some([false, true, true, false, false, false]),
         arms: [[false, false, false, true, false, false], [false, false, false, false, true, true]],
     };
-    let (mut fast, mut plain) = (ForceLimiter::<T, N>::new(), Reference(ForceLimiter::<T, N>::new()));
+    let (mut fast, mut plain) = (ForceLimiter::<T, N, 2>::new(), Reference(ForceLimiter::<T, N, 2>::new()));
     let parameters = ForceLimitParameters {
         enabled: true,
         margin: c(0.1),
@@ -344,7 +351,7 @@ fn loops_match_the_reference<T: RealField + Copy>(regularisation: f64, tolerance
             worst = worst.max(to_f64((fast.correction[h] - plain.0.correction[h]).amax()) / scale);
         }
         worst = worst.max(to_f64((fast.relief - plain.0.relief).amax()) / scale);
-        worst = worst.max(to_f64((fast.stacked - plain.0.stacked).amax()));
+        worst = worst.max(to_f64((stacked_matrix(&fast.stacked) - stacked_matrix(&plain.0.stacked)).amax()));
         let torque: SVector<T, N> = (state(cycle ^ 11, 60.0) - state(cycle ^ 13, 60.0)).cast();
         let damping = [Vector6::from_fn(|i, _| c((i as f64 - 2.5) * 0.7)), Vector6::zeros()];
         let a = fast.limit_command(parameters.regularisation, &torque, &factor, &damping);
@@ -403,7 +410,7 @@ fn estimate_recovers_the_contact<T: RealField + Copy>() {
         max_correction: c(10.0),
         regularisation: c(1e-6),
     };
-    let mut limiter = ForceLimiter::<T, 3>::new();
+    let mut limiter = ForceLimiter::<T, 3, 2>::new();
     limiter.update(&parameters, &model, &data, &layout, &residual, &[Some(limits), None], c(1e-3)).unwrap();
     // Both hands share the frame here: the estimate splits the 30 N between them (15 N each, over the 10 N limit).
     let total = limiter.applied()[0][0] + limiter.applied()[1][0];
@@ -443,7 +450,7 @@ fn command_side_limit_puts_the_contact_force_on_the_bound<T: RealField + Copy>()
             max_correction: c(10.0),
             regularisation: c(1e-6),
         };
-        let mut limiter = ForceLimiter::<T, 3>::new();
+        let mut limiter = ForceLimiter::<T, 3, 2>::new();
         limiter
             .update(&parameters, &model, &data, &layout, &SVector::zeros(), &[Some(wiper_limits()), None], c(1e-3))
             .unwrap();
