@@ -1,20 +1,21 @@
 //! The generic rig: an imported robot (`--robot panda|tiago_dual`, `fixtures::robots`) simulated
 //! by [`Simulator`] under the kernel's whole-body controller for its layout (issue 15, item 4).
 //!
-//! The layout is a fixed base (`U = N`, every platform axis absent), one arm per TCP of the
-//! import (`A = TCPS.len()`), and the robot's torso coordinates if it has any (TIAGo++'s lift).
-//! The hierarchy ([`hierarchy`]): end stops over the Cartesian impedance of every arm over each
-//! arm's singularity avoidance over the joint damping of the upper body. Collision avoidance is
-//! not in it yet: the import writes the swept-sphere model as a text file
-//! (`fixtures/robots/<name>/<name>.collision`) without a Rust constructor.
+//! The layout is the robot's (`fixtures::robots::<name>::layout`): a fixed base (`U = N`, every
+//! platform axis absent), one arm per TCP of the import, and the robot's torso coordinates if it
+//! has any (TIAGo++'s lift). Collision avoidance has no volumes yet: the import writes the
+//! swept-sphere model as a text file (`fixtures/robots/<name>/<name>.collision`) without a Rust
+//! constructor.
 //!
-//! Every gain follows from the model by one rule, [`gains`]: the Cartesian stiffness per arm is
-//! `K = λ ω_c²` with `λ` the largest eigenvalue of the translational reflected inertia
-//! `(J_p M⁻¹ J_pᵀ)⁻¹` at the home posture and the rotational one `λ_r ω_c²` likewise, so the
-//! heaviest direction has the natural frequency `ω_c` ([`CARTESIAN_FREQUENCY_RAD_S`]); the
-//! kernel damps it with the thesis' `ξ = 0.7` (double diagonalisation). The joint damping is
-//! `D_i = 2 ξ ω_j M_ii` and the end stops `K = ω_j² max M_ii`, `D = 2 ξ ω_j max M_ii`
-//! ([`JOINT_FREQUENCY_RAD_S`]). A robot's configuration file will replace this function.
+//! Every gain, limit and the hierarchy come from the robot's compiled configuration file
+//! (`fixtures/robots/<name>/config.toml`, `fixtures::robots::<name>::controller_config` and
+//! `config::hierarchy::fig_6_3::LEVELS`): the import writes its gains by one rule from the model
+//! (`host-sim/src/import/config.rs`: the heaviest TCP direction at 1.5 Hz, `ξ = 0.7`, joint
+//! damping and end stops from the diagonal inertia); a value edited in the file changes the run
+//! after a rebuild, with no Rust edit. The hierarchy is the file's Fig. 6.3 for arm 0: the
+//! Cartesian impedance of arm 0 (with the strong collision avoidance, which has no volumes yet)
+//! over the weak collision avoidance, arm 0's singularity avoidance, the end stops, the joint
+//! impedance of the torso and the other arms and the upper body's damping.
 //!
 //! [`GenericRig::cycle`] reads the sensors through the `hal` traits, steps the controller in the
 //! run's scalar (`f64` or `f32`: the frame narrowed, the torque widened) and writes the torques.
@@ -22,18 +23,15 @@
 pub mod posture_push;
 pub mod reach;
 
-use fixtures::fixed_base::{self, FixedBaseGains};
 use fixtures::robots::{panda, tiago_dual};
 use hal::{JointTorqueInterface, PlatformVelocityInterface};
 use kernel::controller::config::*;
 use kernel::controller::faults::SafeOutput;
 use kernel::controller::messages::{Command, Pose};
 use kernel::controller::{Controller, SensorFrame};
-use kernel::dynamics::{crba, forward_kinematics, frame_jacobian};
-use kernel::model::{Data, FrameId, Model};
-use kernel::platform::{PlatformAxis, PlatformLayout};
+use kernel::model::{FrameId, Model};
 use kernel::tasks::collision::CollisionModelBuilder;
-use nalgebra::{convert, RealField, SMatrix, SVector, Vector3};
+use nalgebra::{convert, RealField, SVector, Vector3};
 
 use crate::output::TimeSeries;
 use crate::scalar::Scalar;
@@ -61,13 +59,6 @@ impl RobotName {
     }
 }
 
-/// Damping ratio of every gain rule (the thesis' `ξ = 0.7`, Ch. 6).
-pub const DAMPING_RATIO: f64 = 0.7;
-/// Natural frequency of the Cartesian impedance along the heaviest direction (rad/s): 1.5 Hz.
-pub const CARTESIAN_FREQUENCY_RAD_S: f64 = 3.0 * core::f64::consts::PI;
-/// Natural frequency of the joint damping and the end stops (rad/s): 3 Hz.
-pub const JOINT_FREQUENCY_RAD_S: f64 = 6.0 * core::f64::consts::PI;
-
 /// What the generic rig needs of an imported robot besides its model.
 #[derive(Clone, Copy, Debug)]
 pub struct RobotSpec<const N: usize, const A: usize> {
@@ -75,10 +66,6 @@ pub struct RobotSpec<const N: usize, const A: usize> {
     pub name: &'static str,
     /// The TCP frame of each arm.
     pub tcps: [FrameId; A],
-    /// The coordinates of each arm.
-    pub arms: [[bool; N]; A],
-    /// The torso coordinates, if the robot has a torso.
-    pub torso: Option<[bool; N]>,
     /// The home posture (rad, m): inside the limits, away from the end-stop margins.
     pub home: [f64; N],
     /// A mid-chain frame of arm 0 (the elbow) where `posture_push` pushes.
@@ -91,8 +78,6 @@ pub struct RobotSpec<const N: usize, const A: usize> {
 pub const PANDA: RobotSpec<{ panda::N }, 1> = RobotSpec {
     name: "panda",
     tcps: panda::TCPS,
-    arms: [[true; panda::N]],
-    torso: None,
     home: [0.0, -0.3, 0.0, -2.0, 0.0, 1.8, 0.8],
     elbow: panda::PANDA_LINK4,
     joint_names: panda::JOINT_NAMES,
@@ -104,160 +89,61 @@ pub const PANDA: RobotSpec<{ panda::N }, 1> = RobotSpec {
 pub const TIAGO_DUAL: RobotSpec<{ tiago_dual::N }, 2> = RobotSpec {
     name: "tiago_dual",
     tcps: tiago_dual::TCPS,
-    arms: [[O, I, I, I, I, I, I, I, O, O, O, O, O, O, O], [O, O, O, O, O, O, O, O, I, I, I, I, I, I, I]],
-    torso: Some([I, O, O, O, O, O, O, O, O, O, O, O, O, O, O]),
     home: [0.15, 0.4, 0.3, 0.0, 1.5, 0.0, 0.5, 0.0, 0.4, 0.3, 0.0, 1.5, 0.0, 0.5, 0.0],
     elbow: tiago_dual::ARM_LEFT_4_LINK,
     joint_names: tiago_dual::JOINT_NAMES,
 };
 
-/// A coordinate in a mask (`I`) or not (`O`), for the masks above.
-const I: bool = true;
-const O: bool = false;
-
 /// A generic scenario: one function over the robot's sizes and the controller's scalar.
 pub trait Scenario {
-    /// Runs the scenario on `spec` with the controller in `T` built on `model`.
+    /// Runs the scenario on `spec` with the controller in `T` made of `parts`.
     fn simulate<T, const N: usize, const B: usize, const F: usize, const A: usize>(
         spec: &RobotSpec<N, A>,
-        model: Model<T, N, B, F>,
-        plant: Model<f64, N, B, F>,
+        parts: RigParts<T, N, B, F, A>,
         options: &RunOptions,
     ) -> Result<Outcome, String>
     where
         T: RealField + Copy + Into<f64>;
 }
 
+/// What the rig is built of: the controller's model in `T`, the simulated plant's in `f64`, the
+/// robot's compiled configuration and its Fig. 6.3 hierarchy.
+pub struct RigParts<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const A: usize> {
+    /// The controller's model.
+    pub model: Model<T, N, B, F>,
+    /// The simulated robot's model.
+    pub plant: Model<f64, N, B, F>,
+    /// The controller's configuration: the robot's `config.toml`.
+    pub config: ControllerConfig<T, N, A>,
+    /// The hierarchy: the file's `[hierarchy.fig_6_3]`.
+    pub hierarchy: &'static [TaskSpec],
+}
+
+/// The parts of a robot: its models and its compiled configuration, in `T`.
+macro_rules! parts {
+    ($robot:ident, $t:ty) => {{
+        let error = |e: kernel::model::ModelError| format!("model: {e}");
+        RigParts::<$t, { $robot::N }, { $robot::BODIES }, { $robot::FRAMES }, { $robot::ARMS }> {
+            model: $robot::model::<$t>().map_err(error)?,
+            plant: $robot::model::<f64>().map_err(error)?,
+            config: $robot::controller_config::<$t>().map_err(|e| format!("{}: {e:?}", stringify!($robot)))?,
+            hierarchy: &$robot::config::hierarchy::fig_6_3::LEVELS,
+        }
+    }};
+}
+
 /// Runs scenario `S` on the robot and in the scalar the options name.
 pub fn simulate<S: Scenario>(options: &RunOptions) -> Result<Outcome, String> {
-    let error = |e: kernel::model::ModelError| format!("model: {e}");
     match (options.robot.unwrap_or_default(), options.scalar) {
-        (RobotName::Panda, Scalar::F64) => {
-            S::simulate(&PANDA, panda::model::<f64>().map_err(error)?, panda::model().map_err(error)?, options)
-        }
-        (RobotName::Panda, Scalar::F32) => {
-            S::simulate(&PANDA, panda::model::<f32>().map_err(error)?, panda::model().map_err(error)?, options)
-        }
-        (RobotName::TiagoDual, Scalar::F64) => S::simulate(
-            &TIAGO_DUAL,
-            tiago_dual::model::<f64>().map_err(error)?,
-            tiago_dual::model().map_err(error)?,
-            options,
-        ),
-        (RobotName::TiagoDual, Scalar::F32) => S::simulate(
-            &TIAGO_DUAL,
-            tiago_dual::model::<f32>().map_err(error)?,
-            tiago_dual::model().map_err(error)?,
-            options,
-        ),
+        (RobotName::Panda, Scalar::F64) => S::simulate(&PANDA, parts!(panda, f64), options),
+        (RobotName::Panda, Scalar::F32) => S::simulate(&PANDA, parts!(panda, f32), options),
+        (RobotName::TiagoDual, Scalar::F64) => S::simulate(&TIAGO_DUAL, parts!(tiago_dual, f64), options),
+        (RobotName::TiagoDual, Scalar::F32) => S::simulate(&TIAGO_DUAL, parts!(tiago_dual, f32), options),
     }
 }
 
 fn c<T: RealField>(x: f64) -> T {
     convert(x)
-}
-
-/// The gains of [`gains`], in `f64`.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Gains<const N: usize, const A: usize> {
-    /// Isotropic translational stiffness per arm (N/m).
-    pub translational_stiffness: [f64; A],
-    /// Isotropic rotational stiffness per arm (Nm/rad).
-    pub rotational_stiffness: [f64; A],
-    /// Joint damping per coordinate (Nms/rad or Ns/m).
-    pub joint_damping: [f64; N],
-    /// End-stop stiffness (Nm/rad) and damping (Nms/rad), one for every joint.
-    pub end_stop: (f64, f64),
-}
-
-/// The gain rule (module docs) from the model at the robot's home posture.
-pub fn gains<const N: usize, const B: usize, const F: usize, const A: usize>(
-    spec: &RobotSpec<N, A>,
-    model: &Model<f64, N, B, F>,
-) -> Result<Gains<N, A>, String> {
-    let mut data = Data::new(model);
-    let q = SVector::from(spec.home);
-    forward_kinematics(model, &mut data, &q, &SVector::zeros()).map_err(|e| format!("home posture: {e}"))?;
-    let mass = *crba(model, &mut data);
-    let inverse = mass.try_inverse().ok_or("the mass matrix at the home posture is singular")?;
-    let mut translational_stiffness = [0.0; A];
-    let mut rotational_stiffness = [0.0; A];
-    for (arm, tcp) in spec.tcps.iter().enumerate() {
-        let mut jacobian = SMatrix::<f64, 6, N>::zeros();
-        frame_jacobian(model, &data, *tcp, &mut jacobian).map_err(|e| format!("TCP Jacobian: {e}"))?;
-        let heaviest = |rows: usize| -> Result<f64, String> {
-            let j = jacobian.fixed_rows::<3>(rows);
-            let reflected = (j * inverse * j.transpose()).try_inverse().ok_or("the TCP is singular at home")?;
-            Ok(reflected.symmetric_eigenvalues().max())
-        };
-        let w2 = CARTESIAN_FREQUENCY_RAD_S * CARTESIAN_FREQUENCY_RAD_S;
-        if let (Some(t), Some(r)) = (translational_stiffness.get_mut(arm), rotational_stiffness.get_mut(arm)) {
-            *t = heaviest(0)? * w2;
-            *r = heaviest(3)? * w2;
-        }
-    }
-    let joint_damping = mass.diagonal().map(|m| 2.0 * DAMPING_RATIO * JOINT_FREQUENCY_RAD_S * m).into();
-    let heaviest_joint = mass.diagonal().max();
-    let end_stop = (
-        JOINT_FREQUENCY_RAD_S * JOINT_FREQUENCY_RAD_S * heaviest_joint,
-        2.0 * DAMPING_RATIO * JOINT_FREQUENCY_RAD_S * heaviest_joint,
-    );
-    Ok(Gains { translational_stiffness, rotational_stiffness, joint_damping, end_stop })
-}
-
-/// The hierarchy: end stops; the Cartesian impedance of every arm; each arm's singularity
-/// avoidance; the upper body's joint damping.
-pub fn hierarchy<const A: usize>() -> Vec<TaskSpec> {
-    let arms = ArmId::all::<A>();
-    let mut tasks = vec![TaskSpec { kind: TaskKind::EndStops, level: 0 }];
-    tasks.extend(arms.iter().map(|arm| TaskSpec { kind: TaskKind::CartesianImpedance(*arm), level: 1 }));
-    tasks.extend(arms.iter().map(|arm| TaskSpec { kind: TaskKind::SingularityAvoidance(*arm), level: 2 }));
-    tasks.push(TaskSpec { kind: TaskKind::JointDamping(JointGroup::UpperBody), level: 3 });
-    tasks
-}
-
-/// The controller's configuration for `spec` with `gains`, in `T`: a fixed base (the platform
-/// parameters are valid but drive nothing), no force limit, the Ch. 6 guards.
-fn config<T: RealField + Copy, const N: usize, const A: usize>(
-    spec: &RobotSpec<N, A>,
-    gains: &Gains<N, A>,
-) -> Result<ControllerConfig<T, N, A>, String> {
-    let cartesian = core::array::from_fn(|arm| CartesianParameters {
-        translational_stiffness: [c(gains.translational_stiffness.get(arm).copied().unwrap_or(0.0)); 3],
-        rotational_stiffness: [c(gains.rotational_stiffness.get(arm).copied().unwrap_or(0.0)); 3],
-        damping_ratio: c(DAMPING_RATIO),
-        force_lower: [c(f64::NEG_INFINITY); 6],
-        force_upper: [c(f64::INFINITY); 6],
-    });
-    let field = CollisionFieldParameters {
-        max_force: c(20.0),
-        influence_distance: c(0.1),
-        damping_ratio: c(DAMPING_RATIO),
-        activation_full: c(0.0),
-        activation_zero: c(0.1),
-    };
-    let layout = RobotLayout {
-        tcp: spec.tcps,
-        platform: PlatformLayout::try_new::<N>([PlatformAxis::Absent; 3]).map_err(|e| format!("layout: {e}"))?,
-        torso: spec.torso,
-        arms: spec.arms,
-    };
-    Ok(fixed_base::controller_config(
-        layout,
-        FixedBaseGains {
-            period_s: c(crate::sim::CONTROL_PERIOD_S),
-            cartesian,
-            collision: [field; 2],
-            end_stops: EndStopParameters {
-                margin: c(0.1),
-                stiffness: c(gains.end_stop.0),
-                damping: c(gains.end_stop.1),
-            },
-            joint_stiffness: SVector::zeros(),
-            joint_damping: SVector::from(gains.joint_damping.map(c)),
-            force_limit: false,
-        },
-    ))
 }
 
 /// The controller of an imported robot: `U = N` (fixed base), no collision volumes, `A` arms.
@@ -270,8 +156,8 @@ pub struct GenericRig<T: RealField + Copy, const N: usize, const B: usize, const
     pub sim: Simulator<N, B, F, N>,
     /// The controller in the run's scalar; boxed: it is large.
     pub controller: Box<GenericController<T, N, B, F, A>>,
-    /// The gains of [`gains`].
-    pub gains: Gains<N, A>,
+    /// Its configuration (the robot's `config.toml`).
+    pub config: ControllerConfig<T, N, A>,
     /// Cycles with a safe output instead of the whole-body torque.
     pub faulty_cycles: u64,
     /// Cycles with a non-finite torque or TCP error.
@@ -282,23 +168,19 @@ impl<T, const N: usize, const B: usize, const F: usize, const A: usize> GenericR
 where
     T: RealField + Copy + Into<f64>,
 {
-    /// The robot at its home posture at rest on the plant of `options`, the controller on `model`.
-    pub fn new(
-        spec: &RobotSpec<N, A>,
-        model: Model<T, N, B, F>,
-        plant: Model<f64, N, B, F>,
-        options: &RunOptions,
-    ) -> Result<Self, String> {
-        let gains = gains(spec, &plant)?;
+    /// The robot at its home posture at rest on the plant of `options`, the controller made of
+    /// `parts`.
+    pub fn new(spec: &RobotSpec<N, A>, parts: RigParts<T, N, B, F, A>, options: &RunOptions) -> Result<Self, String> {
+        let RigParts { model, plant, config, hierarchy } = parts;
         let collision = CollisionModelBuilder::<T, 0, 0>::new()
             .try_build(&model, &[])
             .map_err(|e| format!("collision model: {e}"))?;
-        let controller = GenericController::try_new(model, collision, config(spec, &gains)?, &hierarchy::<A>())
-            .map_err(|e| format!("controller: {e}"))?;
+        let controller =
+            GenericController::try_new(model, collision, config, hierarchy).map_err(|e| format!("controller: {e}"))?;
         let mut sim = options.simulator(plant, SimConfig::default())?;
         sim.set_state(SVector::from(spec.home), SVector::zeros())?;
         sim.set_joint_stops(Some(JointStops::JUSTIN))?;
-        Ok(Self { sim, controller: Box::new(controller), gains, faulty_cycles: 0, non_finite_cycles: 0 })
+        Ok(Self { sim, controller: Box::new(controller), config, faulty_cycles: 0, non_finite_cycles: 0 })
     }
 
     /// One control cycle: sense, step the controller on the frame in `T`, write the torques.
@@ -350,6 +232,13 @@ where
         self.controller
             .apply(&Command::TcpGoal { hand: id, pose, duration_s: T::zero() })
             .map_err(|e| format!("TcpGoal: {e}"))
+    }
+
+    /// The translational stiffness of `arm`'s Cartesian impedance along world `x` (N/m, the
+    /// configuration's).
+    pub fn translational_stiffness(&self, arm: usize) -> Result<f64, String> {
+        let cartesian = self.config.cartesian.get(arm).ok_or("no such arm")?;
+        Ok(cartesian.translational_stiffness[0].into())
     }
 
     /// The TCP position error of `arm` (m): `‖p − p_des‖` from the telemetry.

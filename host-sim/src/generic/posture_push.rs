@@ -21,7 +21,7 @@ use kernel::dynamics::{crba, forward_kinematics, frame_jacobian};
 use kernel::model::{Data, Model};
 use nalgebra::{RealField, SMatrix, SVector, Vector3};
 
-use super::{record, GenericRig, RobotSpec, Scenario};
+use super::{record, GenericRig, RigParts, RobotSpec, Scenario};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
 use crate::scenarios::{Outcome, RunOptions};
 use crate::sim::{run_loop, CONTROL_PERIOD_S};
@@ -71,15 +71,14 @@ pub struct PosturePush;
 impl Scenario for PosturePush {
     fn simulate<T, const N: usize, const B: usize, const F: usize, const A: usize>(
         spec: &RobotSpec<N, A>,
-        model: Model<T, N, B, F>,
-        plant: Model<f64, N, B, F>,
+        parts: RigParts<T, N, B, F, A>,
         options: &RunOptions,
     ) -> Result<Outcome, String>
     where
         T: RealField + Copy + Into<f64>,
     {
-        let mut rig = GenericRig::new(spec, model, plant, options)?;
-        let stiffness = rig.gains.translational_stiffness.first().copied().ok_or("no arm")?;
+        let mut rig = GenericRig::new(spec, parts, options)?;
+        let stiffness = rig.translational_stiffness(0)?;
         let predicted = predicted_tcp_deflection(spec, rig.sim.model(), stiffness)?;
         rig.sim.push(spec.elbow, Vector3::new(0.0, PUSH_N, 0.0), PUSH_AT_S, PUSH_S)?;
         let elbow_start = rig.sim.frame_placement(spec.elbow)?.translation.vector;

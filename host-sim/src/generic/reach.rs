@@ -23,7 +23,7 @@
 
 use nalgebra::{RealField, Vector3};
 
-use super::{record, GenericRig, RobotSpec, Scenario};
+use super::{record, GenericRig, RigParts, RobotSpec, Scenario};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
 use crate::scenarios::{Outcome, RunOptions};
 use crate::sim::{run_loop, CONTROL_PERIOD_S};
@@ -61,15 +61,14 @@ pub struct Reach;
 impl Scenario for Reach {
     fn simulate<T, const N: usize, const B: usize, const F: usize, const A: usize>(
         spec: &RobotSpec<N, A>,
-        model: kernel::model::Model<T, N, B, F>,
-        plant: kernel::model::Model<f64, N, B, F>,
+        parts: RigParts<T, N, B, F, A>,
         options: &RunOptions,
     ) -> Result<Outcome, String>
     where
         T: RealField + Copy + Into<f64>,
     {
-        let mut rig = GenericRig::new(spec, model, plant, options)?;
-        let stiffness = rig.gains.translational_stiffness.first().copied().ok_or("no arm")?;
+        let mut rig = GenericRig::new(spec, parts, options)?;
+        let stiffness = rig.translational_stiffness(0)?;
         let tcp = *spec.tcps.first().ok_or("no arm")?;
         rig.sim.push(tcp, Vector3::new(PUSH_N, 0.0, 0.0), PUSH_AT_S, PUSH_S)?;
         let mut series = TimeSeries::new(super::columns(spec));

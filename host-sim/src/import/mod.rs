@@ -119,10 +119,10 @@ pub fn generate(options: &ImportOptions) -> Result<Files, String> {
         planar_base: options.planar_base,
     };
     let robot_layout = layout::derive(&description, &options.tcps, options.planar_base)?;
-    let config_file = config::default_file(&options.name, &description, &robot_layout)?;
+    let config_file = config::default_file(&options.name, &description, &robot_layout, &options.tcps)?;
     let source = codegen::model_source(&description, &options.urdf, &Module::Robot(&module))
         + &layout::source(&robot_layout)
-        + &config::module_source(&options.name);
+        + &config::module_source(&options.name, &robot_layout);
     let packages = options.package_path.as_ref().map(|dir| options.root.join(dir));
     let robot = urdf_rs::read_from_string(&prepared.text).map_err(|e| format!("{}: {e}", options.urdf))?;
     let fitted = collision::without_contained(&description, collision::fit(&robot, packages.as_deref())?)?;
