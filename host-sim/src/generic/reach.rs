@@ -8,7 +8,7 @@
 //! Claims:
 //! - **settling**: the TCP error enters and stays within 5 % of the step before the push, at most
 //!   [`SETTLING_BOUND_S`] after the step. A second-order response of the heaviest direction
-//!   (`ω_c`, `ξ = 0.7`, [`super::gains`]) settles into 5 % in
+//!   (`ω_c`, `ξ = 0.7`: the import's gain rule, `host-sim/src/import/config.rs`) settles into 5 % in
 //!   `ln(1 / (0.05 √(1 − ξ²))) / (ξ ω_c) = 0.51 s`; the other directions are lighter and faster.
 //! - **deflection**: at the end of the push the TCP has moved along the push by `F/K` within
 //!   [`DEFLECTION_TOLERANCE`]: at rest the Cartesian spring alone balances the force (gravity is
