@@ -1,6 +1,7 @@
-//! The generic scenarios on the imported robots (issue 15, item 4): `reach` on the Panda and on
-//! TIAGo++, with the controller in f64 and in f32, on the gains of each robot's `config.toml`;
-//! `--robot` refused by the scenarios that run their own robot.
+//! The generic scenarios (issue 15, item 4): `reach` and `posture_push` on the Panda, on TIAGo++
+//! and on Justin (its full controller: platform, torso, two arms), with the controller in f64 and
+//! in f32, on the gains of each robot's `config.toml`; `--robot` refused by the scenarios that run
+//! their own robot.
 #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
 
 use host_sim::generic::{posture_push, reach, RobotName};
@@ -60,7 +61,7 @@ fn reach_holds_on_tiago_dual_in_f32() {
 
 /// Runs `posture_push` and checks its numbers: every claim holds, the TCP error stays within
 /// 1.3 × the projected push + 1 mm (measured: Panda 0.33 mm for 0.48 mm predicted, TIAGo++
-/// 3.05 mm for 3.09 mm), and the elbow moves farther than the TCP.
+/// 3.05 mm for 3.09 mm, Justin 13.90 mm for 15.44 mm), and the elbow moves farther than the TCP.
 fn posture_push_holds(robot: RobotName, scalar: Scalar) {
     let options = RunOptions { robot: Some(robot), scalar, ..RunOptions::default() };
     let summary = posture_push::simulate(&options).unwrap().summary;
@@ -82,6 +83,36 @@ fn posture_push_holds_on_the_panda_in_f64_and_f32() {
 fn posture_push_holds_on_tiago_dual_in_f64_and_f32() {
     posture_push_holds(RobotName::TiagoDual, Scalar::F64);
     posture_push_holds(RobotName::TiagoDual, Scalar::F32);
+}
+
+/// `reach` on Justin: the rig runs Justin's file (K = 500 N/m), the step settles, the TCP
+/// recovers after the push, no fault and no NaN. The deflection claim (`F/K` within 5 %) is open
+/// on Justin: the base yields to the push (it moves 3.5 cm while the TCP is held), and the TCP
+/// deflects 32.96 mm for the 40 mm of `F/K` (README "Generic scenarios").
+fn reach_on_justin(scalar: Scalar) {
+    let options = RunOptions { robot: Some(RobotName::Justin), scalar, ..RunOptions::default() };
+    let summary = reach::simulate(&options).unwrap().summary;
+    assert_eq!(summary.get("translational_stiffness_n_m"), Some(file_stiffness(RobotName::Justin)));
+    let passed = summary.passed_claims();
+    for claim in ["TCP settles", "recovered", "no fault"] {
+        assert!(passed.iter().any(|c| c.starts_with(claim)), "{claim}: {:?}", summary.failed_claims());
+    }
+    let settling = summary.get("settling_time_s").unwrap();
+    assert!((0.1..=1.0).contains(&settling), "{settling} s");
+    assert_eq!(summary.get("faulty_cycles"), Some(0.0));
+    assert_eq!(summary.get("non_finite_cycles"), Some(0.0));
+}
+
+#[test]
+fn reach_settles_and_recovers_on_justin_in_f64_and_f32() {
+    reach_on_justin(Scalar::F64);
+    reach_on_justin(Scalar::F32);
+}
+
+#[test]
+fn posture_push_holds_on_justin_in_f64_and_f32() {
+    posture_push_holds(RobotName::Justin, Scalar::F64);
+    posture_push_holds(RobotName::Justin, Scalar::F32);
 }
 
 #[test]

@@ -1,15 +1,17 @@
-//! The generic rig: an imported robot (`--robot panda|tiago_dual`, `fixtures::robots`) simulated
-//! by [`Simulator`] under the kernel's whole-body controller for its layout (issue 15, item 4).
+//! The generic rig: a robot (`--robot panda|tiago_dual|justin`) simulated by [`Simulator`] under
+//! the kernel's whole-body controller for its layout (issue 15, item 4).
 //!
-//! The layout is the robot's (`fixtures::robots::<name>::layout`): a fixed base (`U = N`, every
-//! platform axis absent), one arm per TCP of the import, and the robot's torso coordinates if it
-//! has any (TIAGo++'s lift). Collision avoidance has no volumes yet: the import writes the
-//! swept-sphere model as a text file (`fixtures/robots/<name>/<name>.collision`) without a Rust
-//! constructor.
+//! An imported robot (`fixtures::robots::<name>`) has its generated layout: a fixed base
+//! (`U = N`, every platform axis absent), one arm per TCP of the import, and its torso
+//! coordinates if it has any (TIAGo++'s lift); its collision avoidance has no volumes yet (the
+//! import writes the swept-sphere model as a text file, `fixtures/robots/<name>/<name>.collision`,
+//! without a Rust constructor). Justin (`fixtures::justin`) runs with its full controller: the
+//! platform admittance (`U = N − 3`, the platform's velocity command written to the simulator),
+//! the torso, both arms (arm 0 the right one, the scenarios' TCP) and its own collision model.
 //!
 //! Every gain, limit and the hierarchy come from the robot's compiled configuration file
-//! (`fixtures/robots/<name>/config.toml`, `fixtures::robots::<name>::controller_config` and
-//! `config::hierarchy::fig_6_3::LEVELS`): the import writes its gains by one rule from the model
+//! (`fixtures/robots/<name>/config.toml`: `controller_config()` and the file's
+//! `[hierarchy.fig_6_3]`; Justin's `whole_body::controller_config` and `fig_6_3_hierarchy`): the import writes its gains by one rule from the model
 //! (`host-sim/src/import/config.rs`: the heaviest TCP direction at 1.5 Hz, `ξ = 0.7`, joint
 //! damping and end stops from the diagonal inertia); a value edited in the file changes the run
 //! after a rebuild, with no Rust edit. The hierarchy is the file's Fig. 6.3 for arm 0: the
@@ -23,6 +25,7 @@
 pub mod posture_push;
 pub mod reach;
 
+use fixtures::justin::{self, whole_body};
 use fixtures::robots::{panda, tiago_dual};
 use hal::{JointTorqueInterface, PlatformVelocityInterface};
 use kernel::controller::config::*;
@@ -47,6 +50,8 @@ pub enum RobotName {
     /// TIAGo++ (`fixtures::robots::tiago_dual`): fixed base, the torso lift and two 7-DOF arms.
     #[value(name = "tiago_dual")]
     TiagoDual,
+    /// The Justin-like robot (`fixtures::justin`): platform, torso and two 7-DOF arms.
+    Justin,
 }
 
 impl RobotName {
@@ -55,6 +60,7 @@ impl RobotName {
         match self {
             Self::Panda => "panda",
             Self::TiagoDual => "tiago_dual",
+            Self::Justin => "justin",
         }
     }
 }
@@ -67,7 +73,7 @@ pub struct RobotSpec<const N: usize, const A: usize> {
     /// The TCP frame of each arm.
     pub tcps: [FrameId; A],
     /// The home posture (rad, m): inside the limits, away from the end-stop margins.
-    pub home: [f64; N],
+    pub home: fn() -> [f64; N],
     /// A mid-chain frame of arm 0 (the elbow) where `posture_push` pushes.
     pub elbow: FrameId,
     /// URDF joint of each coordinate.
@@ -78,7 +84,7 @@ pub struct RobotSpec<const N: usize, const A: usize> {
 pub const PANDA: RobotSpec<{ panda::N }, 1> = RobotSpec {
     name: "panda",
     tcps: panda::TCPS,
-    home: [0.0, -0.3, 0.0, -2.0, 0.0, 1.8, 0.8],
+    home: || [0.0, -0.3, 0.0, -2.0, 0.0, 1.8, 0.8],
     elbow: panda::PANDA_LINK4,
     joint_names: panda::JOINT_NAMES,
 };
@@ -89,56 +95,115 @@ pub const PANDA: RobotSpec<{ panda::N }, 1> = RobotSpec {
 pub const TIAGO_DUAL: RobotSpec<{ tiago_dual::N }, 2> = RobotSpec {
     name: "tiago_dual",
     tcps: tiago_dual::TCPS,
-    home: [0.15, 0.4, 0.3, 0.0, 1.5, 0.0, 0.5, 0.0, 0.4, 0.3, 0.0, 1.5, 0.0, 0.5, 0.0],
+    home: || [0.15, 0.4, 0.3, 0.0, 1.5, 0.0, 0.5, 0.0, 0.4, 0.3, 0.0, 1.5, 0.0, 0.5, 0.0],
     elbow: tiago_dual::ARM_LEFT_4_LINK,
     joint_names: tiago_dual::JOINT_NAMES,
+};
+
+/// Justin: arm 0 the right arm (TCP `right_tcp`), arm 1 the left; its home pose
+/// (`justin::home_configuration`); the elbow frame `right_arm_link4`.
+pub const JUSTIN: RobotSpec<{ justin::N }, { whole_body::ARMS }> = RobotSpec {
+    name: "justin",
+    tcps: [justin::RIGHT_TCP, justin::LEFT_TCP],
+    home: || justin::home_configuration::<f64>().into(),
+    elbow: justin::RIGHT_ARM_LINK4,
+    joint_names: justin::JOINT_NAMES,
 };
 
 /// A generic scenario: one function over the robot's sizes and the controller's scalar.
 pub trait Scenario {
     /// Runs the scenario on `spec` with the controller in `T` made of `parts`.
-    fn simulate<T, const N: usize, const B: usize, const F: usize, const A: usize>(
+    fn simulate<
+        T,
+        const N: usize,
+        const B: usize,
+        const F: usize,
+        const U: usize,
+        const V: usize,
+        const P: usize,
+        const A: usize,
+    >(
         spec: &RobotSpec<N, A>,
-        parts: RigParts<T, N, B, F, A>,
+        parts: RigParts<T, N, B, F, U, V, P, A>,
         options: &RunOptions,
     ) -> Result<Outcome, String>
     where
         T: RealField + Copy + Into<f64>;
 }
 
-/// What the rig is built of: the controller's model in `T`, the simulated plant's in `f64`, the
-/// robot's compiled configuration and its Fig. 6.3 hierarchy.
-pub struct RigParts<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const A: usize> {
-    /// The controller's model.
-    pub model: Model<T, N, B, F>,
+/// What the rig is built of: the controller in `T` (the robot's model, collision model,
+/// compiled configuration and Fig. 6.3 hierarchy), the simulated plant's model in `f64` and the
+/// simulator's settings.
+pub struct RigParts<
+    T: RealField + Copy,
+    const N: usize,
+    const B: usize,
+    const F: usize,
+    const U: usize,
+    const V: usize,
+    const P: usize,
+    const A: usize,
+> {
+    /// The controller; boxed: it is large.
+    pub controller: Box<Controller<T, N, B, F, U, V, P, A>>,
     /// The simulated robot's model.
     pub plant: Model<f64, N, B, F>,
-    /// The controller's configuration: the robot's `config.toml`.
-    pub config: ControllerConfig<T, N, A>,
-    /// The hierarchy: the file's `[hierarchy.fig_6_3]`.
-    pub hierarchy: &'static [TaskSpec],
+    /// The simulator's settings.
+    pub sim_config: SimConfig,
 }
 
-/// The parts of a robot: its models and its compiled configuration, in `T`.
-macro_rules! parts {
+/// The parts of an imported robot: its models and its compiled configuration, in `T`.
+macro_rules! imported {
     ($robot:ident, $t:ty) => {{
         let error = |e: kernel::model::ModelError| format!("model: {e}");
-        RigParts::<$t, { $robot::N }, { $robot::BODIES }, { $robot::FRAMES }, { $robot::ARMS }> {
-            model: $robot::model::<$t>().map_err(error)?,
+        let model = $robot::model::<$t>().map_err(error)?;
+        let collision = CollisionModelBuilder::<$t, 0, 0>::new()
+            .try_build(&model, &[])
+            .map_err(|e| format!("collision model: {e}"))?;
+        let config = $robot::controller_config::<$t>().map_err(|e| format!("{}: {e:?}", stringify!($robot)))?;
+        let hierarchy = &$robot::config::hierarchy::fig_6_3::LEVELS;
+        RigParts::<$t, { $robot::N }, { $robot::BODIES }, { $robot::FRAMES }, { $robot::N }, 0, 0, { $robot::ARMS }> {
+            controller: Box::new(
+                Controller::try_new(model, collision, config, hierarchy).map_err(|e| format!("controller: {e}"))?,
+            ),
             plant: $robot::model::<f64>().map_err(error)?,
-            config: $robot::controller_config::<$t>().map_err(|e| format!("{}: {e:?}", stringify!($robot)))?,
-            hierarchy: &$robot::config::hierarchy::fig_6_3::LEVELS,
+            sim_config: SimConfig::default(),
         }
     }};
+}
+
+/// Justin's parts in `T`: the controller of `crate::wbc` (its collision model, no environment)
+/// with the Fig. 6.3 hierarchy for the right TCP, the simulator with the base's lag.
+fn justin_parts<T: RealField + Copy>() -> Result<
+    RigParts<
+        T,
+        { justin::N },
+        { justin::BODIES },
+        { justin::FRAMES },
+        { justin::UPPER_DOF },
+        { crate::wbc::VOLUMES },
+        { crate::wbc::PAIRS },
+        { whole_body::ARMS },
+    >,
+    String,
+> {
+    let hierarchy = whole_body::fig_6_3_hierarchy(ArmId::RIGHT);
+    Ok(RigParts {
+        controller: Box::new(crate::wbc::whole_body_controller(&[], crate::wbc::ConfigChanges::NONE, &hierarchy)?),
+        plant: justin::model::<f64>().map_err(|e| format!("model: {e}"))?,
+        sim_config: SimConfig { base_lag_s: crate::wbc::BASE_LAG_S, ..SimConfig::default() },
+    })
 }
 
 /// Runs scenario `S` on the robot and in the scalar the options name.
 pub fn simulate<S: Scenario>(options: &RunOptions) -> Result<Outcome, String> {
     match (options.robot.unwrap_or_default(), options.scalar) {
-        (RobotName::Panda, Scalar::F64) => S::simulate(&PANDA, parts!(panda, f64), options),
-        (RobotName::Panda, Scalar::F32) => S::simulate(&PANDA, parts!(panda, f32), options),
-        (RobotName::TiagoDual, Scalar::F64) => S::simulate(&TIAGO_DUAL, parts!(tiago_dual, f64), options),
-        (RobotName::TiagoDual, Scalar::F32) => S::simulate(&TIAGO_DUAL, parts!(tiago_dual, f32), options),
+        (RobotName::Panda, Scalar::F64) => S::simulate(&PANDA, imported!(panda, f64), options),
+        (RobotName::Panda, Scalar::F32) => S::simulate(&PANDA, imported!(panda, f32), options),
+        (RobotName::TiagoDual, Scalar::F64) => S::simulate(&TIAGO_DUAL, imported!(tiago_dual, f64), options),
+        (RobotName::TiagoDual, Scalar::F32) => S::simulate(&TIAGO_DUAL, imported!(tiago_dual, f32), options),
+        (RobotName::Justin, Scalar::F64) => S::simulate(&JUSTIN, justin_parts::<f64>()?, options),
+        (RobotName::Justin, Scalar::F32) => S::simulate(&JUSTIN, justin_parts::<f32>()?, options),
     }
 }
 
@@ -146,41 +211,52 @@ fn c<T: RealField>(x: f64) -> T {
     convert(x)
 }
 
-/// The controller of an imported robot: `U = N` (fixed base), no collision volumes, `A` arms.
-pub type GenericController<T, const N: usize, const B: usize, const F: usize, const A: usize> =
-    Controller<T, N, B, F, N, 0, 0, A>;
-
-/// The simulated imported robot and its controller, wired.
-pub struct GenericRig<T: RealField + Copy, const N: usize, const B: usize, const F: usize, const A: usize> {
+/// The simulated robot and its controller, wired.
+pub struct GenericRig<
+    T: RealField + Copy,
+    const N: usize,
+    const B: usize,
+    const F: usize,
+    const U: usize,
+    const V: usize,
+    const P: usize,
+    const A: usize,
+> {
     /// The simulated robot (always `f64`).
-    pub sim: Simulator<N, B, F, N>,
+    pub sim: Simulator<N, B, F, U>,
     /// The controller in the run's scalar; boxed: it is large.
-    pub controller: Box<GenericController<T, N, B, F, A>>,
-    /// Its configuration (the robot's `config.toml`).
-    pub config: ControllerConfig<T, N, A>,
+    pub controller: Box<Controller<T, N, B, F, U, V, P, A>>,
     /// Cycles with a safe output instead of the whole-body torque.
     pub faulty_cycles: u64,
     /// Cycles with a non-finite torque or TCP error.
     pub non_finite_cycles: u64,
 }
 
-impl<T, const N: usize, const B: usize, const F: usize, const A: usize> GenericRig<T, N, B, F, A>
+impl<
+        T,
+        const N: usize,
+        const B: usize,
+        const F: usize,
+        const U: usize,
+        const V: usize,
+        const P: usize,
+        const A: usize,
+    > GenericRig<T, N, B, F, U, V, P, A>
 where
     T: RealField + Copy + Into<f64>,
 {
-    /// The robot at its home posture at rest on the plant of `options`, the controller made of
+    /// The robot at its home posture at rest on the plant of `options`, the controller of
     /// `parts`.
-    pub fn new(spec: &RobotSpec<N, A>, parts: RigParts<T, N, B, F, A>, options: &RunOptions) -> Result<Self, String> {
-        let RigParts { model, plant, config, hierarchy } = parts;
-        let collision = CollisionModelBuilder::<T, 0, 0>::new()
-            .try_build(&model, &[])
-            .map_err(|e| format!("collision model: {e}"))?;
-        let controller =
-            GenericController::try_new(model, collision, config, hierarchy).map_err(|e| format!("controller: {e}"))?;
-        let mut sim = options.simulator(plant, SimConfig::default())?;
-        sim.set_state(SVector::from(spec.home), SVector::zeros())?;
+    pub fn new(
+        spec: &RobotSpec<N, A>,
+        parts: RigParts<T, N, B, F, U, V, P, A>,
+        options: &RunOptions,
+    ) -> Result<Self, String> {
+        let RigParts { controller, plant, sim_config } = parts;
+        let mut sim = options.simulator(plant, sim_config)?;
+        sim.set_state(SVector::from((spec.home)()), SVector::zeros())?;
         sim.set_joint_stops(Some(JointStops::JUSTIN))?;
-        Ok(Self { sim, controller: Box::new(controller), config, faulty_cycles: 0, non_finite_cycles: 0 })
+        Ok(Self { sim, controller, faulty_cycles: 0, non_finite_cycles: 0 })
     }
 
     /// One control cycle: sense, step the controller on the frame in `T`, write the torques.
@@ -204,7 +280,11 @@ where
             },
         };
         let output = self.controller.step(&frame);
-        let torque: [f64; N] = output.torque.map(Into::into);
+        let torque: [f64; U] = output.torque.map(Into::into);
+        let platform = hal::PlatformCommand {
+            velocity: output.platform.velocity.map(Into::into),
+            leg_rates: output.platform.leg_rates.map(Into::into),
+        };
         if output.mode != SafeOutput::Normal {
             self.faulty_cycles += 1;
         }
@@ -213,6 +293,7 @@ where
             self.non_finite_cycles += 1;
         }
         JointTorqueInterface::write_torque(&mut self.sim, &torque)?;
+        PlatformVelocityInterface::write_velocity(&mut self.sim, &platform)?;
         Ok(())
     }
 
@@ -237,7 +318,7 @@ where
     /// The translational stiffness of `arm`'s Cartesian impedance along world `x` (N/m, the
     /// configuration's).
     pub fn translational_stiffness(&self, arm: usize) -> Result<f64, String> {
-        let cartesian = self.config.cartesian.get(arm).ok_or("no such arm")?;
+        let cartesian = self.controller.config().cartesian.get(arm).ok_or("no such arm")?;
         Ok(cartesian.translational_stiffness[0].into())
     }
 
@@ -248,11 +329,15 @@ where
     }
 }
 
-/// The columns of [`record`]: `t`, the joints' `q.*`, `dq.*`, `tau.*`, then per arm `a` the TCP
-/// error norm `e<a>` (m) and the TCP position `tcp<a>.x/y/z` (m, world).
-pub fn columns<const N: usize, const A: usize>(spec: &RobotSpec<N, A>) -> Vec<String> {
+/// The columns of [`record`]: `t`, the coordinates' `q.*`, `dq.*`, the `U` actuated joints'
+/// `tau.*`, then per arm `a` the TCP error norm `e<a>` (m) and the TCP position `tcp<a>.x/y/z`
+/// (m, world).
+pub fn columns<const N: usize, const U: usize, const A: usize>(spec: &RobotSpec<N, A>) -> Vec<String> {
     let mut columns = vec!["t".to_string()];
-    columns.extend(crate::scenarios::joint_columns(&spec.joint_names));
+    let joints = spec.joint_names.get(N - U..).unwrap_or_default();
+    columns.extend(spec.joint_names.iter().map(|n| format!("q.{n}")));
+    columns.extend(spec.joint_names.iter().map(|n| format!("dq.{n}")));
+    columns.extend(joints.iter().map(|n| format!("tau.{n}")));
     for arm in 0..A {
         columns.push(format!("e{arm}"));
         columns.extend(["x", "y", "z"].iter().map(|axis| format!("tcp{arm}.{axis}")));
@@ -261,8 +346,17 @@ pub fn columns<const N: usize, const A: usize>(spec: &RobotSpec<N, A>) -> Vec<St
 }
 
 /// Appends the rig's state at `time_s` to `series` (the columns of [`columns`]).
-pub fn record<T, const N: usize, const B: usize, const F: usize, const A: usize>(
-    rig: &mut GenericRig<T, N, B, F, A>,
+pub fn record<
+    T,
+    const N: usize,
+    const B: usize,
+    const F: usize,
+    const U: usize,
+    const V: usize,
+    const P: usize,
+    const A: usize,
+>(
+    rig: &mut GenericRig<T, N, B, F, U, V, P, A>,
     spec: &RobotSpec<N, A>,
     time_s: f64,
     series: &mut TimeSeries,
@@ -281,7 +375,16 @@ where
     series.push(row)
 }
 
-impl<T, const N: usize, const B: usize, const F: usize, const A: usize> Physics for GenericRig<T, N, B, F, A>
+impl<
+        T,
+        const N: usize,
+        const B: usize,
+        const F: usize,
+        const U: usize,
+        const V: usize,
+        const P: usize,
+        const A: usize,
+    > Physics for GenericRig<T, N, B, F, U, V, P, A>
 where
     T: RealField + Copy,
 {

@@ -53,7 +53,8 @@ fn predicted_tcp_deflection<const N: usize, const B: usize, const F: usize, cons
     stiffness: f64,
 ) -> Result<f64, String> {
     let mut data = Data::new(model);
-    forward_kinematics(model, &mut data, &SVector::from(spec.home), &SVector::zeros()).map_err(|e| e.to_string())?;
+    forward_kinematics(model, &mut data, &SVector::from((spec.home)()), &SVector::zeros())
+        .map_err(|e| e.to_string())?;
     let inverse = crba(model, &mut data).try_inverse().ok_or("singular mass matrix")?;
     let tcp = *spec.tcps.first().ok_or("no arm")?;
     let (mut j, mut je) = (SMatrix::<f64, 6, N>::zeros(), SMatrix::<f64, 6, N>::zeros());
@@ -69,9 +70,18 @@ fn predicted_tcp_deflection<const N: usize, const B: usize, const F: usize, cons
 pub struct PosturePush;
 
 impl Scenario for PosturePush {
-    fn simulate<T, const N: usize, const B: usize, const F: usize, const A: usize>(
+    fn simulate<
+        T,
+        const N: usize,
+        const B: usize,
+        const F: usize,
+        const U: usize,
+        const V: usize,
+        const P: usize,
+        const A: usize,
+    >(
         spec: &RobotSpec<N, A>,
-        parts: RigParts<T, N, B, F, A>,
+        parts: RigParts<T, N, B, F, U, V, P, A>,
         options: &RunOptions,
     ) -> Result<Outcome, String>
     where
@@ -82,7 +92,7 @@ impl Scenario for PosturePush {
         let predicted = predicted_tcp_deflection(spec, rig.sim.model(), stiffness)?;
         rig.sim.push(spec.elbow, Vector3::new(0.0, PUSH_N, 0.0), PUSH_AT_S, PUSH_S)?;
         let elbow_start = rig.sim.frame_placement(spec.elbow)?.translation.vector;
-        let mut series = TimeSeries::new(super::columns(spec));
+        let mut series = TimeSeries::new(super::columns::<N, U, A>(spec));
         let (mut largest_tcp_error, mut elbow_motion): (f64, f64) = (0.0, 0.0);
         run_loop(&mut rig, DURATION_S, CONTROL_PERIOD_S, |rig, info| {
             options.progress.report(NAME, info.time_s, DURATION_S);

@@ -59,9 +59,18 @@ const OVERSHOOT: f64 = 0.046;
 pub struct Reach;
 
 impl Scenario for Reach {
-    fn simulate<T, const N: usize, const B: usize, const F: usize, const A: usize>(
+    fn simulate<
+        T,
+        const N: usize,
+        const B: usize,
+        const F: usize,
+        const U: usize,
+        const V: usize,
+        const P: usize,
+        const A: usize,
+    >(
         spec: &RobotSpec<N, A>,
-        parts: RigParts<T, N, B, F, A>,
+        parts: RigParts<T, N, B, F, U, V, P, A>,
         options: &RunOptions,
     ) -> Result<Outcome, String>
     where
@@ -71,7 +80,7 @@ impl Scenario for Reach {
         let stiffness = rig.translational_stiffness(0)?;
         let tcp = *spec.tcps.first().ok_or("no arm")?;
         rig.sim.push(tcp, Vector3::new(PUSH_N, 0.0, 0.0), PUSH_AT_S, PUSH_S)?;
-        let mut series = TimeSeries::new(super::columns(spec));
+        let mut series = TimeSeries::new(super::columns::<N, U, A>(spec));
         let mut before_push = None;
         let mut end_of_push = None;
         let mut largest_deflection: f64 = 0.0;
