@@ -84,7 +84,7 @@ fn heaviest(inertia: &Inertia, inverse: &DMatrix<f64>, first_row: usize) -> Resu
     let mut heaviest: f64 = 0.0;
     for jacobian in &inertia.jacobians {
         let j = jacobian.rows(first_row, 3);
-        let reflected = (&j * inverse * j.transpose()).try_inverse().ok_or("a TCP is singular at mid-range")?;
+        let reflected = (j * inverse * j.transpose()).try_inverse().ok_or("a TCP is singular at mid-range")?;
         heaviest = heaviest.max(reflected.symmetric_eigenvalues().max());
     }
     Ok(heaviest)
