@@ -142,7 +142,7 @@ fn json_error(text: &str, error: &serde_json::Error) -> String {
 }
 
 /// Runs [`evaluate`] with `N` = the robot's coordinate count (a compile-time constant).
-fn dispatch(description: &Description, frame: &str, states: &[State]) -> Result<String, String> {
+pub(crate) fn dispatch(description: &Description, frame: &str, states: &[State]) -> Result<String, String> {
     macro_rules! with_dof {
         ($($n:literal)*) => {
             match description.coordinate_count() {

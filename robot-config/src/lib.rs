@@ -5,7 +5,9 @@
 //! the platform's parameters. [`parse`] refuses a bad file with a one-line [`ConfigError`],
 //! `<file>:<line>: <key>: <problem>`: a missing or unknown key, a negative or non-finite
 //! stiffness, damping or limit, a task or hand of a part the robot does not have (its parts are
-//! the file's `[robot]` table: the arms by name, a torso, a platform), a hierarchy with more levels or tasks
+//! the file's `[robot]` table: the arms by name and their joint count, a torso, a platform), a
+//! value of a part it does not have or a part's value left out, an `arm` list of another length
+//! than `[robot] arm_joints`, a hierarchy with more levels or tasks
 //! than the kernel holds, a task twice. [`rust_constants`] turns a valid configuration into
 //! Rust constants, one module per TOML table, which the `no_std` fixtures compile in through
 //! their build script: the board needs neither `std` nor a parser.
@@ -24,7 +26,11 @@ pub use schema::RobotConfig;
 /// `[robot]` table is read first: the task and hand names of the rest are checked against it.
 pub fn parse(text: &str, origin: &str) -> Result<RobotConfig, ConfigError> {
     let head: RobotHead = read(text, origin)?;
-    head.robot.reading(|| read(text, origin))
+    let config: RobotConfig = head.robot.reading(|| read(text, origin))?;
+    match config.missing_part() {
+        Some((key, problem)) => Err(ConfigError::new(origin, text, None, &key, &problem)),
+        None => Ok(config),
+    }
 }
 
 /// The `[robot]` table of a file, the other tables left for [`parse`].

@@ -4,7 +4,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::values::{ForceBound, HandName, Levels, NonNegative, Robot};
+use crate::values::{platform_part, torso_part, ArmValues, ForceBound, HandName, Levels, NonNegative, Robot};
+use kernel::controller::config::TaskKind;
 
 /// A robot's whole-body configuration.
 #[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
@@ -26,12 +27,15 @@ pub struct RobotConfig {
     pub singularity: Singularity,
     /// The end-stop avoidance.
     pub end_stops: Impedance,
-    /// The torso workspace.
-    pub torso_workspace: TorsoWorkspace,
+    /// The torso workspace (Justin's two pitch joints): only on a robot with a torso.
+    #[serde(default, deserialize_with = "torso_part", skip_serializing_if = "Option::is_none")]
+    pub torso_workspace: Option<TorsoWorkspace>,
     /// The joint impedance and damping per coordinate.
     pub joint: Joint,
-    /// The platform admittance and the ICR avoidance with leg motion.
-    pub platform: Platform,
+    /// The platform admittance and the ICR avoidance with leg motion: only on a robot with a
+    /// platform.
+    #[serde(default, deserialize_with = "platform_part", skip_serializing_if = "Option::is_none")]
+    pub platform: Option<Platform>,
     /// Limits of the controller's outputs.
     pub output_limits: OutputLimits,
     /// Limits the sensor frames must respect.
@@ -210,17 +214,19 @@ pub struct Joint {
     pub safe_damping: PerCoordinate,
 }
 
-/// A value per coordinate: the platform's `(x, y, θ)`, one for every torso joint, one per arm
-/// joint (both arms).
+/// A value per coordinate: the platform's `(x, y, θ)` (a robot with a platform), one for every
+/// torso joint (a robot with a torso), one per arm joint (the same for every arm).
 #[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct PerCoordinate {
     /// Platform `x, y, θ`.
-    pub platform: [NonNegative; 3],
+    #[serde(default, deserialize_with = "platform_part", skip_serializing_if = "Option::is_none")]
+    pub platform: Option<[NonNegative; 3]>,
     /// Every torso joint.
-    pub torso: NonNegative,
-    /// Arm joints 1 to 7.
-    pub arm: [NonNegative; 7],
+    #[serde(default, deserialize_with = "torso_part", skip_serializing_if = "Option::is_none")]
+    pub torso: Option<NonNegative>,
+    /// Arm joints 1 to `[robot] arm_joints`.
+    pub arm: ArmValues,
 }
 
 /// `[platform]`.
@@ -303,12 +309,15 @@ pub struct Legs {
 pub struct OutputLimits {
     /// Torque rate per coordinate (Nm/s).
     pub torque_rate: PerCoordinate,
-    /// Base velocity (m/s, m/s, rad/s).
-    pub base_velocity: [NonNegative; 3],
-    /// Base acceleration.
-    pub base_acceleration: [NonNegative; 3],
-    /// Leg rate (m/s).
-    pub leg_rate: NonNegative,
+    /// Base velocity (m/s, m/s, rad/s): a robot with a platform.
+    #[serde(default, deserialize_with = "platform_part", skip_serializing_if = "Option::is_none")]
+    pub base_velocity: Option<[NonNegative; 3]>,
+    /// Base acceleration: a robot with a platform.
+    #[serde(default, deserialize_with = "platform_part", skip_serializing_if = "Option::is_none")]
+    pub base_acceleration: Option<[NonNegative; 3]>,
+    /// Leg rate (m/s): a robot with a platform.
+    #[serde(default, deserialize_with = "platform_part", skip_serializing_if = "Option::is_none")]
+    pub leg_rate: Option<NonNegative>,
 }
 
 /// `[input_limits]`.
@@ -375,4 +384,59 @@ pub struct Recovery {
     pub margin: NonNegative,
     /// Blend time back to the whole-body torque (s).
     pub blend_s: NonNegative,
+}
+
+impl RobotConfig {
+    /// The first key the robot's parts (`[robot]`) need that the file leaves out, with the
+    /// problem: the platform's tables and values on a robot with a platform, the torso's values
+    /// on a robot with a torso, `[torso_workspace]` if a hierarchy has the `torso_workspace` task.
+    pub(crate) fn missing_part(&self) -> Option<(String, String)> {
+        let per_coordinate = [
+            ("joint.stiffness", &self.joint.stiffness),
+            ("joint.damping", &self.joint.damping),
+            ("joint.safe_damping", &self.joint.safe_damping),
+            ("output_limits.torque_rate", &self.output_limits.torque_rate),
+        ];
+        let mut missing: Vec<(String, &str)> = Vec::new();
+        if self.robot.platform {
+            let base = &self.output_limits;
+            let tables = [
+                ("platform", self.platform.is_some()),
+                ("output_limits.base_velocity", base.base_velocity.is_some()),
+                ("output_limits.base_acceleration", base.base_acceleration.is_some()),
+                ("output_limits.leg_rate", base.leg_rate.is_some()),
+            ];
+            missing.extend(
+                tables
+                    .iter()
+                    .filter(|(_, present)| !present)
+                    .map(|(key, _)| ((*key).to_owned(), "[robot] platform = true")),
+            );
+            missing.extend(
+                per_coordinate
+                    .iter()
+                    .filter(|(_, v)| v.platform.is_none())
+                    .map(|(key, _)| (format!("{key}.platform"), "[robot] platform = true")),
+            );
+        }
+        if self.robot.torso {
+            missing.extend(
+                per_coordinate
+                    .iter()
+                    .filter(|(_, v)| v.torso.is_none())
+                    .map(|(key, _)| (format!("{key}.torso"), "[robot] torso = true")),
+            );
+        }
+        if self.torso_workspace.is_none()
+            && self.hierarchies().any(|levels| levels.tasks().any(|(_, kind)| kind == TaskKind::TorsoWorkspace))
+        {
+            missing.push(("torso_workspace".to_owned(), "a hierarchy has the torso_workspace task"));
+        }
+        missing.into_iter().next().map(|(key, reason)| (key, format!("missing key ({reason})")))
+    }
+
+    /// Every hierarchy of the file: Fig. 6.3's and the service tasks'.
+    fn hierarchies(&self) -> impl Iterator<Item = &Levels> {
+        std::iter::once(&self.hierarchy.fig_6_3.levels).chain(self.service_tasks.values().map(|task| &task.levels))
+    }
 }

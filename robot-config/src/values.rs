@@ -50,6 +50,8 @@ impl<'de> Deserialize<'de> for ForceBound {
 pub struct Robot {
     /// The arms' names (lower case letters, digits, `_`), arm 0 first.
     pub arms: Vec<String>,
+    /// Joints of every arm: the length of the per-coordinate tables' `arm` lists.
+    pub arm_joints: u32,
     /// `true` if the robot has a torso.
     pub torso: bool,
     /// `true` if the robot has the admitted platform `(x, y, θ)`.
@@ -125,6 +127,46 @@ impl<'de> Deserialize<'de> for TaskName {
                 Err(D::Error::custom(format!("unknown task `{name}` (known: {})", known.join(", "))))
             }
         }
+    }
+}
+
+/// One value per joint of an arm, for every arm (`arm` of a per-coordinate table): as many as
+/// `[robot] arm_joints`.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(transparent)]
+pub struct ArmValues(pub Vec<NonNegative>);
+
+impl<'de> Deserialize<'de> for ArmValues {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        let values = Vec::deserialize(deserializer)?;
+        let joints = robot_read_against().arm_joints;
+        if usize::try_from(joints).ok() == Some(values.len()) {
+            Ok(Self(values))
+        } else {
+            Err(D::Error::custom(format!("{} values for arms of {joints} joints ([robot] arm_joints)", values.len())))
+        }
+    }
+}
+
+/// A value of the platform (`#[serde(deserialize_with)]`): refused on a robot without one.
+pub fn platform_part<'de, D: Deserializer<'de>, X: Deserialize<'de>>(deserializer: D) -> Result<Option<X>, D::Error> {
+    part(deserializer, robot_read_against().platform, "platform")
+}
+
+/// A value of the torso (`#[serde(deserialize_with)]`): refused on a robot without one.
+pub fn torso_part<'de, D: Deserializer<'de>, X: Deserialize<'de>>(deserializer: D) -> Result<Option<X>, D::Error> {
+    part(deserializer, robot_read_against().torso, "torso")
+}
+
+fn part<'de, D: Deserializer<'de>, X: Deserialize<'de>>(
+    deserializer: D,
+    has: bool,
+    name: &str,
+) -> Result<Option<X>, D::Error> {
+    if has {
+        X::deserialize(deserializer).map(Some)
+    } else {
+        Err(D::Error::custom(format!("the robot has no {name} ([robot] {name} = false)")))
     }
 }
 

@@ -230,3 +230,36 @@ fn tasks_are_checked_against_the_robots_parts() {
     assert_eq!(renamed.service_tasks, original.service_tasks);
     assert_eq!(renamed.hierarchy.fig_6_3.levels.0[0][1].0, TaskKind::CartesianImpedance(ArmId::RIGHT));
 }
+
+/// The tables of the robot's parts agree with `[robot]`: an `arm` list has `arm_joints` values, a
+/// robot without a platform refuses the platform's values, one with a platform or a torso needs
+/// theirs, the `torso_workspace` task needs its table. Each refusal names the key.
+#[test]
+fn the_parts_tables_agree_with_the_robot() {
+    assert_eq!(
+        error_after("arm_joints = 7", "arm_joints = 6"),
+        format!(
+            "justin/config.toml:{}: joint.damping.arm: 7 values for arms of 6 joints ([robot] arm_joints)",
+            line_of("damping = { platform")
+        )
+    );
+    assert_eq!(
+        error_after("platform = true", "platform = false"),
+        format!(
+            "justin/config.toml:{}: joint.damping.platform: the robot has no platform ([robot] platform = false)",
+            line_of("damping = { platform")
+        )
+    );
+    assert_eq!(
+        error_after("leg_rate = 0.2\n", ""),
+        "justin/config.toml: output_limits.leg_rate: missing key ([robot] platform = true)"
+    );
+    assert_eq!(
+        error_after("torso = 40.0, ", ""),
+        "justin/config.toml: joint.damping.torso: missing key ([robot] torso = true)"
+    );
+    let text = justin();
+    let (start, end) = (text.find("[torso_workspace]").unwrap(), text.find("# Joint impedance and damping").unwrap());
+    let error = parse(&format!("{}{}", &text[..start], &text[end..]), ORIGIN).unwrap_err().to_string();
+    assert_eq!(error, "justin/config.toml: torso_workspace: missing key (a hierarchy has the torso_workspace task)");
+}

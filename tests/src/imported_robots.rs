@@ -282,21 +282,23 @@ fn imported_layouts_follow_the_chains() {
 }
 
 /// The import's default configuration is compiled in (`fixtures/build.rs`) with the rule of
-/// `host_sim::import::config`: joint stiffness a tenth of the effort limit per radian, damping
-/// 0.1 s of it, torque rate 100 times the limit per second; the parts are the layout's.
+/// `host_sim::import::config`: joint stiffness `ω_j² M_kk` and damping `2 ξ ω_j M_kk` (their ratio
+/// `2 ξ / ω_j`), torque rate 100 times the effort limit per second; the parts are the layout's
+/// (no platform or torso values on the Panda).
 #[test]
 fn imported_configurations_follow_the_default_rule() {
     use fixtures::robots::panda::config as panda_config;
+    use host_sim::import::config::{DAMPING_RATIO, JOINT_FREQUENCY_RAD_S};
     let effort = panda::model::<f64>().unwrap().limits.effort;
-    let expected = |rule: &dyn Fn(f64) -> f64| effort.iter().map(|e| rule(*e)).collect::<Vec<f64>>();
     assert_eq!(panda_config::robot::ARMS, ["arm_0"]);
+    assert_eq!(panda_config::robot::ARM_JOINTS, 7);
     assert_eq!((panda_config::robot::TORSO, panda_config::robot::PLATFORM), (false, false));
-    assert_eq!(panda_config::joint::stiffness::ARM.to_vec(), expected(&|e| e / 10.0));
-    assert_eq!(panda_config::joint::stiffness::ARM[0], 8.7, "87 Nm / 10 rad");
     for (damping, stiffness) in panda_config::joint::damping::ARM.iter().zip(panda_config::joint::stiffness::ARM) {
-        assert_eq!(*damping, 0.1 * stiffness);
+        let ratio = 2.0 * DAMPING_RATIO / JOINT_FREQUENCY_RAD_S;
+        assert!((damping / stiffness - ratio).abs() < 1e-12 * ratio, "{damping} / {stiffness}");
     }
-    assert_eq!(panda_config::output_limits::torque_rate::ARM.to_vec(), expected(&|e| 100.0 * e));
+    let torque_rate: Vec<f64> = effort.iter().map(|e| 100.0 * e).collect();
+    assert_eq!(panda_config::output_limits::torque_rate::ARM.to_vec(), torque_rate);
     use fixtures::robots::tiago_dual::config as tiago_config;
     assert_eq!(tiago_config::robot::ARMS, ["arm_0", "arm_1"]);
     assert_eq!((tiago_config::robot::TORSO, tiago_config::robot::PLATFORM), (true, false));

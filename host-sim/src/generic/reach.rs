@@ -8,7 +8,7 @@
 //! Claims:
 //! - **settling**: the TCP error enters and stays within 5 % of the step before the push, at most
 //!   [`SETTLING_BOUND_S`] after the step. A second-order response of the heaviest direction
-//!   (`ω_c`, `ξ = 0.7`, [`super::gains`]) settles into 5 % in
+//!   (`ω_c`, `ξ = 0.7`: the import's gain rule, `host-sim/src/import/config.rs`) settles into 5 % in
 //!   `ln(1 / (0.05 √(1 − ξ²))) / (ξ ω_c) = 0.51 s`; the other directions are lighter and faster.
 //! - **deflection**: at the end of the push the TCP has moved along the push by `F/K` within
 //!   [`DEFLECTION_TOLERANCE`]: at rest the Cartesian spring alone balances the force (gravity is
@@ -23,7 +23,7 @@
 
 use nalgebra::{RealField, Vector3};
 
-use super::{record, GenericRig, RobotSpec, Scenario};
+use super::{record, GenericRig, RigParts, RobotSpec, Scenario};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
 use crate::scenarios::{Outcome, RunOptions};
 use crate::sim::{run_loop, CONTROL_PERIOD_S};
@@ -59,20 +59,28 @@ const OVERSHOOT: f64 = 0.046;
 pub struct Reach;
 
 impl Scenario for Reach {
-    fn simulate<T, const N: usize, const B: usize, const F: usize, const A: usize>(
+    fn simulate<
+        T,
+        const N: usize,
+        const B: usize,
+        const F: usize,
+        const U: usize,
+        const V: usize,
+        const P: usize,
+        const A: usize,
+    >(
         spec: &RobotSpec<N, A>,
-        model: kernel::model::Model<T, N, B, F>,
-        plant: kernel::model::Model<f64, N, B, F>,
+        parts: &dyn Fn() -> Result<RigParts<T, N, B, F, U, V, P, A>, String>,
         options: &RunOptions,
     ) -> Result<Outcome, String>
     where
         T: RealField + Copy + Into<f64>,
     {
-        let mut rig = GenericRig::new(spec, model, plant, options)?;
-        let stiffness = rig.gains.translational_stiffness.first().copied().ok_or("no arm")?;
+        let mut rig = GenericRig::new(spec, parts()?, options)?;
+        let stiffness = rig.translational_stiffness(0)?;
         let tcp = *spec.tcps.first().ok_or("no arm")?;
         rig.sim.push(tcp, Vector3::new(PUSH_N, 0.0, 0.0), PUSH_AT_S, PUSH_S)?;
-        let mut series = TimeSeries::new(super::columns(spec));
+        let mut series = TimeSeries::new(super::columns::<N, U, A>(spec));
         let mut before_push = None;
         let mut end_of_push = None;
         let mut largest_deflection: f64 = 0.0;

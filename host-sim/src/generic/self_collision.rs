@@ -1,13 +1,14 @@
-//! `self_collision` on an imported robot (`--robot`): TCP goals that drive two links into each
+//! `self_collision` on an imported robot (`--robot panda|tiago_dual`): TCP goals that drive two links into each
 //! other, and the self-collision avoidance that keeps every pair apart.
 //!
-//! Setup: the rig of [`super::GenericRig`] (collision avoidance at the levels of Fig. 6.3) at the
-//! robot's home posture. From [`GOAL_AT_S`] the goals move along the kernel's cubic of
+//! Setup: the rig of [`super::GenericRig`] (the robot's `config.toml` and its Fig. 6.3 hierarchy
+//! with both collision fields) at the robot's home posture. From [`GOAL_AT_S`] the goals move along the kernel's cubic of
 //! [`GOAL_S`]: with two or more arms, arms 0 and 1 both to the midpoint of their TCPs (TIAGo++:
 //! hand into hand); with one arm, its TCP onto the vertical axis through the root at its own
 //! height (the Panda: the hand into its shoulder, links 1 to 3). The rest is the hold.
 //!
-//! The same goals run a second time without the two collision tasks (the reference): there the
+//! The same goals run a second time with the two collision tasks taken out of the hierarchy
+//! (`SetHierarchy` before the first cycle; the reference): there the
 //! closest pair's volumes interpenetrate, which shows that the goals would collide.
 //!
 //! Claims:
@@ -24,12 +25,13 @@
 //! - **no fault, no NaN**.
 
 use kernel::controller::config::{TaskKind, TaskSpec};
+use kernel::controller::messages::Command;
 use kernel::dynamics::forward_kinematics;
 use kernel::model::{Data, Model};
 use kernel::tasks::collision::{CollisionData, CollisionModel};
 use nalgebra::{RealField, SVector, Vector3};
 
-use super::{hierarchy, record, GenericRig, RobotSpec, Scenario, COLLISION_PAIRS, COLLISION_VOLUMES};
+use super::{record, GenericRig, RigParts, RobotSpec, Scenario};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
 use crate::scenarios::{Outcome, RunOptions};
 use crate::sim::{run_loop, CONTROL_PERIOD_S};
@@ -54,13 +56,13 @@ pub const SHORTFALL_FACTOR: f64 = 2.5;
 pub struct SelfCollision;
 
 /// The distances of every enabled pair on the simulated robot's geometry.
-struct PairDistances<const N: usize, const B: usize, const F: usize> {
-    model: CollisionModel<f64, COLLISION_VOLUMES, COLLISION_PAIRS>,
-    collision: CollisionData<f64, COLLISION_VOLUMES, COLLISION_PAIRS>,
+struct PairDistances<const N: usize, const B: usize, const F: usize, const V: usize, const P: usize> {
+    model: CollisionModel<f64, V, P>,
+    collision: CollisionData<f64, V, P>,
     data: Data<f64, N, B, F>,
 }
 
-impl<const N: usize, const B: usize, const F: usize> PairDistances<N, B, F> {
+impl<const N: usize, const B: usize, const F: usize, const V: usize, const P: usize> PairDistances<N, B, F, V, P> {
     fn new<const A: usize>(spec: &RobotSpec<N, A>, plant: &Model<f64, N, B, F>) -> Result<Self, String> {
         let model = fixtures::collision_table::build(plant, spec.collision_volumes, spec.collision_excluded)
             .map_err(|e| format!("collision model: {e}"))?;
@@ -68,15 +70,15 @@ impl<const N: usize, const B: usize, const F: usize> PairDistances<N, B, F> {
         Ok(Self { model, collision, data: Data::new(plant) })
     }
 
-    /// The world origin (m) at `q` of the body of arm 0's first coordinate (a body per coordinate,
-    /// in coordinate order, as the import builds it).
-    fn shoulder<const A: usize>(
+    /// The world origin (m) at `q` of the body of the first coordinate of `arm` (a coordinate
+    /// mask; a body per coordinate, in coordinate order, as the import builds it).
+    fn shoulder(
         &mut self,
-        spec: &RobotSpec<N, A>,
+        arm: &[bool; N],
         plant: &Model<f64, N, B, F>,
         q: &SVector<f64, N>,
     ) -> Result<Vector3<f64>, String> {
-        let first = spec.arms.first().and_then(|arm| arm.iter().position(|c| *c)).ok_or("arm 0 has no coordinate")?;
+        let first = arm.iter().position(|c| *c).ok_or("arm 0 has no coordinate")?;
         forward_kinematics(plant, &mut self.data, q, &SVector::zeros()).map_err(|e| e.to_string())?;
         Ok(self.data.body_placements.get(first).ok_or("no such body")?.translation.vector)
     }
@@ -130,24 +132,42 @@ fn goal_offsets(tcps: &[Vector3<f64>], shoulder: Vector3<f64>) -> Vec<Vector3<f6
     }
 }
 
-/// Runs the goals with the hierarchy `tasks`.
-fn run<T, const N: usize, const B: usize, const F: usize, const A: usize>(
+/// Runs the goals on the controller of `parts`, with its collision tasks or without them.
+fn run<
+    T,
+    const N: usize,
+    const B: usize,
+    const F: usize,
+    const U: usize,
+    const V: usize,
+    const P: usize,
+    const A: usize,
+>(
     spec: &RobotSpec<N, A>,
-    model: Model<T, N, B, F>,
-    plant: Model<f64, N, B, F>,
+    parts: RigParts<T, N, B, F, U, V, P, A>,
     options: &RunOptions,
-    tasks: &[TaskSpec],
+    collision_tasks: bool,
 ) -> Result<Run, String>
 where
     T: RealField + Copy + Into<f64>,
 {
-    let mut pairs = PairDistances::new(spec, &plant)?;
-    let mut rig = GenericRig::with_hierarchy(spec, model, plant, options, tasks)?;
+    let mut pairs = PairDistances::<N, B, F, V, P>::new(spec, &parts.plant)?;
+    let without: heapless::Vec<TaskSpec, { kernel::controller::capacity::MAX_TASKS }> = parts
+        .hierarchy
+        .iter()
+        .filter(|t| collision_tasks || !matches!(t.kind, TaskKind::CollisionAvoidance(_)))
+        .copied()
+        .collect();
+    let mut rig = GenericRig::new(spec, parts, options)?;
+    if !collision_tasks {
+        rig.controller.apply(&Command::SetHierarchy(without)).map_err(|e| format!("SetHierarchy: {e}"))?;
+    }
     let home: Vec<Vector3<f64>> = (0..A).map(|arm| rig.tcp_position(spec, arm)).collect::<Result<_, _>>()?;
-    let offsets = goal_offsets(&home, pairs.shoulder(spec, rig.sim.model(), rig.sim.q())?);
+    let arm = *rig.controller.config().layout.arms.first().ok_or("no arm")?;
+    let offsets = goal_offsets(&home, pairs.shoulder(&arm, rig.sim.model(), rig.sim.q())?);
     let goals: Vec<Vector3<f64>> = home.iter().zip(&offsets).map(|(p, o)| p + o).collect();
-    let effort = rig.sim.model().limits.effort;
-    let mut series = TimeSeries::new(super::columns(spec));
+    let effort = rig.sim.model().limits.effort.fixed_rows::<U>(N - U).into_owned();
+    let mut series = TimeSeries::new(super::columns::<N, U, A>(spec));
     let mut distances = Vec::new();
     let (mut smallest, mut closest, mut torque_ratio, mut home_distance) = (f64::INFINITY, (0, 0), 0.0_f64, f64::NAN);
     run_loop(&mut rig, DURATION_S, CONTROL_PERIOD_S, |rig, info| {
@@ -194,20 +214,28 @@ where
 }
 
 impl Scenario for SelfCollision {
-    fn simulate<T, const N: usize, const B: usize, const F: usize, const A: usize>(
+    fn simulate<
+        T,
+        const N: usize,
+        const B: usize,
+        const F: usize,
+        const U: usize,
+        const V: usize,
+        const P: usize,
+        const A: usize,
+    >(
         spec: &RobotSpec<N, A>,
-        model: Model<T, N, B, F>,
-        plant: Model<f64, N, B, F>,
+        parts: &dyn Fn() -> Result<RigParts<T, N, B, F, U, V, P, A>, String>,
         options: &RunOptions,
     ) -> Result<Outcome, String>
     where
         T: RealField + Copy + Into<f64>,
     {
-        let tasks = hierarchy::<A>();
-        let without: Vec<TaskSpec> =
-            tasks.iter().filter(|t| !matches!(t.kind, TaskKind::CollisionAvoidance(_))).copied().collect();
-        let reference = run(spec, model.clone(), plant.clone(), options, &without)?;
-        let avoided = run(spec, model, plant, options, &tasks)?;
+        if spec.collision_volumes.is_empty() {
+            return Err(format!("self_collision needs an imported robot's volume table; {} has none", spec.name));
+        }
+        let reference = run(spec, parts()?, options, false)?;
+        let avoided = run(spec, parts()?, options, true)?;
         let predicted = (avoided.final_distance - reference.smallest) / avoided.driven.max(1) as f64;
         let name = |i: usize| spec.collision_volumes.get(i).map_or("?", |v| v.name);
         let (a, b) = avoided.closest;

@@ -1,49 +1,113 @@
-//! The default `config.toml` of an imported robot: every key of `robot-config`'s schema, the
-//! robot's parts from its [`Layout`], and gains by one rule from the model.
+//! The default `config.toml` of an imported robot: every key of `robot-config`'s schema the
+//! robot's parts need (`[platform]` only with `--base planar`, the torso's values only with a
+//! torso), the parts from its [`Layout`], and the gains by one rule from the model.
 //!
-//! **The default rule.** The arms are named `arm_0`, `arm_1`, … in the order of the `--tcp`
-//! options. Per coordinate, from its effort limit `τ_max` (Nm, N): joint stiffness
-//! `τ_max / (10 rad)` (a tenth of the peak torque one radian off the posture), joint and safe
-//! damping `0.1 s` times the stiffness, torque rate `100 τ_max` per second (the full torque in
-//! 10 ms, as Justin's). The arm values are per joint of arm 0 (every arm has the same joints,
-//! [`PER_ARM_JOINTS`]), the torso's is the rule on its strongest joint. Every other value is
-//! Justin's chosen or thesis value (`fixtures/robots/justin/config.toml`, where each is argued),
-//! the platform's too: without a platform (`[robot] platform = false`) it drives nothing. The
-//! Fig. 6.3 hierarchy for arm 0: level 0 the strong collision avoidance and its Cartesian
-//! impedance, level 1 the weak collision avoidance, its singularity avoidance, the end stops,
-//! the torso's and the other arms' joint impedance and the damping of the upper body. No
-//! service tasks.
+//! **The gain rule**, at the middle of every joint's range (the posture farthest from the end
+//! stops; zero for a joint without limits): the Cartesian stiffness is `K = λ ω_c²` with `λ`
+//! the largest eigenvalue of the translational reflected inertia `(J_p M⁻¹ J_pᵀ)⁻¹` over the
+//! TCPs, the rotational one `λ_r ω_c²` likewise, so the heaviest TCP direction has the natural
+//! frequency `ω_c` ([`CARTESIAN_FREQUENCY_RAD_S`]); the kernel damps it with the thesis'
+//! `ξ = 0.7` ([`DAMPING_RATIO`], double diagonalisation). Per coordinate, from the diagonal
+//! inertia `M_kk`: joint stiffness `ω_j² M_kk` and damping `2 ξ ω_j M_kk`
+//! ([`JOINT_FREQUENCY_RAD_S`]; the safe output's damping too), torque rate `100 τ_max` per second
+//! (the full torque in 10 ms, as Justin's); the end stops `K = ω_j² max M_kk`,
+//! `D = 2 ξ ω_j max M_kk` from 0.1 rad before a stop. The `arm` lists hold, per joint, the
+//! largest value over the arms (all arms have `[robot] arm_joints` joints: arms of different
+//! lengths are refused), the torso's value the largest over its joints. The singularity
+//! avoidance acts below a translational manipulability of 0.01 m³ (a 7-DOF arm of about 1 m
+//! reach has 0.03–0.1 away from its singularities); the force limiter is off (no Cartesian force
+//! limits). Every other value is Justin's chosen or thesis value
+//! (`fixtures/robots/justin/config.toml`, where each is argued); a planar base gets Justin's
+//! admittance without ICR avoidance and leg motion (the import knows no legs). The arms are
+//! named `arm_0`, `arm_1`, … in the order of the `--tcp` options. The Fig. 6.3 hierarchy for
+//! arm 0: level 0 the strong collision avoidance and its Cartesian impedance, level 1 the weak
+//! collision avoidance, its singularity avoidance, the end stops, the torso's and the other
+//! arms' joint impedance and the damping of the upper body. No service tasks.
+
+use nalgebra::DMatrix;
 
 use super::layout::Layout;
+use crate::dynamics_cli::{self, State};
 use crate::urdf::Description;
 
-/// Joints per arm the configuration file holds (`robot-config`'s `arm = [_; 7]`).
-pub const PER_ARM_JOINTS: usize = 7;
+/// Damping ratio of every gain rule (the thesis' `ξ = 0.7`, Ch. 6).
+pub const DAMPING_RATIO: f64 = 0.7;
+/// Natural frequency of the Cartesian impedance along the heaviest direction (rad/s): 1.5 Hz.
+pub const CARTESIAN_FREQUENCY_RAD_S: f64 = 3.0 * core::f64::consts::PI;
+/// Natural frequency of the joint impedance, the joint damping and the end stops (rad/s): 3 Hz.
+pub const JOINT_FREQUENCY_RAD_S: f64 = 6.0 * core::f64::consts::PI;
+
+/// The model's inertia at the rule's posture: the mass matrix and each TCP's Jacobian
+/// (world-aligned, linear rows first).
+struct Inertia {
+    mass: DMatrix<f64>,
+    jacobians: Vec<DMatrix<f64>>,
+}
+
+/// The middle of every joint's range (zero without limits).
+fn mid_range(description: &Description) -> Vec<f64> {
+    let middle = |c: &crate::urdf::CoordinateSpec| {
+        let m = 0.5 * (c.lower + c.upper);
+        if m.is_finite() {
+            m
+        } else {
+            0.0
+        }
+    };
+    description.coordinates.iter().map(middle).collect()
+}
+
+/// `M` and the TCP Jacobians at [`mid_range`], through the `dynamics` command's evaluation.
+fn inertia(description: &Description, tcps: &[String]) -> Result<Inertia, String> {
+    let q = mid_range(description);
+    let state = State { v: vec![0.0; q.len()], q };
+    let matrix = |value: &serde_json::Value| -> Result<DMatrix<f64>, String> {
+        let rows: Vec<Vec<f64>> = serde_json::from_value(value.clone()).map_err(|e| e.to_string())?;
+        let columns = rows.first().map_or(0, Vec::len);
+        Ok(DMatrix::from_row_iterator(rows.len(), columns, rows.into_iter().flatten()))
+    };
+    let mut mass = None;
+    let mut jacobians = Vec::new();
+    for tcp in tcps {
+        let text = dynamics_cli::dispatch(description, tcp, std::slice::from_ref(&state))?;
+        let records: Vec<serde_json::Value> = serde_json::from_str(&text).map_err(|e| e.to_string())?;
+        let record = records.first().ok_or("no dynamics record")?;
+        mass = Some(matrix(&record["M"])?);
+        jacobians.push(matrix(&record["J"])?);
+    }
+    Ok(Inertia { mass: mass.ok_or("no TCP")?, jacobians })
+}
+
+/// The largest eigenvalue of the reflected inertia `(J M⁻¹ Jᵀ)⁻¹` of the Jacobian's `rows` (three
+/// from the first), over the TCPs.
+fn heaviest(inertia: &Inertia, inverse: &DMatrix<f64>, first_row: usize) -> Result<f64, String> {
+    let mut heaviest: f64 = 0.0;
+    for jacobian in &inertia.jacobians {
+        let j = jacobian.rows(first_row, 3);
+        let reflected = (j * inverse * j.transpose()).try_inverse().ok_or("a TCP is singular at mid-range")?;
+        heaviest = heaviest.max(reflected.symmetric_eigenvalues().max());
+    }
+    Ok(heaviest)
+}
 
 /// The default `config.toml` of the robot `name` (module docs), validated by `robot-config`.
-pub(crate) fn default_file(name: &str, description: &Description, layout: &Layout) -> Result<String, String> {
+pub(crate) fn default_file(
+    name: &str,
+    description: &Description,
+    layout: &Layout,
+    tcps: &[String],
+) -> Result<String, String> {
+    let arm_joints = arm_joints(layout)?;
+    let inertia = inertia(description, tcps)?;
+    let inverse = inertia.mass.clone().try_inverse().ok_or("the mass matrix at mid-range is singular")?;
+    let w2 = CARTESIAN_FREQUENCY_RAD_S * CARTESIAN_FREQUENCY_RAD_S;
+    let diagonal: Vec<f64> = inertia.mass.diagonal().iter().copied().collect();
+    let heaviest_joint = diagonal.iter().copied().fold(0.0, f64::max);
     let effort: Vec<f64> = description.coordinates.iter().map(|c| c.effort).collect();
-    let arm_effort: Vec<f64> = layout
-        .arms
-        .first()
-        .map(|arm| arm.iter().zip(&effort).filter(|(on, _)| **on).map(|(_, e)| *e).collect())
-        .unwrap_or_default();
-    if arm_effort.len() != PER_ARM_JOINTS {
-        return Err(format!(
-            "arm 0 has {} joints: the configuration file holds arms of {PER_ARM_JOINTS}",
-            arm_effort.len()
-        ));
-    }
-    let torso_effort = layout
-        .torso
-        .as_ref()
-        .map_or(0.0, |torso| torso.iter().zip(&effort).filter(|(on, _)| **on).map(|(_, e)| *e).fold(0.0, f64::max));
-    let stiffness = |effort: f64| effort / 10.0;
-    let damping = |effort: f64| 0.1 * stiffness(effort);
-    let per_coordinate = |platform: &str, rule: &dyn Fn(f64) -> f64| {
-        let arm: Vec<String> = arm_effort.iter().map(|e| number(rule(*e))).collect();
-        format!("{{ platform = {platform}, torso = {}, arm = [{}] }}", number(rule(torso_effort)), arm.join(", "))
-    };
+    let joint_stiffness = |m: f64| JOINT_FREQUENCY_RAD_S * JOINT_FREQUENCY_RAD_S * m;
+    let joint_damping = |m: f64| 2.0 * DAMPING_RATIO * JOINT_FREQUENCY_RAD_S * m;
+    let per_coordinate = |values: &[f64], platform: &str| per_coordinate(layout, arm_joints, values, platform);
+    let scaled = |rule: &dyn Fn(f64) -> f64| diagonal.iter().map(|m| rule(*m)).collect::<Vec<f64>>();
     let arms: Vec<String> = (0..layout.arms.len()).map(|a| format!("arm_{a}")).collect();
     let quoted = |names: &[String]| names.iter().map(|n| format!("\"{n}\"")).collect::<Vec<_>>().join(", ");
     let mut idle: Vec<String> = layout.torso.iter().map(|_| "joint_impedance_torso".to_owned()).collect();
@@ -53,28 +117,84 @@ pub(crate) fn default_file(name: &str, description: &Description, layout: &Layou
         .chain(idle)
         .chain(["joint_damping_upper_body".to_owned()])
         .collect();
+    let planar = layout.planar_base;
     let text = TEMPLATE
         .replace("{name}", name)
         .replace("{arms}", &quoted(&arms))
+        .replace("{arm_joints}", &arm_joints.to_string())
         .replace("{torso}", &layout.torso.is_some().to_string())
-        .replace("{platform}", &layout.planar_base.to_string())
+        .replace("{platform}", &planar.to_string())
         .replace("{level_1}", &quoted(&level_1))
-        .replace("{stiffness}", &per_coordinate("[200.0, 200.0, 100.0]", &stiffness))
-        .replace("{damping}", &per_coordinate("[300.0, 300.0, 100.0]", &damping))
-        .replace("{safe_damping}", &per_coordinate("[0.0, 0.0, 0.0]", &damping))
-        .replace("{torque_rate}", &per_coordinate("[1.0, 1.0, 1.0]", &|e| 100.0 * e));
+        .replace("{translational_stiffness}", &number(heaviest(&inertia, &inverse, 0)? * w2))
+        .replace("{rotational_stiffness}", &number(heaviest(&inertia, &inverse, 3)? * w2))
+        .replace("{end_stop_stiffness}", &number(joint_stiffness(heaviest_joint)))
+        .replace("{end_stop_damping}", &number(joint_damping(heaviest_joint)))
+        .replace("{stiffness}", &per_coordinate(&scaled(&joint_stiffness), "[200.0, 200.0, 100.0]"))
+        .replace("{damping}", &per_coordinate(&scaled(&joint_damping), "[300.0, 300.0, 100.0]"))
+        .replace("{safe_damping}", &per_coordinate(&scaled(&joint_damping), "[0.0, 0.0, 0.0]"))
+        .replace(
+            "{torque_rate}",
+            &per_coordinate(&effort.iter().map(|e| 100.0 * e).collect::<Vec<_>>(), "[1.0, 1.0, 1.0]"),
+        )
+        .replace("{base_limits}", if planar { BASE_LIMITS } else { "" })
+        .replace("{platform_tables}", if planar { PLATFORM_TABLES } else { "" });
     robot_config::parse(&text, &format!("fixtures/robots/{name}/config.toml")).map_err(|e| e.to_string())?;
     Ok(text)
 }
 
-/// The module `config` of the robot's `mod.rs`: the constants `fixtures/build.rs` compiles
-/// from its `config.toml`.
-pub(crate) fn module_source(name: &str) -> String {
+/// The joints of every arm; refused if the arms differ (the file's `arm` lists serve them all).
+fn arm_joints(layout: &Layout) -> Result<usize, String> {
+    let counts: Vec<usize> = layout.arms.iter().map(|arm| arm.iter().filter(|on| **on).count()).collect();
+    match counts.split_first() {
+        Some((first, rest)) if rest.iter().all(|n| n == first) => Ok(*first),
+        _ => Err(format!(
+            "the arms have {counts:?} joints: the configuration file's per-coordinate tables hold one list for arms of equal length"
+        )),
+    }
+}
+
+/// A per-coordinate table of `values` (one per coordinate): the platform's `platform` with a
+/// planar base, the torso's largest value with a torso, per arm joint the largest over the arms.
+fn per_coordinate(layout: &Layout, arm_joints: usize, values: &[f64], platform: &str) -> String {
+    let masked = |mask: &[bool]| -> Vec<f64> {
+        mask.iter().zip(values).filter(|(on, _)| **on).map(|(_, value)| *value).collect()
+    };
+    let arm: Vec<String> = (0..arm_joints)
+        .map(|j| layout.arms.iter().filter_map(|mask| masked(mask).get(j).copied()).fold(0.0, f64::max))
+        .map(number)
+        .collect();
+    let mut entries = Vec::new();
+    if layout.planar_base {
+        entries.push(format!("platform = {platform}"));
+    }
+    if let Some(torso) = &layout.torso {
+        entries.push(format!("torso = {}", number(masked(torso).into_iter().fold(0.0, f64::max))));
+    }
+    entries.push(format!("arm = [{}]", arm.join(", ")));
+    format!("{{ {} }}", entries.join(", "))
+}
+
+/// The module `config` of the robot's `mod.rs` (the constants `fixtures/build.rs` compiles from
+/// its `config.toml`), the compile-time check that every arm has `[robot] arm_joints`
+/// coordinates, and `controller_config()`: the file in the kernel's types for `layout()`.
+pub(crate) fn module_source(name: &str, layout: &Layout) -> String {
+    let flag = |present: bool| if present { "yes" } else { "no" };
     format!(
         "\n/// The constants of `fixtures/robots/{name}/config.toml`, compiled by `fixtures/build.rs` (robot-config): one\n\
          /// module per TOML table, one constant per key in capitals.\n\
          #[allow(missing_docs, reason = \"one constant per key of the file, documented there\")]\n\
-         pub mod config {{\n    include!(concat!(env!(\"OUT_DIR\"), \"/{name}_config.rs\"));\n}}\n"
+         pub mod config {{\n    include!(concat!(env!(\"OUT_DIR\"), \"/{name}_config.rs\"));\n}}\n\
+         \n\
+         const _: () = assert!(\n    crate::config_file::arms_have(&ARM_COORDINATES, config::robot::ARM_JOINTS),\n    \
+         \"fixtures/robots/{name}/config.toml: robot.arm_joints differs from the model's arms\"\n);\n\
+         \n\
+         /// The controller configuration of `config.toml` for [`layout`] (`fixtures::config_file`).\n\
+         pub fn controller_config<T: nalgebra::RealField + Copy>(\n) -> Result<kernel::controller::config::ControllerConfig<T, N, ARMS>, kernel::platform::PlatformError> {{\n    \
+         Ok(crate::config_file::controller_config!(\n        config,\n        layout: layout()?,\n        \
+         platform: {platform}(crate::fixed_base::unused_platform().avoidance),\n        torso: {torso},\n        \
+         torso_workspace: no((), ()),\n    ))\n}}\n",
+        platform = flag(layout.planar_base),
+        torso = flag(layout.torso.is_some()),
     )
 }
 
@@ -91,6 +211,7 @@ const TEMPLATE: &str = r#"# The default whole-body configuration of the imported
 
 [robot]
 arms = [{arms}]
+arm_joints = {arm_joints}
 torso = {torso}
 platform = {platform}
 
@@ -102,9 +223,10 @@ transition_s = 1.0
 singular_full = 0.05
 singular_start = 0.15
 
+# The rule: the heaviest TCP direction at 1.5 Hz (reflected inertia at mid-range), ξ = 0.7.
 [cartesian]
-translational_stiffness = 500.0
-rotational_stiffness = 100.0
+translational_stiffness = {translational_stiffness}
+rotational_stiffness = {rotational_stiffness}
 damping_ratio = 0.7
 fallback_damping = [70.0, 70.0, 70.0, 10.0, 10.0, 10.0]
 
@@ -131,69 +253,31 @@ damping_ratio = 0.7
 activation_full = 0.0
 activation_zero = 0.15
 
+# A 7-DOF arm of about 1 m reach: translational manipulability 0.03–0.1 m³ away from its
+# singularities; the avoidance acts below 0.01.
 [singularity]
 rows = [true, true, true, false, false, false]
-threshold = 0.025
-full_activation = 0.01
-stiffness = 2.0e5
-damping = 50.0
+threshold = 0.01
+full_activation = 0.002
+stiffness = 100.0
+damping = 1.0
 
+# The rule: ω_j² and 2 ξ ω_j times the largest diagonal inertia, from 0.1 rad before a stop.
 [end_stops]
-margin = 0.2
-stiffness = 200.0
-damping = 5.0
+margin = 0.1
+stiffness = {end_stop_stiffness}
+damping = {end_stop_damping}
 
-# Justin's torso geometry; unused by a robot without Justin's torso workspace task.
-[torso_workspace]
-torque_limit_nm = 230.0
-load_force_n = 323.73
-load_angle_deg = 90.0
-
-[torso_workspace.repulsion]
-max_stiffness = 1000.0
-distance = 0.1
-damping_ratio = 0.3
-
-# The rule: stiffness τ_max / 10 rad, damping 0.1 s × stiffness, torque rate 100 τ_max / s.
+# The rule: stiffness ω_j² M_kk, damping 2 ξ ω_j M_kk (3 Hz on the diagonal inertia at
+# mid-range), torque rate 100 τ_max / s.
 [joint]
 stiffness = {stiffness}
 damping = {damping}
 safe_damping = {safe_damping}
-
-[platform]
-force_deadband = [2.0, 2.0, 1.0]
-
-[platform.compensation]
-coupling = true
-gravity = true
-
-[platform.admittance]
-mass = [60.0, 60.0, 20.0]
-damping = [400.0, 400.0, 120.0]
-force_limit = [200.0, 200.0, 80.0]
-free_axes = [true, true, true]
-
-[platform.icr_avoidance]
-enabled = true
-max_extension_m = 0.12
-extension_ratio = 0.4
-max_force = 0.8
-min_yaw_rate = 0.001
-
-[platform.legs]
-motion = true
-mass_kg = 0.2
-damping_kg_s = 1.0
-cubic_stiffness_n_m3 = 1.0e3
-return_pole_rad_s = 2.0
-return_blend_m = 0.05
-
+{platform_tables}
 [output_limits]
 torque_rate = {torque_rate}
-base_velocity = [1.1, 1.1, 2.1]
-base_acceleration = [2.0, 2.0, 4.0]
-leg_rate = 0.2
-
+{base_limits}
 [input_limits]
 position_tolerance = 0.05
 velocity_factor = 1.5
@@ -204,8 +288,9 @@ brake_after_cycles = 200
 gain = 50.0
 contact_threshold = 8.0
 
+# No Cartesian force limits in this file: the limiter is off.
 [force_limit]
-enabled = true
+enabled = false
 margin = 0.05
 gain = 3.0
 max_correction = 10.0
@@ -222,3 +307,38 @@ valid_cycles = 100
 margin = 0.2
 blend_s = 0.2
 "#;
+
+/// The platform's tables of a planar base: Justin's admittance, no ICR avoidance and no leg
+/// motion (the import knows no legs).
+const PLATFORM_TABLES: &str = r#"
+[platform]
+force_deadband = [2.0, 2.0, 1.0]
+
+[platform.compensation]
+coupling = true
+gravity = true
+
+[platform.admittance]
+mass = [60.0, 60.0, 20.0]
+damping = [400.0, 400.0, 120.0]
+force_limit = [200.0, 200.0, 80.0]
+free_axes = [true, true, true]
+
+[platform.icr_avoidance]
+enabled = false
+max_extension_m = 0.12
+extension_ratio = 0.4
+max_force = 0.8
+min_yaw_rate = 0.001
+
+[platform.legs]
+motion = false
+mass_kg = 0.2
+damping_kg_s = 1.0
+cubic_stiffness_n_m3 = 1.0e3
+return_pole_rad_s = 2.0
+return_blend_m = 0.05
+"#;
+
+/// The base's output limits of a planar base (Justin's).
+const BASE_LIMITS: &str = "base_velocity = [1.1, 1.1, 2.1]\nbase_acceleration = [2.0, 2.0, 4.0]\nleg_rate = 0.2\n";

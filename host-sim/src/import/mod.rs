@@ -118,10 +118,10 @@ pub fn generate(options: &ImportOptions) -> Result<Files, String> {
         planar_base: options.planar_base,
     };
     let robot_layout = layout::derive(&description, &options.tcps, options.planar_base)?;
-    let config_file = config::default_file(&options.name, &description, &robot_layout)?;
+    let config_file = config::default_file(&options.name, &description, &robot_layout, &options.tcps)?;
     let source = codegen::model_source(&description, &options.urdf, &Module::Robot(&module))
         + &layout::source(&robot_layout)
-        + &config::module_source(&options.name)
+        + &config::module_source(&options.name, &robot_layout)
         + &collision::module_source(&options.name);
     let (fitted, survey) = fitted_collision(options, &prepared, &description)?;
     let collision_file = collision::file(options, &description, &fitted, &survey)?;
