@@ -162,8 +162,6 @@ pub struct RigParts<
     pub plant: Model<f64, N, B, F>,
     /// The simulator's settings.
     pub sim_config: SimConfig,
-    /// The hierarchy the controller runs (the robot's Fig. 6.3).
-    pub hierarchy: Vec<TaskSpec>,
 }
 
 /// The parts of an imported robot: its models and its compiled configuration, in `T`.
@@ -190,7 +188,6 @@ macro_rules! imported {
             ),
             plant: $robot::model::<f64>().map_err(error)?,
             sim_config: SimConfig::default(),
-            hierarchy: hierarchy.to_vec(),
         }
     }};
 }
@@ -215,7 +212,6 @@ fn justin_parts<T: RealField + Copy>() -> Result<
         controller: Box::new(crate::wbc::whole_body_controller(&[], crate::wbc::ConfigChanges::NONE, &hierarchy)?),
         plant: justin::model::<f64>().map_err(|e| format!("model: {e}"))?,
         sim_config: SimConfig { base_lag_s: crate::wbc::BASE_LAG_S, ..SimConfig::default() },
-        hierarchy: hierarchy.to_vec(),
     })
 }
 
@@ -276,7 +272,7 @@ where
         parts: RigParts<T, N, B, F, U, V, P, A>,
         options: &RunOptions,
     ) -> Result<Self, String> {
-        let RigParts { controller, plant, sim_config, .. } = parts;
+        let RigParts { controller, plant, sim_config } = parts;
         let mut sim = options.simulator(plant, sim_config)?;
         sim.set_state(SVector::from((spec.home)()), SVector::zeros())?;
         sim.set_joint_stops(Some(JointStops::JUSTIN))?;

@@ -152,14 +152,10 @@ where
     T: RealField + Copy + Into<f64>,
 {
     let mut pairs = PairDistances::<N, B, F, V, P>::new(spec, &parts.plant)?;
-    let without: heapless::Vec<TaskSpec, { kernel::controller::capacity::MAX_TASKS }> = parts
-        .hierarchy
-        .iter()
-        .filter(|t| collision_tasks || !matches!(t.kind, TaskKind::CollisionAvoidance(_)))
-        .copied()
-        .collect();
     let mut rig = GenericRig::new(spec, parts, options)?;
     if !collision_tasks {
+        let without: heapless::Vec<TaskSpec, { kernel::controller::capacity::MAX_TASKS }> =
+            rig.controller.hierarchy().filter(|t| !matches!(t.kind, TaskKind::CollisionAvoidance(_))).collect();
         rig.controller.apply(&Command::SetHierarchy(without)).map_err(|e| format!("SetHierarchy: {e}"))?;
     }
     let home: Vec<Vector3<f64>> = (0..A).map(|arm| rig.tcp_position(spec, arm)).collect::<Result<_, _>>()?;
