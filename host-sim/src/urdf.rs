@@ -296,6 +296,7 @@ fn preprocess(text: &str) -> Result<Preprocessed, String> {
     if root.name != "robot" {
         return Err(format!("malformed URDF: the root element is <{}>, expected <robot>", root.name));
     }
+    drop_namespaces(&mut root)?;
     let mut couplings = Vec::new();
     let mut joints_with_limit = HashSet::new();
     for child in &mut root.children {
@@ -321,6 +322,30 @@ fn preprocess(text: &str) -> Result<Preprocessed, String> {
         }
     }
     Ok(Preprocessed { text: root.to_string(), couplings, joints_with_limit })
+}
+
+/// The namespace of `xmlns:prefix` declarations, which `xml` keeps as attributes.
+const XMLNS: &str = "http://www.w3.org/2000/xmlns/";
+
+/// Drops the namespace declarations (a URDF uses no namespace; xacro output still declares
+/// `xmlns:xacro`) and refuses any element or attribute in a namespace, so that the normalized
+/// text can be written back for `urdf-rs` (`xml`'s writer panics on a namespace it cannot
+/// name, e.g. after a mangled `xmlns:` declaration).
+fn drop_namespaces(element: &mut xml::Element) -> Result<(), String> {
+    element.attributes.retain(|(_, ns), _| ns.as_deref() != Some(XMLNS));
+    if let Some(ns) = &element.ns {
+        return Err(format!("malformed URDF: <{}> is in the XML namespace \"{ns}\" (URDF uses none)", element.name));
+    }
+    if let Some(((name, Some(ns)), _)) = element.attributes.iter().find(|((_, ns), _)| ns.is_some()) {
+        return Err(format!(
+            "malformed URDF: <{}> attribute {name} is in the XML namespace \"{ns}\" (URDF uses none)",
+            element.name
+        ));
+    }
+    element.children.iter_mut().try_for_each(|child| match child {
+        xml::Xml::ElementNode(child) => drop_namespaces(child),
+        _ => Ok(()),
+    })
 }
 
 /// Parses `<coupling joint=".." offset=".."><term joint=".." multiplier=".."/>..</coupling>`.
@@ -895,6 +920,13 @@ mod tests {
         assert!(missing.contains("cannot read URDF") && missing.contains("/nonexistent/robot.urdf"), "{missing}");
         assert!(error_of::<1>("<robot name='x'><link name='a'>", Coupling::Independent).contains("malformed XML"));
         assert!(error_of::<1>("<model/>", Coupling::Independent).contains("expected <robot>"));
+        // Found by the host_parsers fuzz target: `xml` panicked writing a namespace back.
+        let mangled = "<robot name='x' xmlns:xmlns='urn:x'><link name='a'/></robot>";
+        let e = error_of::<1>(mangled, Coupling::Independent);
+        assert!(e.contains("<robot> attribute xmlns is in the XML namespace \"urn:x\""), "{e}");
+        let prefixed = "<robot name='x' xmlns:p='urn:x'><link name='a' p:colour='red'/></robot>";
+        let e = error_of::<1>(prefixed, Coupling::Independent);
+        assert!(e.contains("attribute colour is in the XML namespace"), "{e}");
         let no_child =
             "<robot name='x'><link name='a'/><joint name='j' type='fixed'><parent link='a'/></joint></robot>";
         assert!(error_of::<1>(no_child, Coupling::Independent).contains("malformed URDF"));
