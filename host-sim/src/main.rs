@@ -87,6 +87,11 @@ enum Command {
         /// Directory holding the ROS packages that `package://` mesh URIs name.
         #[arg(long)]
         package_path: Option<String>,
+        /// The posture of the configuration's gain rule, one value per controlled coordinate in
+        /// coordinate order (rad, m), e.g. `--home=0,0.6,0,-1.2,0,0.9,0` [default: the middle of
+        /// every joint's range]; needed where a TCP is singular at mid-range.
+        #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
+        home: Option<Vec<f64>>,
     },
 }
 
@@ -115,9 +120,9 @@ fn main() -> ExitCode {
         Command::Dynamics { urdf, frame, states } => {
             host_sim::dynamics_cli::run(&urdf, &frame, &states).map(|json| println!("{json}"))
         }
-        Command::Import { urdf, name, tcps, base, package_path } => {
+        Command::Import { urdf, name, tcps, base, package_path, home } => {
             let planar_base = matches!(base, Some(Base::Planar));
-            let options = ImportOptions { root: PathBuf::from("."), urdf, name, tcps, planar_base, package_path };
+            let options = ImportOptions { root: PathBuf::from("."), urdf, name, tcps, planar_base, package_path, home };
             host_sim::import::run(&options)
         }
     };

@@ -33,6 +33,7 @@ fn import(name: &str, tcps: &[&str]) -> ImportOptions {
         tcps: tcps.iter().map(|t| (*t).to_owned()).collect(),
         planar_base: false,
         package_path: Some("fixtures/urdf/packages".to_owned()),
+        home: None,
     }
 }
 

@@ -3,7 +3,11 @@
 //! torso), the parts from its [`Layout`], and the gains by one rule from the model.
 //!
 //! **The gain rule**, at the middle of every joint's range (the posture farthest from the end
-//! stops; zero for a joint without limits): the Cartesian stiffness is `K = λ ω_c²` with `λ`
+//! stops; zero for a joint without limits), or at the import's `--home` posture if it gives one;
+//! refused if a TCP is near a singularity there (the singular values of its translational or
+//! rotational Jacobian further apart than [`SINGULAR_RATIO`]: the reflected inertia grows without
+//! bound; the KUKA iiwa's mid-range is its stretched arm, the UR5's has the wrist's first and
+//! last axes aligned): the Cartesian stiffness is `K = λ ω_c²` with `λ`
 //! the largest eigenvalue of the translational reflected inertia `(J_p M⁻¹ J_pᵀ)⁻¹` over the
 //! TCPs, the rotational one `λ_r ω_c²` likewise, so the heaviest TCP direction has the natural
 //! frequency `ω_c` ([`CARTESIAN_FREQUENCY_RAD_S`]); the kernel damps it with the thesis'
@@ -36,6 +40,10 @@ pub const DAMPING_RATIO: f64 = 0.7;
 pub const CARTESIAN_FREQUENCY_RAD_S: f64 = 3.0 * core::f64::consts::PI;
 /// Natural frequency of the joint impedance, the joint damping and the end stops (rad/s): 3 Hz.
 pub const JOINT_FREQUENCY_RAD_S: f64 = 6.0 * core::f64::consts::PI;
+/// Smallest ratio of the smallest to the largest singular value of a TCP's translational and of
+/// its rotational Jacobian at the gain rule's posture: below it the reflected inertia, which
+/// grows with the inverse square, is more than 10⁴ times heavier in one direction than in another.
+pub const SINGULAR_RATIO: f64 = 0.01;
 
 /// The model's inertia at the rule's posture: the mass matrix and each TCP's Jacobian
 /// (world-aligned, linear rows first).
@@ -57,10 +65,10 @@ fn mid_range(description: &Description) -> Vec<f64> {
     description.coordinates.iter().map(middle).collect()
 }
 
-/// `M` and the TCP Jacobians at [`mid_range`], through the `dynamics` command's evaluation.
-fn inertia(description: &Description, tcps: &[String]) -> Result<Inertia, String> {
-    let q = mid_range(description);
-    let state = State { v: vec![0.0; q.len()], q };
+/// `M` and the TCP Jacobians at the posture `q`, through the `dynamics` command's evaluation;
+/// refused if a TCP is near a singularity there ([`SINGULAR_RATIO`]).
+fn inertia(description: &Description, tcps: &[String], q: &[f64], posture: &str) -> Result<Inertia, String> {
+    let state = State { v: vec![0.0; q.len()], q: q.to_vec() };
     let matrix = |value: &serde_json::Value| -> Result<DMatrix<f64>, String> {
         let rows: Vec<Vec<f64>> = serde_json::from_value(value.clone()).map_err(|e| e.to_string())?;
         let columns = rows.first().map_or(0, Vec::len);
@@ -73,7 +81,19 @@ fn inertia(description: &Description, tcps: &[String]) -> Result<Inertia, String
         let records: Vec<serde_json::Value> = serde_json::from_str(&text).map_err(|e| e.to_string())?;
         let record = records.first().ok_or("no dynamics record")?;
         mass = Some(matrix(&record["M"])?);
-        jacobians.push(matrix(&record["J"])?);
+        let jacobian = matrix(&record["J"])?;
+        for (first_row, part) in [(0, "translational"), (3, "rotational")] {
+            let sigma = jacobian.rows(first_row, 3).singular_values();
+            let ratio = sigma.min() / sigma.max();
+            if ratio.is_nan() || ratio < SINGULAR_RATIO {
+                return Err(format!(
+                    "TCP {tcp} is near a singularity at {posture} (q = {q:?}): its {part} Jacobian's singular values {:.3e} to {:.3e}, ratio below {SINGULAR_RATIO}; give the gain rule a posture away from it with --home",
+                    sigma.min(),
+                    sigma.max()
+                ));
+            }
+        }
+        jacobians.push(jacobian);
     }
     Ok(Inertia { mass: mass.ok_or("no TCP")?, jacobians })
 }
@@ -84,22 +104,28 @@ fn heaviest(inertia: &Inertia, inverse: &DMatrix<f64>, first_row: usize) -> Resu
     let mut heaviest: f64 = 0.0;
     for jacobian in &inertia.jacobians {
         let j = jacobian.rows(first_row, 3);
-        let reflected = (j * inverse * j.transpose()).try_inverse().ok_or("a TCP is singular at mid-range")?;
+        let reflected = (j * inverse * j.transpose()).try_inverse().ok_or("a TCP is singular at the rule's posture")?;
         heaviest = heaviest.max(reflected.symmetric_eigenvalues().max());
     }
     Ok(heaviest)
 }
 
-/// The default `config.toml` of the robot `name` (module docs), validated by `robot-config`.
+/// The default `config.toml` of the robot `name` (module docs), validated by `robot-config`; the
+/// gain rule at `home` (one value per coordinate, rad or m) or, without it, at mid-range.
 pub(crate) fn default_file(
     name: &str,
     description: &Description,
     layout: &Layout,
     tcps: &[String],
+    home: Option<&[f64]>,
 ) -> Result<String, String> {
     let arm_joints = arm_joints(layout)?;
-    let inertia = inertia(description, tcps)?;
-    let inverse = inertia.mass.clone().try_inverse().ok_or("the mass matrix at mid-range is singular")?;
+    let (q, posture) = match home {
+        Some(q) => (q.to_vec(), "the --home posture"),
+        None => (mid_range(description), "mid-range"),
+    };
+    let inertia = inertia(description, tcps, &q, posture)?;
+    let inverse = inertia.mass.clone().try_inverse().ok_or("the mass matrix at the rule's posture is singular")?;
     let w2 = CARTESIAN_FREQUENCY_RAD_S * CARTESIAN_FREQUENCY_RAD_S;
     let diagonal: Vec<f64> = inertia.mass.diagonal().iter().copied().collect();
     let heaviest_joint = diagonal.iter().copied().fold(0.0, f64::max);
@@ -120,6 +146,7 @@ pub(crate) fn default_file(
     let planar = layout.planar_base;
     let text = TEMPLATE
         .replace("{name}", name)
+        .replace("{posture}", posture)
         .replace("{arms}", &quoted(&arms))
         .replace("{arm_joints}", &arm_joints.to_string())
         .replace("{torso}", &layout.torso.is_some().to_string())
@@ -223,7 +250,7 @@ transition_s = 1.0
 singular_full = 0.05
 singular_start = 0.15
 
-# The rule: the heaviest TCP direction at 1.5 Hz (reflected inertia at mid-range), ξ = 0.7.
+# The rule: the heaviest TCP direction at 1.5 Hz (reflected inertia at {posture}), ξ = 0.7.
 [cartesian]
 translational_stiffness = {translational_stiffness}
 rotational_stiffness = {rotational_stiffness}
@@ -269,7 +296,7 @@ stiffness = {end_stop_stiffness}
 damping = {end_stop_damping}
 
 # The rule: stiffness ω_j² M_kk, damping 2 ξ ω_j M_kk (3 Hz on the diagonal inertia at
-# mid-range), torque rate 100 τ_max / s.
+# {posture}), torque rate 100 τ_max / s.
 [joint]
 stiffness = {stiffness}
 damping = {damping}

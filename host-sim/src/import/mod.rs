@@ -67,6 +67,9 @@ pub struct ImportOptions {
     pub planar_base: bool,
     /// Directory that holds the ROS packages `package://` mesh URIs name (`<dir>/<package>/…`).
     pub package_path: Option<String>,
+    /// The posture of the gain rule (one value per coordinate, rad or m, inside the limits);
+    /// `None`: the middle of every joint's range ([`config`]).
+    pub home: Option<Vec<f64>>,
 }
 
 impl ImportOptions {
@@ -82,6 +85,10 @@ impl ImportOptions {
         }
         if let Some(dir) = &self.package_path {
             command.push_str(&format!(" --package-path {dir}"));
+        }
+        if let Some(home) = &self.home {
+            let values: Vec<String> = home.iter().map(f64::to_string).collect();
+            command.push_str(&format!(" --home={}", values.join(",")));
         }
         command
     }
@@ -118,7 +125,11 @@ pub fn generate(options: &ImportOptions) -> Result<Files, String> {
         planar_base: options.planar_base,
     };
     let robot_layout = layout::derive(&description, &options.tcps, options.planar_base)?;
-    let config_file = config::default_file(&options.name, &description, &robot_layout, &options.tcps)?;
+    if let Some(home) = &options.home {
+        check_home(&description, home)?;
+    }
+    let config_file =
+        config::default_file(&options.name, &description, &robot_layout, &options.tcps, options.home.as_deref())?;
     let source = codegen::model_source(&description, &options.urdf, &Module::Robot(&module))
         + &layout::source(&robot_layout)
         + &config::module_source(&options.name, &robot_layout)
@@ -139,6 +150,26 @@ pub fn collision_model(options: &ImportOptions) -> Result<collision::Imported, S
     let (prepared, description) = described(options)?;
     let (fitted, survey) = fitted_collision(options, &prepared, &description)?;
     collision::imported(&description, &fitted, &survey)
+}
+
+/// `--home`: one value per coordinate, each inside its joint's limits.
+fn check_home(description: &Description, home: &[f64]) -> Result<(), String> {
+    let coordinates = &description.coordinates;
+    if home.len() != coordinates.len() {
+        let names: Vec<&str> = coordinates.iter().map(|c| c.joint.as_str()).collect();
+        return Err(format!(
+            "--home: {} values for the {} coordinates ({})",
+            home.len(),
+            coordinates.len(),
+            names.join(", ")
+        ));
+    }
+    for (c, q) in coordinates.iter().zip(home) {
+        if !(c.lower..=c.upper).contains(q) {
+            return Err(format!("--home: {} = {q} is outside its limits [{}, {}]", c.joint, c.lower, c.upper));
+        }
+    }
+    Ok(())
 }
 
 /// The URDF of `options`, prepared and described.
@@ -575,6 +606,15 @@ mod tests {
             "link b (joint j2) has no mass, with the links fixed to it: a controlled body needs a positive mass"
         );
         assert!(check_identifier("9lives", "robot name").is_err());
+    }
+
+    #[test]
+    fn home_has_a_value_inside_the_limits_for_every_coordinate() {
+        let prepared = prepare(&with_masses(&[]), &["b".to_owned()], false).unwrap();
+        let d = urdf::describe(&prepared.text, Coupling::Coupled).unwrap();
+        assert!(check_home(&d, &[0.5, -1.0]).is_ok());
+        assert_eq!(check_home(&d, &[0.5]).unwrap_err(), "--home: 1 values for the 2 coordinates (j1, j2)");
+        assert_eq!(check_home(&d, &[0.5, 1.5]).unwrap_err(), "--home: j2 = 1.5 is outside its limits [-1, 1]");
     }
 
     #[test]
