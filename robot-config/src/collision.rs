@@ -8,7 +8,7 @@
 //!   `triangle … <x y z> <x y z> <x y z>`: a volume, points in the frame of URDF link `<link>`,
 //!   `<group>` the link of the body it moves with (`world`: fixed in the world);
 //! - `exclude <volume> <volume> <reason>`: a pair the controller does not check
-//!   (`constant`, `never_close`, `always_near`).
+//!   (`constant`, `never_close`, `always_near`, `welded_parent`).
 
 use std::collections::HashMap;
 use std::fmt::Write as _;
@@ -51,7 +51,7 @@ pub struct CollisionFile {
 }
 
 /// The reasons an `exclude` line may give.
-const REASONS: [&str; 3] = ["constant", "never_close", "always_near"];
+const REASONS: [&str; 4] = ["constant", "never_close", "always_near", "welded_parent"];
 
 /// Parses the collision file `text` of a robot whose frames are at the origins of the links
 /// `frames` and whose bodies are the child links `bodies`; `origin` names the file in errors,

@@ -141,7 +141,7 @@ fn the_collision_constructors_build_the_imports_fit() {
     equals_the_fit(&fit, &build(panda::model::<f64>().unwrap()), 1e-12);
     equals_the_fit(&fit, &panda::collision::collision_model(&panda::model::<f32>().unwrap()).unwrap(), 2e-6);
     let fit = collision_model(&tiago_dual_import()).unwrap();
-    assert_eq!((fit.volumes.len(), fit.pairs.len()), (33, 336));
+    assert_eq!((fit.volumes.len(), fit.pairs.len()), (35, 340));
     let tiago = |model| tiago_dual::collision::collision_model(&model).unwrap();
     equals_the_fit(&fit, &tiago(tiago_dual::model::<f64>().unwrap()), 1e-12);
     equals_the_fit(&fit, &tiago_dual::collision::collision_model(&tiago_dual::model::<f32>().unwrap()).unwrap(), 2e-6);

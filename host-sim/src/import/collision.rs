@@ -11,7 +11,8 @@
 //! - mesh → its bounding capsule: the axis is the vertices' principal direction through their
 //!   centroid, the radius the largest distance of a vertex from that axis, the end points the
 //!   shortest segment on the axis that keeps every vertex inside. STL meshes are read with
-//!   `stl_io`, the vertex positions of COLLADA (`.dae`) meshes with `RustyXML`;
+//!   `stl_io`, the vertex positions of COLLADA (`.dae`) meshes with `RustyXML` (only those its
+//!   triangles or other primitives index);
 //!   `package://<package>/<path>` resolves to `<--package-path>/<package>/<path>`. A capsule is
 //!   convex, so containing the vertices it contains the whole mesh.
 //!
@@ -29,7 +30,9 @@
 //! `never_close` when it stays above the potential's activation distance
 //! `d0` ([`ACTIVATION_DISTANCE_M`], Table 3.1) plus [`SURVEY_MARGIN_M`] (its potential would never act), and
 //! `always_near` when it stays below `d0` (its potential would never switch off and would only
-//! bias the posture). This is the classification of Justin's exclusions
+//! bias the posture), and `welded_parent` for a body and the links welded to the root its joint
+//! hangs from (adjacent by the URDF; for the kernel's rule a world-fixed volume is environment:
+//! TIAGo++'s lift slides inside its fixed column). This is the classification of Justin's exclusions
 //! (`fixtures/collision/justin.collision`), whose survey used a grid instead of random samples.
 
 use std::path::Path;
@@ -212,8 +215,11 @@ fn stl_vertices(path: &Path) -> Result<Vec<Vector3<f64>>, String> {
     Ok(mesh.vertices.iter().map(|v| Vector3::new(f64::from(v[0]), f64::from(v[1]), f64::from(v[2]))).collect())
 }
 
-/// The vertices of a COLLADA (`.dae`) file (m): every `<mesh>`'s `POSITION` source, scaled by the
-/// `<unit meter>` of its `<asset>`. The coordinates are read as they stand, in the link frame, as
+/// The vertices of a COLLADA (`.dae`) file (m): the positions of every `<mesh>`'s `POSITION`
+/// source that its primitives (`<triangles>`, `<polylist>`, …) use, scaled by the `<unit meter>` of
+/// its `<asset>`. A position no primitive indexes is not on the surface: MeshLab writes the whole
+/// vertex list into each part it exports (TIAGo++'s three lift meshes share 154 positions, of which
+/// the neck uses 16 and a shoulder 74), and the unused ones would blow the fit up to the whole part. The coordinates are read as they stand, in the link frame, as
 /// ROS and Pinocchio read a collision mesh: `<up_axis>` is ignored (MeshLab writes `Y_UP` over
 /// link-frame coordinates). A `<node>` transform (`matrix`, `translate`, `rotate`, `scale`) is
 /// refused, not applied.
@@ -250,9 +256,52 @@ fn collada_vertices(path: &Path) -> Result<Vec<Vector3<f64>>, String> {
         if numbers.len() % 3 != 0 {
             return Err(fail(format!("{} position numbers, not a multiple of 3", numbers.len())));
         }
-        vertices.extend(numbers.chunks_exact(3).map(|c| Vector3::from_column_slice(c) * unit));
+        let positions: Vec<Vector3<f64>> =
+            numbers.chunks_exact(3).map(|c| Vector3::from_column_slice(c) * unit).collect();
+        let mut used = vec![false; positions.len()];
+        for index in primitive_vertices(mesh).map_err(fail)? {
+            *used
+                .get_mut(index)
+                .ok_or_else(|| fail(format!("vertex index {index} of {} positions", positions.len())))? = true;
+        }
+        vertices.extend(positions.into_iter().zip(used).filter_map(|(p, used)| used.then_some(p)));
     }
     Ok(vertices)
+}
+
+/// The COLLADA primitives that index a `<mesh>`'s vertices.
+const PRIMITIVES: [&str; 7] = ["triangles", "polylist", "polygons", "trifans", "tristrips", "lines", "linestrips"];
+
+/// The vertex indices of every primitive of `mesh`: in each `<p>` the entries at the `VERTEX`
+/// input's offset, one per `max offset + 1` entries.
+fn primitive_vertices(mesh: &xml::Element) -> Result<Vec<usize>, String> {
+    let mut indices = Vec::new();
+    let primitives = mesh.children.iter().filter_map(|c| match c {
+        xml::Xml::ElementNode(e) if PRIMITIVES.contains(&e.name.as_str()) => Some(e),
+        _ => None,
+    });
+    for primitive in primitives {
+        let inputs: Vec<(&str, usize)> = descendants(primitive, "input")
+            .iter()
+            .map(|input| {
+                let semantic = input.get_attribute("semantic", None).unwrap_or_default();
+                let offset = attribute_number(input, "offset").unwrap_or(0.0);
+                (semantic, offset as usize)
+            })
+            .collect();
+        let stride = inputs.iter().map(|(_, offset)| offset + 1).max().unwrap_or(1);
+        let vertex = inputs
+            .iter()
+            .find(|(semantic, _)| *semantic == "VERTEX")
+            .map(|(_, offset)| *offset)
+            .ok_or_else(|| format!("a <{}> without a VERTEX input", primitive.name))?;
+        for p in descendants(primitive, "p") {
+            for entry in p.content_str().split_whitespace().skip(vertex).step_by(stride) {
+                indices.push(entry.parse::<usize>().map_err(|e| format!("<p> index {entry:?}: {e}"))?);
+            }
+        }
+    }
+    Ok(indices)
 }
 
 /// Whether `node` is an element with one of `names` (any namespace).
@@ -374,6 +423,10 @@ pub enum Reason {
     NeverClose,
     /// The distance stays below `d0`.
     AlwaysNear,
+    /// A link welded to the root and a body whose joint hangs from it (or from a zero-length link
+    /// on it): adjacent links, as the kernel's rule has them, except that a fixed-base import
+    /// welds the parent to the world, which the kernel's rule takes for the environment.
+    WeldedParent,
 }
 
 impl Reason {
@@ -383,6 +436,7 @@ impl Reason {
             Self::Constant => "constant",
             Self::NeverClose => "never_close",
             Self::AlwaysNear => "always_near",
+            Self::WeldedParent => "welded_parent",
         }
     }
 }
@@ -449,8 +503,11 @@ pub(crate) fn survey(d: &Description, volumes: &[FittedVolume]) -> Result<Survey
             }
         }
     }
-    let classify = |(lo, hi): (f64, f64)| {
-        if hi - lo < CONSTANT_TOLERANCE_M {
+    let classify = |(i, j): (usize, usize), (lo, hi): (f64, f64)| {
+        let body = |k: usize| attached.get(k).and_then(|(body, _)| *body);
+        if welded_parent(d, body(i), body(j)) {
+            Some(Reason::WeldedParent)
+        } else if hi - lo < CONSTANT_TOLERANCE_M {
             Some(Reason::Constant)
         } else if lo > ACTIVATION_DISTANCE_M + SURVEY_MARGIN_M {
             Some(Reason::NeverClose)
@@ -462,7 +519,7 @@ pub(crate) fn survey(d: &Description, volumes: &[FittedVolume]) -> Result<Survey
     };
     let excluded: Vec<Exclusion> = pairs
         .iter()
-        .filter_map(|&(pair, range)| classify(range).map(|reason| Exclusion { pair, reason, range }))
+        .filter_map(|&(pair, range)| classify(pair, range).map(|reason| Exclusion { pair, reason, range }))
         .collect();
     let enabled =
         pairs.iter().map(|&(pair, _)| pair).filter(|pair| !excluded.iter().any(|e| e.pair == *pair)).collect();
@@ -477,13 +534,27 @@ fn excluded_by_rule(d: &Description, a: Option<usize>, b: Option<usize>) -> bool
         return true;
     }
     let (Some(a), Some(b)) = (a, b) else { return false };
-    let parent = |x: usize| d.bodies.get(x).and_then(|body| body.parent);
+    adjacent(d, a, Some(b)) || adjacent(d, b, Some(a))
+}
+
+/// Whether `a` and `b` are a body and the links welded to the root (`None`) its joint hangs
+/// from: adjacent by the URDF, but not by the kernel's rule, for which the world is not a link
+/// ([`Reason::WeldedParent`]). TIAGo++'s lift slides inside the fixed column it hangs from.
+fn welded_parent(d: &Description, a: Option<usize>, b: Option<usize>) -> bool {
+    match (a, b) {
+        (Some(body), None) | (None, Some(body)) => adjacent(d, body, None),
+        _ => false,
+    }
+}
+
+/// Whether the joint of body `child` hangs from `ancestor` (`None`: the links welded to the
+/// root), or from a body at `ancestor`'s origin that hangs from it (a zero-length link).
+fn adjacent(d: &Description, child: usize, ancestor: Option<usize>) -> bool {
+    let parent = |x: usize| d.bodies.get(x).map(|body| body.parent);
     let at_parent_origin =
         |x: usize| d.bodies.get(x).is_some_and(|body| body.joint_placement.translation.vector == Vector3::zeros());
-    let adjacent = |child: usize, ancestor: usize| {
-        parent(child) == Some(ancestor) || (at_parent_origin(child) && parent(child).and_then(parent) == Some(ancestor))
-    };
-    adjacent(a, b) || adjacent(b, a)
+    parent(child) == Some(ancestor)
+        || (at_parent_origin(child) && parent(child).flatten().and_then(parent) == Some(ancestor))
 }
 
 /// World placement of every body at coordinates `q` (bodies come after their parents).
@@ -555,7 +626,9 @@ pub(crate) fn file(
         "#   never_close: it stays above d0 + {SURVEY_MARGIN_M} m = {} m (d0 = {ACTIVATION_DISTANCE_M} m, Table 3.1);\n",
         ACTIVATION_DISTANCE_M + SURVEY_MARGIN_M
     ));
-    s.push_str("#   always_near: it stays below d0.\n\n");
+    s.push_str("#   always_near: it stays below d0;\n");
+    s.push_str("#   welded_parent: a link welded to the root and a body whose joint hangs from it (adjacent\n");
+    s.push_str("#                  links; the kernel's rule takes the welded links for the environment).\n\n");
     s.push_str(&format!("# Dropped as inside another volume of the same body: {}.\n\n", contained_list(fitted)));
     s.push_str(&format!("capacity {} {}\n\n", fitted.volumes.len(), survey.enabled.len()));
     s.push_str(&format!("# ---- volumes: {} ----\n", fitted.volumes.len()));
@@ -697,14 +770,20 @@ mod tests {
         assert!(!inside(&SweptSphere::sphere(Vector3::new(1.1, 0.0, 0.0), 0.11), &capsule));
     }
 
-    /// A COLLADA file with one mesh of two vertices (positions in cm) beside a normals source.
+    /// A COLLADA file with one mesh of three positions (in cm) beside a normals source, of which its
+    /// one line uses the first two.
     const DAE: &str = r##"<?xml version="1.0"?>
         <COLLADA xmlns="http://www.collada.org/2005/11/COLLADASchema" version="1.4.1">
           <asset><unit meter="0.01"/><up_axis>Y_UP</up_axis></asset>
           <library_geometries><geometry id="g"><mesh>
             <source id="g-normals"><float_array id="n" count="3">9 9 9</float_array></source>
-            <source id="g-positions"><float_array id="p" count="6">1 2 3 -4 5 -6</float_array></source>
+            <source id="g-positions"><float_array id="p" count="9">1 2 3 -4 5 -6 70 70 70</float_array></source>
             <vertices id="g-vertices"><input semantic="POSITION" source="#g-positions"/></vertices>
+            <lines count="1">
+              <input offset="0" semantic="VERTEX" source="#g-vertices"/>
+              <input offset="1" semantic="NORMAL" source="#g-normals"/>
+              <p>1 0 0 0</p>
+            </lines>
           </mesh></geometry></library_geometries>
           <library_visual_scenes><visual_scene id="s">
             <node id="node"><instance_geometry url="#g"/></node>
@@ -721,7 +800,7 @@ mod tests {
     }
 
     #[test]
-    fn collada_positions_are_read_in_the_files_unit() {
+    fn collada_positions_are_read_in_the_files_unit_and_only_where_a_primitive_uses_them() {
         let vertices = collada(DAE).unwrap();
         let expected = [Vector3::new(0.01, 0.02, 0.06), Vector3::new(-0.04, 0.05, -0.12)];
         assert_eq!(vertices.len(), 2);
@@ -731,6 +810,8 @@ mod tests {
         let moved = DAE.replace(r#"<node id="node">"#, r#"<node id="node"><translate>0 0 1</translate>"#);
         let error = collada(&moved).unwrap_err();
         assert!(error.ends_with("<node> node has a transform, which the import does not apply"), "{error}");
+        let beyond = DAE.replace("<p>1 0 0 0</p>", "<p>1 0 3 0</p>");
+        assert!(collada(&beyond).unwrap_err().ends_with("vertex index 3 of 3 positions"));
     }
 
     #[test]
