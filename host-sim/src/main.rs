@@ -46,10 +46,12 @@ enum Command {
         /// simulator stays f64) with the f64 controller alongside on the same frames;
         /// summary.json adds their largest torque difference over the first 0.5 s. Only the
         /// scenarios of the whole-body rig (wbc_*, wipe_window, sweep_floor, clean_mug, soak) and
-        /// the generic scenarios (reach, posture_push, self_collision: the controller alone in f32).
+        /// the generic scenarios (reach, posture_push, self_collision, limits: the controller alone in
+        /// f32).
         #[arg(long, value_enum, default_value_t = Scalar::F64, conflicts_with = "pil")]
         scalar: Scalar,
-        /// The imported robot of a generic scenario (`reach`, `posture_push`, `self_collision`)
+        /// The imported robot of a generic scenario (`reach`, `posture_push`, `self_collision`,
+        /// `limits`)
         /// [default: panda]; the other scenarios run their own robot and refuse it.
         #[arg(long, value_enum)]
         robot: Option<RobotName>,

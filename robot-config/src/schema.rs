@@ -26,7 +26,7 @@ pub struct RobotConfig {
     /// The arm singularity avoidance.
     pub singularity: Singularity,
     /// The end-stop avoidance.
-    pub end_stops: Impedance,
+    pub end_stops: EndStops,
     /// The torso workspace (Justin's two pitch joints): only on a robot with a torso.
     #[serde(default, deserialize_with = "torso_part", skip_serializing_if = "Option::is_none")]
     pub torso_workspace: Option<TorsoWorkspace>,
@@ -164,16 +164,16 @@ pub struct Singularity {
     pub damping: NonNegative,
 }
 
-/// A potential near a limit: `[end_stops]`.
+/// The potential near every joint's limits: `[end_stops]`, one margin, the gains per coordinate.
 #[derive(Clone, Debug, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
-pub struct Impedance {
+pub struct EndStops {
     /// Distance from the limit where the potential starts (rad, m).
     pub margin: NonNegative,
-    /// Stiffness.
-    pub stiffness: NonNegative,
-    /// Damping.
-    pub damping: NonNegative,
+    /// Stiffness `k_mes` of each joint's potential `k_mes Δ²`.
+    pub stiffness: PerCoordinate,
+    /// Damping of each joint.
+    pub damping: PerCoordinate,
 }
 
 /// `[torso_workspace]`.

@@ -215,7 +215,11 @@ fn tasks_are_checked_against_the_robots_parts() {
             line_of("[hierarchy.fig_6_3]") + 3 // the line of level 1
         )
     );
-    let no_torso = justin().replacen("torso = true", "torso = false", 1);
+    // Without the end stops' torso values (`[end_stops]` is read before `[hierarchy]`).
+    let no_torso = justin()
+        .replacen("torso = true", "torso = false", 1)
+        .replace("torso = 200.0, ", "")
+        .replace("torso = 5.0, ", "");
     let error = parse(&no_torso, ORIGIN).expect_err("Justin's hierarchy names the torso").to_string();
     assert!(error.contains("levels[1][3]: unknown task `torso_workspace` (known: "), "{error}");
     let renamed = justin()
@@ -239,14 +243,14 @@ fn the_parts_tables_agree_with_the_robot() {
     assert_eq!(
         error_after("arm_joints = 7", "arm_joints = 6"),
         format!(
-            "justin/config.toml:{}: joint.damping.arm: 7 values for arms of 6 joints ([robot] arm_joints)",
+            "justin/config.toml:{}: end_stops.damping.arm: 7 values for arms of 6 joints ([robot] arm_joints)",
             line_of("damping = { platform")
         )
     );
     assert_eq!(
         error_after("platform = true", "platform = false"),
         format!(
-            "justin/config.toml:{}: joint.damping.platform: the robot has no platform ([robot] platform = false)",
+            "justin/config.toml:{}: end_stops.damping.platform: the robot has no platform ([robot] platform = false)",
             line_of("damping = { platform")
         )
     );

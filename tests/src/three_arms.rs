@@ -135,7 +135,11 @@ fn config<T: RealField + Copy>(force_limit: bool) -> ControllerConfig<T, N, A> {
         period_s: c(1e-3),
         cartesian: [free, free, bounded],
         collision: [field; 2],
-        end_stops: EndStopParameters { margin: c(0.1), stiffness: c(50.0), damping: c(2.0) },
+        end_stops: EndStopParameters {
+            margin: c(0.1),
+            stiffness: SVector::repeat(c(50.0)),
+            damping: SVector::repeat(c(2.0)),
+        },
         joint_stiffness: SVector::repeat(c(20.0)),
         joint_damping: SVector::repeat(c(2.0)),
         force_limit,

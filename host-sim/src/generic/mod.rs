@@ -20,6 +20,7 @@
 //! [`GenericRig::cycle`] reads the sensors through the `hal` traits, steps the controller in the
 //! run's scalar (`f64` or `f32`: the frame narrowed, the torque widened) and writes the torques.
 
+pub mod limits;
 pub mod posture_push;
 pub mod reach;
 pub mod self_collision;

@@ -14,13 +14,28 @@
 //! `ξ = 0.7` ([`DAMPING_RATIO`], double diagonalisation). Per coordinate, from the diagonal
 //! inertia `M_kk`: joint stiffness `ω_j² M_kk` and damping `2 ξ ω_j M_kk`
 //! ([`JOINT_FREQUENCY_RAD_S`]; the safe output's damping too), torque rate `100 τ_max` per second
-//! (the full torque in 10 ms, as Justin's); the end stops `K = ω_j² max M_kk`,
-//! `D = 2 ξ ω_j max M_kk` from 0.1 rad before a stop. The `arm` lists hold, per joint, the
+//! (the full torque in 10 ms, as Justin's). **End stops**, from [`END_STOP_MARGIN`] before a
+//! stop, per coordinate on the joint's own inertia: the row `s = q_k` sees `w_k = (M⁻¹)_kk` (every
+//! other joint free; the hierarchy's projections only add inertia), and its spring `2 k_mes`
+//! ((3.58): `V = k_mes Δ²`) and damping get the natural frequency `ω_k = max(ω_j, v_k / margin)`
+//! (`v_k` the joint's velocity limit: a joint entering the band at its limit speed stops within
+//! `v_k / ω_k` ≤ the margin even undamped) and `ξ`: `k_mes = ω_k² / (2 w_k)`, `d = 2 ξ ω_k / w_k`.
+//! `ω_k Δt` stays below 0.03 on every joint, so the rule holds on a 0.0067 kg m² wrist as on a
+//! shoulder (one gain from the heaviest joint gave the wrist `d Δt w = 8.4`, unstable).
+//! **Singularity avoidance** (`kernel::tasks::manipulability`, "Sampling"): below the
+//! translational manipulability [`SINGULARITY_THRESHOLD`] the row `m` acts on the inertia `1 / w`,
+//! `w = ∇m M⁻¹ ∇mᵀ`; `w_max` is the largest `w` over the postures of [`SINGULARITY_SAMPLES`]
+//! random ones (uniform within the limits, seed [`SINGULARITY_SEED`]) whose `m` lies in the
+//! band `[full_activation, threshold]` (∇m by central differences), over the arms. Then
+//! `k_msa` is the smaller of the sampled loop's bound `(ω Δt)² / (2 w_max Δt²)` with `ω Δt =`
+//! [`SINGULARITY_OMEGA_DT`] and the torque bound: the spring `2 k_msa (m₀ − m₁) |∂m/∂q_i|` at full
+//! activation `m₁` is at most [`SINGULARITY_TORQUE_FRACTION`] of every joint's `τ_max,i` (the
+//! largest `|∂m/∂q_i| / τ_max,i` of the survey). `d = 2 ξ ω / w_max` with `ω = √(2 k_msa w_max)`,
+//! so `Δt d w ≤ 2 ξ ω Δt ≤ 0.35`, below the delayed damper's bound 0.88 with the margin Justin's
+//! file keeps (ω Δt 0.29, `Δt d w` 0.30 at its soak's entry). The `arm` lists hold, per joint, the
 //! largest value over the arms (all arms have `[robot] arm_joints` joints: arms of different
-//! lengths are refused), the torso's value the largest over its joints. The singularity
-//! avoidance acts below a translational manipulability of 0.01 m³ (a 7-DOF arm of about 1 m
-//! reach has 0.03–0.1 away from its singularities); the force limiter is off (no Cartesian force
-//! limits). Every other value is Justin's chosen or thesis value
+//! lengths are refused), the torso's value the largest over its joints. The force limiter is off
+//! (no Cartesian force limits). Every other value is Justin's chosen or thesis value
 //! (`fixtures/robots/justin/config.toml`, where each is argued); a planar base gets Justin's
 //! admittance without ICR avoidance and leg motion (the import knows no legs). The arms are
 //! named `arm_0`, `arm_1`, … in the order of the `--tcp` options. The Fig. 6.3 hierarchy for
@@ -44,6 +59,27 @@ pub const JOINT_FREQUENCY_RAD_S: f64 = 6.0 * core::f64::consts::PI;
 /// its rotational Jacobian at the gain rule's posture: below it the reflected inertia, which
 /// grows with the inverse square, is more than 10⁴ times heavier in one direction than in another.
 pub const SINGULAR_RATIO: f64 = 0.01;
+
+/// Distance from each stop at which the end-stop potential starts (rad, m).
+pub const END_STOP_MARGIN: f64 = 0.1;
+/// Translational manipulability below which the singularity avoidance acts (m³): a 7-DOF arm of
+/// about 1 m reach has 0.03–0.1 away from its singularities.
+pub const SINGULARITY_THRESHOLD: f64 = 0.01;
+/// Manipulability of the singularity avoidance's full activation (m³).
+pub const SINGULARITY_FULL_ACTIVATION: f64 = 0.002;
+/// `ω Δt` of the singularity row at the largest sampled `w` (at most ⅓: module docs).
+pub const SINGULARITY_OMEGA_DT: f64 = 0.25;
+/// Largest fraction of a joint's peak torque the singularity avoidance's spring asks at full
+/// activation.
+pub const SINGULARITY_TORQUE_FRACTION: f64 = 0.5;
+/// Random postures of the singularity rule's survey.
+pub const SINGULARITY_SAMPLES: usize = 2000;
+/// Seed of that survey.
+pub const SINGULARITY_SEED: u64 = 0x5176_0001;
+/// The control period the rule sizes the sampled rows for (s): the file's `period_s`.
+const PERIOD_S: f64 = 0.001;
+/// Step of the central differences of `∇m` (rad, m).
+const GRADIENT_STEP: f64 = 1e-6;
 
 /// The model's inertia at the rule's posture: the mass matrix and each TCP's Jacobian
 /// (world-aligned, linear rows first).
@@ -69,19 +105,12 @@ fn mid_range(description: &Description) -> Vec<f64> {
 /// refused if a TCP is near a singularity there ([`SINGULAR_RATIO`]).
 fn inertia(description: &Description, tcps: &[String], q: &[f64], posture: &str) -> Result<Inertia, String> {
     let state = State { v: vec![0.0; q.len()], q: q.to_vec() };
-    let matrix = |value: &serde_json::Value| -> Result<DMatrix<f64>, String> {
-        let rows: Vec<Vec<f64>> = serde_json::from_value(value.clone()).map_err(|e| e.to_string())?;
-        let columns = rows.first().map_or(0, Vec::len);
-        Ok(DMatrix::from_row_iterator(rows.len(), columns, rows.into_iter().flatten()))
-    };
     let mut mass = None;
     let mut jacobians = Vec::new();
     for tcp in tcps {
-        let text = dynamics_cli::dispatch(description, tcp, std::slice::from_ref(&state))?;
-        let records: Vec<serde_json::Value> = serde_json::from_str(&text).map_err(|e| e.to_string())?;
-        let record = records.first().ok_or("no dynamics record")?;
-        mass = Some(matrix(&record["M"])?);
-        let jacobian = matrix(&record["J"])?;
+        let (m, jacobian) =
+            evaluate(description, tcp, std::slice::from_ref(&state))?.pop().ok_or("no dynamics record")?;
+        mass = Some(m);
         for (first_row, part) in [(0, "translational"), (3, "rotational")] {
             let sigma = jacobian.rows(first_row, 3).singular_values();
             let ratio = sigma.min() / sigma.max();
@@ -110,6 +139,101 @@ fn heaviest(inertia: &Inertia, inverse: &DMatrix<f64>, first_row: usize) -> Resu
     Ok(heaviest)
 }
 
+/// The mass matrix and a TCP's Jacobian (world-aligned, linear rows first) at one state.
+type MassAndJacobian = (DMatrix<f64>, DMatrix<f64>);
+
+/// `M` and the TCP's Jacobian at each of `states` (the `dynamics` command's evaluation).
+fn evaluate(description: &Description, tcp: &str, states: &[State]) -> Result<Vec<MassAndJacobian>, String> {
+    let text = dynamics_cli::dispatch(description, tcp, states)?;
+    let records: Vec<serde_json::Value> = serde_json::from_str(&text).map_err(|e| e.to_string())?;
+    records.iter().map(|record| Ok((matrix(&record["M"])?, matrix(&record["J"])?))).collect()
+}
+
+/// A matrix of the `dynamics` command's output (a list of rows).
+fn matrix(value: &serde_json::Value) -> Result<DMatrix<f64>, String> {
+    let rows: Vec<Vec<f64>> = serde_json::from_value(value.clone()).map_err(|e| e.to_string())?;
+    let columns = rows.first().map_or(0, Vec::len);
+    Ok(DMatrix::from_row_iterator(rows.len(), columns, rows.into_iter().flatten()))
+}
+
+/// The translational manipulability `√det(J_p J_pᵀ)` (3.55) of the arm's columns `arm`.
+fn manipulability(jacobian: &DMatrix<f64>, arm: &[bool]) -> f64 {
+    let columns: Vec<usize> = arm.iter().enumerate().filter(|(_, on)| **on).map(|(k, _)| k).collect();
+    let j = jacobian.rows(0, 3).select_columns(&columns);
+    (&j * j.transpose()).determinant().max(0.0).sqrt()
+}
+
+/// Over the sampled postures in the singularity band and over the arms (module docs): the largest
+/// `w = ∇m M⁻¹ ∇mᵀ` and the largest `|∂m/∂q_i| / τ_max,i`.
+fn singularity_survey(description: &Description, layout: &Layout, tcps: &[String]) -> Result<(f64, f64), String> {
+    use rand::rngs::Xoshiro256PlusPlus;
+    use rand::{RngExt, SeedableRng};
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(SINGULARITY_SEED);
+    let postures: Vec<State> = (0..SINGULARITY_SAMPLES)
+        .map(|_| {
+            let q = description
+                .coordinates
+                .iter()
+                .map(|c| {
+                    let (lo, hi) = if c.lower.is_finite() && c.upper.is_finite() {
+                        (c.lower, c.upper)
+                    } else {
+                        (-core::f64::consts::PI, core::f64::consts::PI)
+                    };
+                    rng.random_range(lo..=hi)
+                })
+                .collect::<Vec<f64>>();
+            State { v: vec![0.0; q.len()], q }
+        })
+        .collect();
+    let (mut largest, mut slope, mut count): (f64, f64, usize) = (0.0, 0.0, 0);
+    for (tcp, arm) in tcps.iter().zip(&layout.arms) {
+        let band: Vec<(&State, DMatrix<f64>)> = postures
+            .iter()
+            .zip(evaluate(description, tcp, &postures)?)
+            .filter(|(_, (_, j))| {
+                (SINGULARITY_FULL_ACTIVATION..=SINGULARITY_THRESHOLD).contains(&manipulability(j, arm))
+            })
+            .map(|(state, (mass, _))| (state, mass))
+            .collect();
+        let coordinates: Vec<usize> = arm.iter().enumerate().filter(|(_, on)| **on).map(|(k, _)| k).collect();
+        let mut shifted = Vec::new();
+        for (state, _) in &band {
+            for &k in &coordinates {
+                for sign in [1.0, -1.0] {
+                    let mut q = state.q.clone();
+                    if let Some(x) = q.get_mut(k) {
+                        *x += sign * GRADIENT_STEP;
+                    }
+                    shifted.push(State { v: state.v.clone(), q });
+                }
+            }
+        }
+        let values: Vec<f64> =
+            evaluate(description, tcp, &shifted)?.iter().map(|(_, j)| manipulability(j, arm)).collect();
+        for ((_, mass), differences) in band.iter().zip(values.chunks(2 * coordinates.len())) {
+            let mut gradient = DMatrix::<f64>::zeros(1, mass.nrows());
+            for (&k, pair) in coordinates.iter().zip(differences.chunks(2)) {
+                if let ([plus, minus], Some(slot)) = (pair, gradient.get_mut(k)) {
+                    *slot = (plus - minus) / (2.0 * GRADIENT_STEP);
+                }
+            }
+            let inverse = mass.clone().try_inverse().ok_or("a sampled mass matrix is singular")?;
+            largest = largest.max((&gradient * inverse * gradient.transpose()).trace());
+            for (g, c) in gradient.iter().zip(&description.coordinates) {
+                slope = slope.max(g.abs() / c.effort);
+            }
+        }
+        count += band.len();
+    }
+    if count == 0 {
+        return Err(format!(
+            "no posture of {SINGULARITY_SAMPLES} samples has a manipulability in [{SINGULARITY_FULL_ACTIVATION}, {SINGULARITY_THRESHOLD}]"
+        ));
+    }
+    Ok((largest, slope))
+}
+
 /// The default `config.toml` of the robot `name` (module docs), validated by `robot-config`; the
 /// gain rule at `home` (one value per coordinate, rad or m) or, without it, at mid-range.
 pub(crate) fn default_file(
@@ -128,7 +252,21 @@ pub(crate) fn default_file(
     let inverse = inertia.mass.clone().try_inverse().ok_or("the mass matrix at the rule's posture is singular")?;
     let w2 = CARTESIAN_FREQUENCY_RAD_S * CARTESIAN_FREQUENCY_RAD_S;
     let diagonal: Vec<f64> = inertia.mass.diagonal().iter().copied().collect();
-    let heaviest_joint = diagonal.iter().copied().fold(0.0, f64::max);
+    let inverse_diagonal: Vec<f64> = inverse.diagonal().iter().copied().collect();
+    let stop_frequency = |c: &crate::urdf::CoordinateSpec| JOINT_FREQUENCY_RAD_S.max(c.velocity / END_STOP_MARGIN);
+    let stops = |rule: &dyn Fn(f64, f64) -> f64| {
+        description
+            .coordinates
+            .iter()
+            .zip(&inverse_diagonal)
+            .map(|(c, w)| rule(stop_frequency(c), *w))
+            .collect::<Vec<f64>>()
+    };
+    let (w_max, slope) = singularity_survey(description, layout, tcps)?;
+    let sampled = (SINGULARITY_OMEGA_DT / PERIOD_S).powi(2) / (2.0 * w_max);
+    let torque = SINGULARITY_TORQUE_FRACTION / (2.0 * (SINGULARITY_THRESHOLD - SINGULARITY_FULL_ACTIVATION) * slope);
+    let singularity_stiffness = sampled.min(torque);
+    let singularity_omega = (2.0 * singularity_stiffness * w_max).sqrt();
     let effort: Vec<f64> = description.coordinates.iter().map(|c| c.effort).collect();
     let joint_stiffness = |m: f64| JOINT_FREQUENCY_RAD_S * JOINT_FREQUENCY_RAD_S * m;
     let joint_damping = |m: f64| 2.0 * DAMPING_RATIO * JOINT_FREQUENCY_RAD_S * m;
@@ -154,8 +292,23 @@ pub(crate) fn default_file(
         .replace("{level_1}", &quoted(&level_1))
         .replace("{translational_stiffness}", &number(heaviest(&inertia, &inverse, 0)? * w2))
         .replace("{rotational_stiffness}", &number(heaviest(&inertia, &inverse, 3)? * w2))
-        .replace("{end_stop_stiffness}", &number(joint_stiffness(heaviest_joint)))
-        .replace("{end_stop_damping}", &number(joint_damping(heaviest_joint)))
+        .replace("{singularity_threshold}", &number(SINGULARITY_THRESHOLD))
+        .replace("{singularity_full_activation}", &number(SINGULARITY_FULL_ACTIVATION))
+        .replace("{singularity_stiffness}", &number(singularity_stiffness))
+        .replace("{singularity_damping}", &number(2.0 * DAMPING_RATIO * singularity_omega / w_max))
+        .replace("{singularity_w}", &format!("{w_max:.3}"))
+        .replace("{singularity_sampled}", &format!("{sampled:.0}"))
+        .replace("{singularity_torque}", &format!("{torque:.0}"))
+        .replace("{singularity_omega_dt}", &format!("{:.3}", singularity_omega * PERIOD_S))
+        .replace("{end_stop_margin}", &number(END_STOP_MARGIN))
+        .replace(
+            "{end_stop_stiffness}",
+            &per_coordinate(&stops(&|omega, w| omega * omega / (2.0 * w)), "[0.0, 0.0, 0.0]"),
+        )
+        .replace(
+            "{end_stop_damping}",
+            &per_coordinate(&stops(&|omega, w| 2.0 * DAMPING_RATIO * omega / w), "[0.0, 0.0, 0.0]"),
+        )
         .replace("{stiffness}", &per_coordinate(&scaled(&joint_stiffness), "[200.0, 200.0, 100.0]"))
         .replace("{damping}", &per_coordinate(&scaled(&joint_damping), "[300.0, 300.0, 100.0]"))
         .replace("{safe_damping}", &per_coordinate(&scaled(&joint_damping), "[0.0, 0.0, 0.0]"))
@@ -281,17 +434,23 @@ activation_full = 0.0
 activation_zero = 0.15
 
 # A 7-DOF arm of about 1 m reach: translational manipulability 0.03–0.1 m³ away from its
-# singularities; the avoidance acts below 0.01.
+# singularities; the avoidance acts below 0.01. The rule: the smaller of the sampled loop's
+# bound (ω Δt = 0.25 on the largest row inverse inertia w = ∇m M⁻¹ ∇mᵀ = {singularity_w} of the
+# sampled postures in the band: {singularity_sampled}) and the torque bound (the spring asks at
+# most half of any joint's peak torque at full activation: {singularity_torque}); ω Δt = {singularity_omega_dt},
+# damping ξ = 0.7 at that w.
 [singularity]
 rows = [true, true, true, false, false, false]
-threshold = 0.01
-full_activation = 0.002
-stiffness = 100.0
-damping = 1.0
+threshold = {singularity_threshold}
+full_activation = {singularity_full_activation}
+stiffness = {singularity_stiffness}
+damping = {singularity_damping}
 
-# The rule: ω_j² and 2 ξ ω_j times the largest diagonal inertia, from 0.1 rad before a stop.
+# The rule, per joint on its inverse inertia w_k = (M⁻¹)_kk at mid-range: the natural frequency
+# ω_k = max(3 Hz, v_max / margin), k_mes = ω_k² / (2 w_k), d = 2 ξ ω_k / w_k (the platform has
+# no stops).
 [end_stops]
-margin = 0.1
+margin = {end_stop_margin}
 stiffness = {end_stop_stiffness}
 damping = {end_stop_damping}
 

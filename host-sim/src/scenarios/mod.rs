@@ -236,6 +236,7 @@ const SCENARIOS: &[Entry] = &[
     generic_entry!(reach),
     generic_entry!(posture_push),
     generic_entry!(self_collision),
+    generic_entry!(limits),
 ];
 
 /// The scenarios: `(name, one-line description)`.

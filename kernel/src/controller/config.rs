@@ -195,15 +195,17 @@ pub struct SingularityParameters<T> {
     pub damping: T,
 }
 
-/// Parameters of the end stops (3.58)–(3.59), shared by every limited joint.
+/// Parameters of the end stops (3.58)–(3.59): one margin for every limited joint, the gains per
+/// coordinate (a joint's stop acts on its own inertia, which differs by orders of magnitude
+/// between a shoulder and a wrist; platform entries unused).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct EndStopParameters<T> {
+pub struct EndStopParameters<T, const N: usize> {
     /// Distance from each stop at which the potential starts (rad, m), `> 0`.
     pub margin: T,
-    /// `k_mes ≥ 0` of (3.58).
-    pub stiffness: T,
-    /// Damping `≥ 0` of (3.59).
-    pub damping: T,
+    /// `k_mes ≥ 0` of (3.58) per coordinate (J/rad², J/m²).
+    pub stiffness: SVector<T, N>,
+    /// Damping `≥ 0` of (3.59) per coordinate (Nms/rad, Ns/m).
+    pub damping: SVector<T, N>,
 }
 
 /// The platform: admittance (5.1) and the ICR avoidance loop (Fig. 3.10).
@@ -266,7 +268,7 @@ pub struct ControllerConfig<T: RealField, const N: usize, const A: usize> {
     /// Arm singularity avoidance.
     pub singularity: SingularityParameters<T>,
     /// End stops.
-    pub end_stops: EndStopParameters<T>,
+    pub end_stops: EndStopParameters<T, N>,
     /// Torso workspace (`None` if the robot has no coupled torso).
     pub torso_workspace: Option<TorsoWorkspaceConfig<T>>,
     /// Joint impedance stiffness per coordinate (Nm/rad, N/m), `≥ 0`.

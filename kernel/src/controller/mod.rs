@@ -203,7 +203,7 @@ use crate::tasks::collision::{CollisionData, CollisionModel};
 ///         rows: AxisMask::new([false, false, true, false, false, false]), // one row per one-joint arm
 ///         threshold: 0.025, full_activation: 0.01, stiffness: 100.0, damping: 1.0,
 ///     },
-///     end_stops: EndStopParameters { margin: 0.1, stiffness: 10.0, damping: 1.0 },
+///     end_stops: EndStopParameters { margin: 0.1, stiffness: SVector::repeat(10.0), damping: SVector::repeat(1.0) },
 ///     torso_workspace: None,
 ///     joint_stiffness: SVector::repeat(50.0),
 ///     joint_damping: SVector::repeat(5.0),

@@ -153,7 +153,10 @@ impl<T: RealField + Copy, const N: usize, const A: usize> TaskSet<T, N, A> {
             if !(span.is_finite() && span > e.margin + e.margin) {
                 continue;
             }
-            let stop = EndStop::try_new(EndStopConfig::coordinate(i, lower, upper, e.margin, e.stiffness, e.damping))
+            let (Some(&stiffness), Some(&damping)) = (e.stiffness.get(i), e.damping.get(i)) else {
+                continue;
+            };
+            let stop = EndStop::try_new(EndStopConfig::coordinate(i, lower, upper, e.margin, stiffness, damping))
                 .map_err(ConfigError::Task)?;
             stops
                 .push(stop)

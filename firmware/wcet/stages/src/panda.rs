@@ -85,7 +85,11 @@ pub fn controller_config() -> Option<ControllerConfig<S, { panda::N }, 1>> {
             period_s: c(1e-3),
             cartesian: [cartesian],
             collision: collision_fields(),
-            end_stops: EndStopParameters { margin: c(0.1), stiffness: c(50.0), damping: c(2.0) },
+            end_stops: EndStopParameters {
+            margin: c(0.1),
+            stiffness: SVector::repeat(c(50.0)),
+            damping: SVector::repeat(c(2.0)),
+        },
             joint_stiffness: SVector::repeat(c(20.0)),
             joint_damping: SVector::repeat(c(2.0)),
             force_limit: true,

@@ -1,0 +1,320 @@
+//! `limits` on an imported robot (`--robot`): a TCP goal outside the reachable set; the end stops
+//! and the singularity avoidance keep the robot inside its limits without a fault.
+//!
+//! Setup: the rig of [`super::GenericRig`] at the robot's home posture. At [`MOVE_AT_S`] arm 0's
+//! goal starts to move [`GOAL_OFFSET_M`] straight up (world `z`, orientation kept) along the
+//! kernel's cubic of [`MOVE_S`] (peak speed `1.5 D / T` = [`GOAL_SPEED_M_S`]); no arm reaches
+//! that high, so the Cartesian spring stretches the arm toward its workspace boundary, where the
+//! shaping fades the singular direction out of the Cartesian level, the singularity avoidance
+//! takes it over below its threshold `m₀`, and the end stops guard every joint's range. The goal
+//! then holds for [`HOLD_S`].
+//!
+//! Claims:
+//! - **position limits**: every actuated joint stays within `[q_min, q_max]` over the whole run
+//!   (the deepest entry into the end stops' margin band is reported);
+//! - **velocity limits**: every actuated joint's `|q̇| ≤ q̇_max` (the URDF's);
+//! - **torques within limits**: every applied torque `|τ| ≤ τ_max`;
+//! - **no fault, no NaN** over the whole run;
+//! - **nearest reachable point**: at the end the TCP's distance to the goal lies between
+//!   `d_range`, the smallest distance of any posture within the joint ranges, and `d_m₀`, the
+//!   smallest distance of any posture with manipulability `m ≥ m₀` (the avoidance exerts no force
+//!   above `m₀`, so the arm gets at least that close; it cannot beat the ranges). Both are found
+//!   from the home posture by active-set damped least squares on the TCP position over the
+//!   robot's plant model (`nearest_reachable`); [`NEAREST_ALLOWANCE_M`] absorbs their
+//!   convergence;
+//! - **settling**: from the end of the goal's motion the TCP enters and stays within 5 % of its
+//!   total motion around its final position within `ln(1 / (0.05 √(1 − ξ²))) / (ξ ω)`, the 5 %
+//!   settling time of the Cartesian impedance (`ξ` the configuration's damping ratio,
+//!   `ω = √(K / λ_max)` with `λ_max` the largest eigenvalue of the TCP's translational reflected
+//!   inertia at home: the slowest Cartesian direction); the end stops (`ω_k ≥ 3 Hz`) and the
+//!   singularity row are faster by the import's rule.
+
+use kernel::controller::config::{ArmId, JointGroup};
+use kernel::dynamics::{crba, forward_kinematics, frame_jacobian};
+use kernel::model::{Data, FrameId, Model};
+use kernel::tasks::cartesian_impedance::AxisMask;
+use kernel::tasks::manipulability::manipulability;
+use nalgebra::{Matrix3, RealField, SMatrix, SVector, Vector3};
+
+use super::{record, GenericRig, RigParts, RobotSpec, Scenario};
+use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
+use crate::scenarios::{Outcome, RunOptions};
+use crate::sim::{run_loop, CONTROL_PERIOD_S};
+
+/// Registry name.
+pub const NAME: &str = "limits";
+/// One-line description.
+pub const DESCRIPTION: &str = "imported robot (--robot): TCP goal 1.5 m straight up, out of reach (end stops, \
+                               singularity avoidance: joints within their limits, no fault, nearest reachable point)";
+/// Start of the goal's motion (s).
+pub const MOVE_AT_S: f64 = 0.5;
+/// The goal's motion (m, world `z`): above every arm's reach.
+pub const GOAL_OFFSET_M: f64 = 1.5;
+/// Peak speed of the goal's cubic (m/s).
+pub const GOAL_SPEED_M_S: f64 = 0.75;
+/// Duration of the goal's cubic (s): peak speed `1.5 D / T` = [`GOAL_SPEED_M_S`].
+pub const MOVE_S: f64 = 1.5 * GOAL_OFFSET_M / GOAL_SPEED_M_S;
+/// The hold at the final goal (s).
+pub const HOLD_S: f64 = 1.5;
+/// Simulated time (s).
+pub const DURATION_S: f64 = MOVE_AT_S + MOVE_S + HOLD_S;
+/// Allowance of the nearest-reachable-point bounds for the search's convergence (m).
+pub const NEAREST_ALLOWANCE_M: f64 = 1e-3;
+/// Damping `λ` of the least-squares search (m).
+const SEARCH_DAMPING: f64 = 0.02;
+/// Iterations of the least-squares search.
+const SEARCH_ITERATIONS: usize = 2000;
+
+/// The smallest TCP distance to `goal` (m) from `home` by active-set damped least squares within
+/// the ranges of `model` (joints at a bound whose step points outward are taken out of the step),
+/// with `m ≥ min_manipulability` of the TCP's `rows` over the `arm` coordinates if given (a step
+/// that crosses it is halved until it does not).
+fn nearest_reachable<const N: usize, const B: usize, const F: usize>(
+    model: &Model<f64, N, B, F>,
+    tcp: FrameId,
+    home: &SVector<f64, N>,
+    goal: &Vector3<f64>,
+    constraint: Option<(AxisMask, [bool; N], f64)>,
+) -> Result<f64, String> {
+    let mut data = Data::new(model);
+    let limits = &model.limits;
+    let clamp =
+        |q: SVector<f64, N>| q.zip_zip_map(&limits.position_lower, &limits.position_upper, |x, l, u| x.clamp(l, u));
+    let evaluate = |data: &mut Data<f64, N, B, F>, q: &SVector<f64, N>| -> Result<(Vector3<f64>, f64), String> {
+        forward_kinematics(model, data, q, &SVector::zeros()).map_err(|e| e.to_string())?;
+        let p = data.frame_placements.get(tcp.0).ok_or("no TCP")?.translation.vector;
+        let m = match &constraint {
+            Some((rows, arm, _)) => manipulability(model, data, tcp, *rows, arm).map_err(|e| e.to_string())?.value,
+            None => f64::INFINITY,
+        };
+        Ok((p, m))
+    };
+    let allowed = |m: f64| constraint.as_ref().is_none_or(|(_, _, m0)| m >= *m0);
+    let mut q = clamp(*home);
+    let (mut p, m) = evaluate(&mut data, &q)?;
+    if !allowed(m) {
+        return Err(format!("home posture below the manipulability bound: m = {m}"));
+    }
+    let mut jacobian = SMatrix::<f64, 6, N>::zeros();
+    for _ in 0..SEARCH_ITERATIONS {
+        evaluate(&mut data, &q)?;
+        frame_jacobian(model, &data, tcp, &mut jacobian).map_err(|e| e.to_string())?;
+        let error = goal - p;
+        let mut j = jacobian.fixed_rows::<3>(0).into_owned();
+        let mut step = SVector::<f64, N>::zeros();
+        for _ in 0..=N {
+            let gram = j * j.transpose() + Matrix3::identity() * SEARCH_DAMPING * SEARCH_DAMPING;
+            step = j.transpose() * gram.try_inverse().ok_or("singular Gram matrix")? * error;
+            let mut blocked = false;
+            let bounds = limits.position_lower.iter().zip(limits.position_upper.iter());
+            for (k, ((x, dx), (lower, upper))) in q.iter().zip(step.iter()).zip(bounds).enumerate() {
+                let outward = (x <= lower && *dx < 0.0) || (x >= upper && *dx > 0.0);
+                if outward && j.column(k).norm() > 0.0 {
+                    j.column_mut(k).fill(0.0);
+                    blocked = true;
+                }
+            }
+            if !blocked {
+                break;
+            }
+        }
+        let mut scale = 1.0;
+        let mut accepted = None;
+        for _ in 0..30 {
+            let candidate = clamp(q + step * scale);
+            let (candidate_p, m) = evaluate(&mut data, &candidate)?;
+            if allowed(m) && (goal - candidate_p).norm() <= (goal - p).norm() {
+                accepted = Some((candidate, candidate_p));
+                break;
+            }
+            scale *= 0.5;
+        }
+        let Some((next, next_p)) = accepted else { break };
+        let moved = (next - q).norm();
+        (q, p) = (next, next_p);
+        if moved < 1e-10 {
+            break;
+        }
+    }
+    Ok((goal - p).norm())
+}
+
+/// The 5 % settling time (s) of the Cartesian impedance of stiffness `stiffness` and damping
+/// ratio `ratio` along the heaviest translational direction of the TCP at `q` (module docs).
+fn settling_bound<const N: usize, const B: usize, const F: usize>(
+    model: &Model<f64, N, B, F>,
+    tcp: FrameId,
+    q: &SVector<f64, N>,
+    stiffness: f64,
+    ratio: f64,
+) -> Result<f64, String> {
+    let mut data = Data::new(model);
+    forward_kinematics(model, &mut data, q, &SVector::zeros()).map_err(|e| e.to_string())?;
+    let inverse = crba(model, &mut data).try_inverse().ok_or("singular mass matrix")?;
+    let mut jacobian = SMatrix::<f64, 6, N>::zeros();
+    frame_jacobian(model, &data, tcp, &mut jacobian).map_err(|e| e.to_string())?;
+    let j = jacobian.fixed_rows::<3>(0);
+    let reflected = (j * inverse * j.transpose()).try_inverse().ok_or("singular TCP at home")?;
+    let omega = (stiffness / reflected.symmetric_eigenvalues().max()).sqrt();
+    Ok((1.0 / (0.05 * (1.0 - ratio * ratio).sqrt())).ln() / (ratio * omega))
+}
+
+/// What one run measured over the actuated joints.
+#[derive(Clone, Copy, Debug, Default)]
+struct Extremes {
+    /// Smallest distance of any joint to its nearer stop (rad, m; negative: past it).
+    stop_clearance: f64,
+    /// Largest `|q̇| / q̇_max`.
+    velocity_ratio: f64,
+    /// Largest `|τ| / τ_max`.
+    torque_ratio: f64,
+}
+
+/// The scenario.
+pub struct Limits;
+
+impl Scenario for Limits {
+    fn simulate<
+        T,
+        const N: usize,
+        const B: usize,
+        const F: usize,
+        const U: usize,
+        const V: usize,
+        const P: usize,
+        const A: usize,
+    >(
+        spec: &RobotSpec<N, A>,
+        parts: &dyn Fn() -> Result<RigParts<T, N, B, F, U, V, P, A>, String>,
+        options: &RunOptions,
+    ) -> Result<Outcome, String>
+    where
+        T: RealField + Copy + Into<f64>,
+    {
+        let mut rig = GenericRig::new(spec, parts()?, options)?;
+        let tcp = *spec.tcps.first().ok_or("no arm")?;
+        let config = rig.controller.config();
+        let arm = config.layout.coordinates(JointGroup::Arm(ArmId::all::<A>().first().copied().ok_or("no arm")?));
+        let singularity = (config.singularity.rows, arm, config.singularity.threshold.into());
+        let margin: f64 = config.end_stops.margin.into();
+        let ratio: f64 = config.cartesian.first().ok_or("no arm")?.damping_ratio.into();
+        let stiffness = rig.translational_stiffness(0)?;
+        let home = SVector::from((spec.home)());
+        let start = rig.tcp_position(spec, 0)?;
+        let goal = start + Vector3::new(0.0, 0.0, GOAL_OFFSET_M);
+        let model = rig.sim.model().clone();
+        let nearest_in_range = nearest_reachable(&model, tcp, &home, &goal, None)?;
+        let nearest_above_threshold = nearest_reachable(&model, tcp, &home, &goal, Some(singularity))?;
+        let bound = settling_bound(&model, tcp, &home, stiffness, ratio)?;
+        let limits = &model.limits;
+        let mut extremes = Extremes { stop_clearance: f64::INFINITY, ..Extremes::default() };
+        let mut series = TimeSeries::new(super::columns::<N, U, A>(spec));
+        run_loop(&mut rig, DURATION_S, CONTROL_PERIOD_S, |rig, info| {
+            options.progress.report(NAME, info.time_s, DURATION_S);
+            if info.cycle == (MOVE_AT_S / CONTROL_PERIOD_S).round() as u64 {
+                rig.move_goal(0, Vector3::new(0.0, 0.0, GOAL_OFFSET_M), MOVE_S)?;
+            }
+            rig.cycle(info)?;
+            let (q, v, tau) = (rig.sim.q(), rig.sim.v(), rig.sim.applied_torque());
+            let bounds = limits.position_lower.iter().zip(limits.position_upper.iter());
+            let joints = q.iter().zip(v.iter()).zip(bounds).zip(limits.velocity.iter()).skip(N - U);
+            for (((q, v), (lower, upper)), speed) in joints {
+                extremes.stop_clearance = extremes.stop_clearance.min((q - lower).min(upper - q));
+                extremes.velocity_ratio = extremes.velocity_ratio.max(v.abs() / speed);
+            }
+            let ratios = tau.iter().zip(limits.effort.iter().skip(N - U)).map(|(tau, limit)| tau.abs() / limit);
+            extremes.torque_ratio = ratios.fold(extremes.torque_ratio, f64::max);
+            record(rig, spec, info.time_s, &mut series)
+        })?;
+        options.progress.finish();
+
+        let t = series.column("t").ok_or("no t")?;
+        let xyz = ["x", "y", "z"].map(|axis| series.column(&format!("tcp0.{axis}")));
+        let [Some(x), Some(y), Some(z)] = xyz else { return Err("no TCP columns".into()) };
+        let path: Vec<Vector3<f64>> = x.iter().zip(&y).zip(&z).map(|((x, y), z)| Vector3::new(*x, *y, *z)).collect();
+        let end = *path.last().ok_or("no samples")?;
+        let band = 0.05 * (end - start).norm();
+        let goal_stops = MOVE_AT_S + MOVE_S;
+        let settled_at = t
+            .iter()
+            .zip(&path)
+            .filter(|(t, p)| **t >= goal_stops && (*p - end).norm() > band)
+            .map(|(t, _)| t + CONTROL_PERIOD_S)
+            .fold(goal_stops, f64::max);
+        let settling_s = settled_at - goal_stops;
+        let final_distance = (goal - end).norm();
+
+        let mut summary = Summary::new(NAME);
+        summary.value("robot", spec.name).value("controller", format!("host {}", options.scalar.name()));
+        summary
+            .metric("stop_clearance_rad", extremes.stop_clearance)
+            .metric("end_stop_margin_rad", margin)
+            .metric("largest_velocity_ratio", extremes.velocity_ratio)
+            .metric("largest_torque_ratio", extremes.torque_ratio)
+            .metric("final_goal_distance_m", final_distance)
+            .metric("nearest_in_range_m", nearest_in_range)
+            .metric("nearest_above_threshold_m", nearest_above_threshold)
+            .metric("settling_time_s", settling_s)
+            .metric("settling_bound_s", bound)
+            .metric("faulty_cycles", rig.faulty_cycles as f64)
+            .metric("non_finite_cycles", rig.non_finite_cycles as f64);
+        summary.claim(
+            &format!(
+                "joints within their ranges: closest {:.4} to a stop (≥ 0; margin band from {margin})",
+                extremes.stop_clearance
+            ),
+            extremes.stop_clearance >= 0.0,
+        );
+        summary.claim(
+            &format!("joint speeds within limits: largest |q̇|/q̇_max = {:.2}", extremes.velocity_ratio),
+            extremes.velocity_ratio <= 1.0,
+        );
+        summary.claim(
+            &format!("torques within limits: largest |τ|/τ_max = {:.2}", extremes.torque_ratio),
+            extremes.torque_ratio <= 1.0,
+        );
+        summary.claim(
+            &format!("no fault ({} cycles), no NaN ({} cycles)", rig.faulty_cycles, rig.non_finite_cycles),
+            rig.faulty_cycles == 0 && rig.non_finite_cycles == 0,
+        );
+        summary.claim(
+            &format!(
+                "nearest reachable point: {:.1} mm from the goal, within [{:.1}, {:.1}] mm (ranges, m ≥ m₀) ± {:.0} mm",
+                final_distance * 1e3,
+                nearest_in_range * 1e3,
+                nearest_above_threshold * 1e3,
+                NEAREST_ALLOWANCE_M * 1e3
+            ),
+            final_distance >= nearest_in_range - NEAREST_ALLOWANCE_M
+                && final_distance <= nearest_above_threshold + NEAREST_ALLOWANCE_M,
+        );
+        summary.claim(
+            &format!("TCP settles into 5 % of its motion {settling_s:.3} s after the goal stops ≤ {bound:.3} s"),
+            settling_s <= bound,
+        );
+        let figure = figure(spec.name, &t, &z, goal.z);
+        Ok(Outcome { summary, series, figures: vec![("limits_tcp_height.svg", figure)] })
+    }
+}
+
+/// The TCP height over time with the goal's height and the motion marked.
+fn figure(robot: &str, t: &[f64], z: &[f64], goal: f64) -> Figure {
+    Figure {
+        title: format!("limits on {robot}: TCP height toward an unreachable goal"),
+        x_label: "time (s)".into(),
+        panels: vec![Panel {
+            title: "arm 0 TCP height".into(),
+            y_label: "z (m)".into(),
+            lines: vec![
+                Line::new("TCP z", t.iter().zip(z).map(|(t, z)| (*t, *z)).collect()),
+                Line::dashed("goal", vec![(MOVE_AT_S + MOVE_S, goal), (DURATION_S, goal)]),
+            ],
+            spans: vec![Span { label: "goal moves".into(), from: MOVE_AT_S, to: MOVE_AT_S + MOVE_S }],
+        }],
+    }
+}
+
+/// `host-sim run limits`.
+pub fn simulate(options: &RunOptions) -> Result<Outcome, String> {
+    super::simulate::<Limits>(options)
+}
