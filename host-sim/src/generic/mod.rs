@@ -1,5 +1,10 @@
-//! The generic rig: a robot (`--robot panda|tiago_dual|justin`) simulated by [`Simulator`] under
-//! the kernel's whole-body controller for its layout (issue 15, item 4).
+//! The generic rig: a robot (`--robot <name>`: every imported robot, or `justin`) simulated by
+//! [`Simulator`] under the kernel's whole-body controller for its layout (issue 15, item 4).
+//!
+//! The import registers each robot: the index `fixtures/robots/mod.rs` lists them in
+//! `fixtures::for_each_imported_robot!`, from which [`RobotName`] and [`simulate`]'s dispatch are
+//! built, and each robot's module carries its scenario start posture `HOME` and its `ELBOW`
+//! (`host-sim/src/import/`); Justin is added by hand.
 //!
 //! An imported robot (`fixtures::robots::<name>`) has its generated layout: a fixed base
 //! (`U = N`, every platform axis absent), one arm per TCP of the import, and its torso
