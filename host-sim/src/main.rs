@@ -50,9 +50,9 @@ enum Command {
         /// f32).
         #[arg(long, value_enum, default_value_t = Scalar::F64, conflicts_with = "pil")]
         scalar: Scalar,
-        /// The imported robot of a generic scenario (`reach`, `posture_push`, `self_collision`,
-        /// `limits`)
-        /// [default: panda]; the other scenarios run their own robot and refuse it.
+        /// The robot of a generic scenario (`reach`, `posture_push`, `self_collision`, `limits`):
+        /// an imported one (`fixtures/robots/<name>`) or `justin` [default: panda]; the other
+        /// scenarios run their own robot and refuse it.
         #[arg(long, value_enum)]
         robot: Option<RobotName>,
     },
@@ -94,6 +94,11 @@ enum Command {
         /// every joint's range]; needed where a TCP is singular at mid-range.
         #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
         home: Option<Vec<f64>>,
+        /// The posture the generic scenarios start from (`HOME` of the module), same form as
+        /// `--home`, without changing the gains [default: `--home`, else the middle of every
+        /// joint's range].
+        #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
+        scenario_home: Option<Vec<f64>>,
     },
 }
 
@@ -122,9 +127,18 @@ fn main() -> ExitCode {
         Command::Dynamics { urdf, frame, states } => {
             host_sim::dynamics_cli::run(&urdf, &frame, &states).map(|json| println!("{json}"))
         }
-        Command::Import { urdf, name, tcps, base, package_path, home } => {
+        Command::Import { urdf, name, tcps, base, package_path, home, scenario_home } => {
             let planar_base = matches!(base, Some(Base::Planar));
-            let options = ImportOptions { root: PathBuf::from("."), urdf, name, tcps, planar_base, package_path, home };
+            let options = ImportOptions {
+                root: PathBuf::from("."),
+                urdf,
+                name,
+                tcps,
+                planar_base,
+                package_path,
+                home,
+                scenario_home,
+            };
             host_sim::import::run(&options)
         }
     };

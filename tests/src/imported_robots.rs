@@ -25,7 +25,7 @@ fn repository() -> PathBuf {
 
 /// The fixed-base import of `name` from `fixtures/urdf/<name>.urdf` with the vendored meshes, as
 /// the robot's README states it.
-fn import(name: &str, tcps: &[&str]) -> ImportOptions {
+fn import(name: &str, tcps: &[&str], scenario_home: &[f64]) -> ImportOptions {
     ImportOptions {
         root: repository(),
         urdf: format!("fixtures/urdf/{name}.urdf"),
@@ -34,18 +34,23 @@ fn import(name: &str, tcps: &[&str]) -> ImportOptions {
         planar_base: false,
         package_path: Some("fixtures/urdf/packages".to_owned()),
         home: None,
+        scenario_home: Some(scenario_home.to_vec()),
     }
 }
 
 fn panda_import() -> ImportOptions {
-    import("panda", &["panda_hand_tcp"])
+    import("panda", &["panda_hand_tcp"], &[0.0, -0.3, 0.0, -2.0, 0.0, 1.8, 0.8])
 }
 
 /// TIAGo++ with the grasping frames of its Hey5 hands as TCPs: with the hands frozen, the point
 /// between the fingers the hand grasps at (0.13 m ahead of the wrist's tool flange
 /// `arm_*_tool_link`), as `panda_hand_tcp` is the Panda's.
 fn tiago_dual_import() -> ImportOptions {
-    import("tiago_dual", &["hand_left_grasping_frame", "hand_right_grasping_frame"])
+    import(
+        "tiago_dual",
+        &["hand_left_grasping_frame", "hand_right_grasping_frame"],
+        &[0.15, 0.4, 0.3, 0.0, 1.5, 0.0, 0.5, 0.0, 0.4, 0.3, 0.0, 1.5, 0.0, 0.5, 0.0],
+    )
 }
 
 #[test]

@@ -1,5 +1,10 @@
-//! The generic rig: a robot (`--robot panda|tiago_dual|justin`) simulated by [`Simulator`] under
-//! the kernel's whole-body controller for its layout (issue 15, item 4).
+//! The generic rig: a robot (`--robot <name>`: every imported robot, or `justin`) simulated by
+//! [`Simulator`] under the kernel's whole-body controller for its layout (issue 15, item 4).
+//!
+//! The import registers each robot: the index `fixtures/robots/mod.rs` lists them in
+//! `fixtures::for_each_imported_robot!`, from which [`RobotName`] and [`simulate`]'s dispatch are
+//! built, and each robot's module carries its scenario start posture `HOME` and its `ELBOW`
+//! (`host-sim/src/import/`); Justin is added by hand.
 //!
 //! An imported robot (`fixtures::robots::<name>`) has its generated layout: a fixed base
 //! (`U = N`, every platform axis absent), one arm per TCP of the import, and its torso
@@ -27,7 +32,6 @@ pub mod self_collision;
 
 use fixtures::collision_table::{self, VolumeSpec};
 use fixtures::justin::{self, whole_body};
-use fixtures::robots::{panda, tiago_dual};
 use hal::{JointTorqueInterface, PlatformVelocityInterface};
 use kernel::controller::config::*;
 use kernel::controller::faults::SafeOutput;
@@ -41,30 +45,6 @@ use crate::output::TimeSeries;
 use crate::scalar::Scalar;
 use crate::scenarios::{Outcome, RunOptions};
 use crate::sim::{CycleInfo, JointStops, Physics, SimConfig, SimError, Simulator, StepReport};
-
-/// The imported robots a generic scenario runs on.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
-pub enum RobotName {
-    /// The Franka Panda (`fixtures::robots::panda`): fixed base, one 7-DOF arm.
-    #[default]
-    Panda,
-    /// TIAGo++ (`fixtures::robots::tiago_dual`): fixed base, the torso lift and two 7-DOF arms.
-    #[value(name = "tiago_dual")]
-    TiagoDual,
-    /// The Justin-like robot (`fixtures::justin`): platform, torso and two 7-DOF arms.
-    Justin,
-}
-
-impl RobotName {
-    /// The option's value on the command line.
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Panda => "panda",
-            Self::TiagoDual => "tiago_dual",
-            Self::Justin => "justin",
-        }
-    }
-}
 
 /// What the generic rig needs of an imported robot besides its model.
 #[derive(Clone, Copy, Debug)]
@@ -86,29 +66,20 @@ pub struct RobotSpec<const N: usize, const A: usize> {
     pub collision_excluded: &'static [(VolumeId, VolumeId)],
 }
 
-/// The Panda: one arm of all seven joints; the home posture of `tests/src/fixed_base.rs`.
-pub const PANDA: RobotSpec<{ panda::N }, 1> = RobotSpec {
-    name: "panda",
-    tcps: panda::TCPS,
-    home: || [0.0, -0.3, 0.0, -2.0, 0.0, 1.8, 0.8],
-    elbow: panda::PANDA_LINK4,
-    joint_names: panda::JOINT_NAMES,
-    collision_volumes: &panda::collision::VOLUME_SPECS,
-    collision_excluded: &panda::collision::EXCLUDED,
-};
-
-/// TIAGo++: the lift (coordinate 0) as the torso, the left arm (1–7, TCP 0) and the right arm
-/// (8–14, TCP 1); home: the lift at 0.15 m, each arm's shoulder forward and out, elbow bent
-/// 1.5 rad.
-pub const TIAGO_DUAL: RobotSpec<{ tiago_dual::N }, 2> = RobotSpec {
-    name: "tiago_dual",
-    tcps: tiago_dual::TCPS,
-    home: || [0.15, 0.4, 0.3, 0.0, 1.5, 0.0, 0.5, 0.0, 0.4, 0.3, 0.0, 1.5, 0.0, 0.5, 0.0],
-    elbow: tiago_dual::ARM_LEFT_4_LINK,
-    joint_names: tiago_dual::JOINT_NAMES,
-    collision_volumes: &tiago_dual::collision::VOLUME_SPECS,
-    collision_excluded: &tiago_dual::collision::EXCLUDED,
-};
+/// The spec of an imported robot: its generated `HOME` and `ELBOW` (`host-sim/src/import/`).
+macro_rules! imported_spec {
+    ($robot:ident) => {
+        RobotSpec {
+            name: stringify!($robot),
+            tcps: fixtures::robots::$robot::TCPS,
+            home: || fixtures::robots::$robot::HOME,
+            elbow: fixtures::robots::$robot::ELBOW,
+            joint_names: fixtures::robots::$robot::JOINT_NAMES,
+            collision_volumes: &fixtures::robots::$robot::collision::VOLUME_SPECS,
+            collision_excluded: &fixtures::robots::$robot::collision::EXCLUDED,
+        }
+    };
+}
 
 /// Justin: arm 0 the right arm (TCP `right_tcp`), arm 1 the left; its home pose
 /// (`justin::home_configuration`); the elbow frame `right_arm_link4`.
@@ -168,6 +139,7 @@ pub struct RigParts<
 /// The parts of an imported robot: its models and its compiled configuration, in `T`.
 macro_rules! imported {
     ($robot:ident, $t:ty) => {{
+        use fixtures::robots::$robot;
         let error = |e: kernel::model::ModelError| format!("model: {e}");
         let model = $robot::model::<$t>().map_err(error)?;
         let collision = collision_table::build(&model, &$robot::collision::VOLUME_SPECS, &$robot::collision::EXCLUDED)
@@ -216,17 +188,48 @@ fn justin_parts<T: RealField + Copy>() -> Result<
     })
 }
 
-/// Runs scenario `S` on the robot and in the scalar the options name.
-pub fn simulate<S: Scenario>(options: &RunOptions) -> Result<Outcome, String> {
-    match (options.robot.unwrap_or_default(), options.scalar) {
-        (RobotName::Panda, Scalar::F64) => S::simulate(&PANDA, &|| Ok(imported!(panda, f64)), options),
-        (RobotName::Panda, Scalar::F32) => S::simulate(&PANDA, &|| Ok(imported!(panda, f32)), options),
-        (RobotName::TiagoDual, Scalar::F64) => S::simulate(&TIAGO_DUAL, &|| Ok(imported!(tiago_dual, f64)), options),
-        (RobotName::TiagoDual, Scalar::F32) => S::simulate(&TIAGO_DUAL, &|| Ok(imported!(tiago_dual, f32)), options),
-        (RobotName::Justin, Scalar::F64) => S::simulate(&JUSTIN, &justin_parts::<f64>, options),
-        (RobotName::Justin, Scalar::F32) => S::simulate(&JUSTIN, &justin_parts::<f32>, options),
-    }
+/// The robots a generic scenario runs on: every imported robot of `fixtures/robots/` (listed
+/// by the index's `fixtures::for_each_imported_robot!`, so an import registers its robot, and
+/// `--robot <name>` takes it after a rebuild) and Justin, by hand.
+macro_rules! robot_names {
+    ($($module:ident $variant:ident),*) => {
+        /// A generic scenario's robot (`--robot`): the imported robots by their module name,
+        /// `justin`; the default is the Panda.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+        pub enum RobotName {
+            $(
+                #[doc = concat!("`fixtures::robots::", stringify!($module), "`, imported.")]
+                #[value(name = stringify!($module))]
+                $variant,
+            )*
+            /// The Justin-like robot (`fixtures::justin`): platform, torso and two 7-DOF arms.
+            Justin,
+        }
+
+        impl RobotName {
+            /// The option's value on the command line.
+            pub fn name(self) -> &'static str {
+                match self {
+                    $(Self::$variant => stringify!($module),)*
+                    Self::Justin => "justin",
+                }
+            }
+        }
+
+        /// Runs scenario `S` on the robot and in the scalar the options name.
+        pub fn simulate<S: Scenario>(options: &RunOptions) -> Result<Outcome, String> {
+            match (options.robot.unwrap_or(RobotName::Panda), options.scalar) {
+                $(
+                    (RobotName::$variant, Scalar::F64) => S::simulate(&imported_spec!($module), &|| Ok(imported!($module, f64)), options),
+                    (RobotName::$variant, Scalar::F32) => S::simulate(&imported_spec!($module), &|| Ok(imported!($module, f32)), options),
+                )*
+                (RobotName::Justin, Scalar::F64) => S::simulate(&JUSTIN, &justin_parts::<f64>, options),
+                (RobotName::Justin, Scalar::F32) => S::simulate(&JUSTIN, &justin_parts::<f32>, options),
+            }
+        }
+    };
 }
+fixtures::for_each_imported_robot!(robot_names);
 
 fn c<T: RealField>(x: f64) -> T {
     convert(x)

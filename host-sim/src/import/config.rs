@@ -89,7 +89,7 @@ struct Inertia {
 }
 
 /// The middle of every joint's range (zero without limits).
-fn mid_range(description: &Description) -> Vec<f64> {
+pub(crate) fn mid_range(description: &Description) -> Vec<f64> {
     let middle = |c: &crate::urdf::CoordinateSpec| {
         let m = 0.5 * (c.lower + c.upper);
         if m.is_finite() {

@@ -10,6 +10,10 @@
 //!
 //! A chain's coordinates are those its bodies' drives name, so a coupled joint (Justin's passive
 //! torso joint, (3.41)) counts with the coordinates it follows.
+//!
+//! - **Elbow** (where the generic scenario `posture_push` pushes): the link of the body driven
+//!   by the middle coordinate of arm 0 (index `len / 2` of its coordinates in order: the Panda's
+//!   `panda_link4`, TIAGo++'s `arm_left_4_link`).
 
 use crate::urdf::{self, Coupling, Description};
 
@@ -46,6 +50,23 @@ pub(crate) fn derive(description: &Description, tcps: &[String], planar_base: bo
         .collect();
     let torso: Vec<bool> = (0..n).map(|k| sharing(k) > 1 && !platform(k)).collect();
     Ok(Layout { arms, torso: torso.contains(&true).then_some(torso), planar_base })
+}
+
+/// The elbow of `layout` (module docs): the link of the first body the middle coordinate of arm
+/// 0 drives.
+pub(crate) fn elbow<'a>(description: &'a Description, layout: &Layout) -> Result<&'a str, String> {
+    let arm: Vec<usize> = layout
+        .arms
+        .first()
+        .map(|arm| arm.iter().enumerate().filter(|(_, on)| **on).map(|(k, _)| k).collect())
+        .unwrap_or_default();
+    let middle = arm.get(arm.len() / 2).ok_or("arm 0 has no coordinates of its own: no elbow for posture_push")?;
+    description
+        .bodies
+        .iter()
+        .find(|body| body.terms.iter().any(|(coordinate, _)| coordinate == middle))
+        .map(|body| body.link.as_str())
+        .ok_or_else(|| format!("no body is driven by coordinate {middle}"))
 }
 
 /// The coordinates that drive the bodies from the root to the link `tcp`.
@@ -133,6 +154,13 @@ mod tests {
         let one = layout_of(&["ta"]);
         assert_eq!(one.arms, [vec![true, true, false]]);
         assert_eq!(one.torso, None);
+    }
+
+    #[test]
+    fn the_elbow_is_the_body_of_arm_0s_middle_coordinate() {
+        let description = urdf::describe(TREE, Coupling::Coupled).unwrap();
+        assert_eq!(elbow(&description, &layout_of(&["ta", "tb"])).unwrap(), "a");
+        assert_eq!(elbow(&description, &layout_of(&["ta"])).unwrap(), "a");
     }
 
     #[test]

@@ -23,7 +23,12 @@
 //! 5. **Configuration** ([`config`]): the default `config.toml` (the rule from the model is in
 //!    its module docs), validated by `robot-config`; `fixtures/build.rs` compiles it into the
 //!    module `config` of `mod.rs`.
-//! 6. **`README.md`**: the command, the controlled, frozen and TCP frames, the collision model.
+//! 6. **Scenario entries**: `HOME` (the posture the generic scenarios start from: `--scenario-home`,
+//!    else `--home`, else the gain rule's mid-range posture) and `ELBOW` (the frame of
+//!    [`layout::elbow`]) in `mod.rs`; the index lists every robot in the macro
+//!    `fixtures::for_each_imported_robot!`, from which `host-sim`'s `--robot` values and dispatch
+//!    are built, so an imported robot runs the generic scenarios after a rebuild, with no Rust edit.
+//! 7. **`README.md`**: the command, the controlled, frozen and TCP frames, the collision model.
 //!
 //! [`generate`] computes the files without writing them (the tests compare them with the
 //! checked-in copies); [`run`] writes them.
@@ -70,6 +75,10 @@ pub struct ImportOptions {
     /// The posture of the gain rule (one value per coordinate, rad or m, inside the limits);
     /// `None`: the middle of every joint's range ([`config`]).
     pub home: Option<Vec<f64>>,
+    /// The posture the generic scenarios start from (`HOME` in `mod.rs`, one value per
+    /// coordinate, inside the limits); `None`: [`Self::home`], else the gain rule's posture.
+    /// It leaves the gains alone.
+    pub scenario_home: Option<Vec<f64>>,
 }
 
 impl ImportOptions {
@@ -89,6 +98,10 @@ impl ImportOptions {
         if let Some(home) = &self.home {
             let values: Vec<String> = home.iter().map(f64::to_string).collect();
             command.push_str(&format!(" --home={}", values.join(",")));
+        }
+        if let Some(home) = &self.scenario_home {
+            let values: Vec<String> = home.iter().map(f64::to_string).collect();
+            command.push_str(&format!(" --scenario-home={}", values.join(",")));
         }
         command
     }
@@ -114,6 +127,11 @@ pub fn generate(options: &ImportOptions) -> Result<Files, String> {
     if options.name.chars().any(|c| c.is_ascii_uppercase()) {
         return Err(format!("robot name {}: use lower case (it is a Rust module name)", options.name));
     }
+    if options.name == "justin" {
+        return Err(
+            "robot name justin is taken: `--robot justin` is the Justin-like robot of fixtures::justin".to_owned()
+        );
+    }
     if options.tcps.is_empty() {
         return Err("no TCP frame: give at least one --tcp <link>".to_owned());
     }
@@ -125,13 +143,21 @@ pub fn generate(options: &ImportOptions) -> Result<Files, String> {
         planar_base: options.planar_base,
     };
     let robot_layout = layout::derive(&description, &options.tcps, options.planar_base)?;
-    if let Some(home) = &options.home {
-        check_home(&description, home)?;
+    for (option, home) in [("--home", &options.home), ("--scenario-home", &options.scenario_home)] {
+        if let Some(home) = home {
+            check_home(&description, option, home)?;
+        }
     }
+    let scenario_home = options
+        .scenario_home
+        .clone()
+        .or_else(|| options.home.clone())
+        .unwrap_or_else(|| config::mid_range(&description));
     let config_file =
         config::default_file(&options.name, &description, &robot_layout, &options.tcps, options.home.as_deref())?;
     let source = codegen::model_source(&description, &options.urdf, &Module::Robot(&module))
         + &layout::source(&robot_layout)
+        + &scenario_source(&scenario_home, layout::elbow(&description, &robot_layout)?)
         + &config::module_source(&options.name, &robot_layout)
         + &collision::module_source(&options.name);
     let (fitted, survey) = fitted_collision(options, &prepared, &description)?;
@@ -152,13 +178,27 @@ pub fn collision_model(options: &ImportOptions) -> Result<collision::Imported, S
     collision::imported(&description, &fitted, &survey)
 }
 
-/// `--home`: one value per coordinate, each inside its joint's limits.
-fn check_home(description: &Description, home: &[f64]) -> Result<(), String> {
+/// The generated `HOME` and `ELBOW` (module docs, step 6).
+fn scenario_source(home: &[f64], elbow: &str) -> String {
+    let values: Vec<String> = home.iter().map(|q| format!("{q:?}")).collect();
+    format!(
+        "\n/// The posture the generic scenarios start from (rad, m; `--scenario-home`, else `--home`, else mid-range).\n\
+         pub const HOME: [f64; N] = [{}];\n\
+         /// Where the generic scenario `posture_push` pushes: link `{elbow}`, the body of arm 0's middle coordinate.\n\
+         pub const ELBOW: FrameId = {};\n",
+        values.join(", "),
+        elbow.to_uppercase()
+    )
+}
+
+/// `--home` or `--scenario-home` (`option`): one value per coordinate, each inside its joint's
+/// limits.
+fn check_home(description: &Description, option: &str, home: &[f64]) -> Result<(), String> {
     let coordinates = &description.coordinates;
     if home.len() != coordinates.len() {
         let names: Vec<&str> = coordinates.iter().map(|c| c.joint.as_str()).collect();
         return Err(format!(
-            "--home: {} values for the {} coordinates ({})",
+            "{option}: {} values for the {} coordinates ({})",
             home.len(),
             coordinates.len(),
             names.join(", ")
@@ -166,7 +206,7 @@ fn check_home(description: &Description, home: &[f64]) -> Result<(), String> {
     }
     for (c, q) in coordinates.iter().zip(home) {
         if !(c.lower..=c.upper).contains(q) {
-            return Err(format!("--home: {} = {q} is outside its limits [{}, {}]", c.joint, c.lower, c.upper));
+            return Err(format!("{option}: {} = {q} is outside its limits [{}, {}]", c.joint, c.lower, c.upper));
         }
     }
     Ok(())
@@ -223,10 +263,33 @@ pub fn robots_index(robots_dir: &Path) -> Result<String, String> {
          //! per directory of `fixtures/robots/`, each generated (see its `README.md`). This index is\n\
          //! rewritten by every import.\n",
     );
-    for name in names {
+    for name in &names {
         s.push_str(&format!("\n#[rustfmt::skip]\npub mod {name};\n"));
     }
+    let entries: Vec<String> = names.iter().map(|name| format!("{name} {}", camel_case(name))).collect();
+    s.push_str(&format!(
+        "\n/// Calls `$callback!` with every imported robot as `module Variant` (its module of\n\
+         /// `fixtures::robots` and its name in camel case), comma-separated: `host-sim` builds its\n\
+         /// `--robot` values and their dispatch from it.\n\
+         #[macro_export]\n\
+         macro_rules! for_each_imported_robot {{\n    \
+         ($callback:ident) => {{\n        \
+         $callback!({});\n    \
+         }};\n\
+         }}\n",
+        entries.join(", ")
+    ));
     Ok(s)
+}
+
+/// `tiago_dual` → `TiagoDual`.
+fn camel_case(name: &str) -> String {
+    name.split('_')
+        .flat_map(|word| {
+            let mut chars = word.chars();
+            chars.next().map(|c| c.to_ascii_uppercase()).into_iter().chain(chars)
+        })
+        .collect()
 }
 
 /// The URDF prepared for the loader, and the joints it froze.
@@ -443,7 +506,7 @@ fn check_identifier(name: &str, what: &str) -> Result<(), String> {
 
 /// Every link name gives a distinct constant that clashes with none the module defines.
 fn check_names(d: &Description) -> Result<(), String> {
-    const RESERVED: [&str; 11] = [
+    const RESERVED: [&str; 13] = [
         "N",
         "BODIES",
         "FRAMES",
@@ -455,6 +518,8 @@ fn check_names(d: &Description) -> Result<(), String> {
         "ARMS",
         "ARM_COORDINATES",
         "TORSO_COORDINATES",
+        "HOME",
+        "ELBOW",
     ];
     let mut seen = HashSet::new();
     for frame in &d.frames {
@@ -612,9 +677,12 @@ mod tests {
     fn home_has_a_value_inside_the_limits_for_every_coordinate() {
         let prepared = prepare(&with_masses(&[]), &["b".to_owned()], false).unwrap();
         let d = urdf::describe(&prepared.text, Coupling::Coupled).unwrap();
-        assert!(check_home(&d, &[0.5, -1.0]).is_ok());
-        assert_eq!(check_home(&d, &[0.5]).unwrap_err(), "--home: 1 values for the 2 coordinates (j1, j2)");
-        assert_eq!(check_home(&d, &[0.5, 1.5]).unwrap_err(), "--home: j2 = 1.5 is outside its limits [-1, 1]");
+        assert!(check_home(&d, "--home", &[0.5, -1.0]).is_ok());
+        assert_eq!(check_home(&d, "--home", &[0.5]).unwrap_err(), "--home: 1 values for the 2 coordinates (j1, j2)");
+        assert_eq!(
+            check_home(&d, "--home", &[0.5, 1.5]).unwrap_err(),
+            "--home: j2 = 1.5 is outside its limits [-1, 1]"
+        );
     }
 
     #[test]
@@ -627,5 +695,20 @@ mod tests {
         assert_eq!(masses, [1.0, 2.0], "a, then b with the frozen finger");
         // On a planar base the root moves: nothing is dropped.
         assert!(prepare(&with_masses(&[]), &["b".to_owned()], true).unwrap().welded.is_empty());
+    }
+
+    #[test]
+    fn the_index_registers_every_robot_directory_for_the_generic_scenarios() {
+        let dir = std::env::temp_dir().join(format!("robots_index_{}", std::process::id()));
+        for robot in ["ur5", "tiago_dual", "justin"] {
+            std::fs::create_dir_all(dir.join(robot)).unwrap();
+        }
+        std::fs::write(dir.join("ur5/mod.rs"), "").unwrap();
+        std::fs::write(dir.join("tiago_dual/mod.rs"), "").unwrap();
+        let index = robots_index(&dir).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+        assert!(index.contains("pub mod tiago_dual;\n\n#[rustfmt::skip]\npub mod ur5;\n"), "{index}");
+        assert!(index.contains("$callback!(tiago_dual TiagoDual, ur5 Ur5);"), "{index}");
+        assert!(!index.contains("justin"), "a directory without mod.rs is no imported robot");
     }
 }
