@@ -25,7 +25,7 @@
 //!    module `config` of `mod.rs`.
 //! 6. **Scenario entries**: `HOME` (the posture the generic scenarios start from: `--scenario-home`,
 //!    else `--home`, else the gain rule's mid-range posture) and `ELBOW` (the frame of
-//!    [`layout::elbow`]) in `mod.rs`; the index lists every robot in the macro
+//!    `layout::elbow`) in `mod.rs`; the index lists every robot in the macro
 //!    `fixtures::for_each_imported_robot!`, from which `host-sim`'s `--robot` values and dispatch
 //!    are built, so an imported robot runs the generic scenarios after a rebuild, with no Rust edit.
 //! 7. **`README.md`**: the command, the controlled, frozen and TCP frames, the collision model.
