@@ -86,9 +86,13 @@ step "processor in the loop (runtime image on QEMU Cortex-M7: 300 cycles with th
 cargo test --locked -p host-sim --test pil_rig --test pil_link_faults -- --ignored --test-threads 1
 
 step "replay.html in headless Chromium (replay/README.md)"
-if ! command -v chromium >/dev/null || ! command -v npm >/dev/null; then
+# Only what is missing: a machine with its own Node.js (not Debian's) cannot take Debian's npm.
+missing=()
+command -v chromium >/dev/null || missing+=(chromium)
+command -v npm >/dev/null || missing+=(nodejs npm)
+if [ ${#missing[@]} -gt 0 ]; then
     export DEBIAN_FRONTEND=noninteractive
-    apt-get update -qq && apt-get install -y -qq --no-install-recommends chromium nodejs npm >/dev/null
+    apt-get update -qq && apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
 fi
 (cd replay && npm ci --no-audit --no-fund && npm run build)
 # The committed bundle is the one the lock file's packages build.
