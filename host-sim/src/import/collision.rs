@@ -42,7 +42,7 @@ use kernel::model::Placement;
 use kernel::tasks::collision::{proximity, Core, SweptSphere};
 use nalgebra::{Matrix3, Point3, Rotation3, SymmetricEigen, Translation3, Vector3};
 use rand::rngs::Xoshiro256PlusPlus;
-use rand::{RngExt, SeedableRng};
+use rand::SeedableRng;
 use urdf_rs::Geometry;
 
 use super::ImportOptions;
@@ -476,18 +476,7 @@ pub(crate) fn survey(d: &Description, volumes: &[FittedVolume]) -> Result<Survey
     }
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(SURVEY_SEED);
     for _ in 0..SURVEY_SAMPLES {
-        let q: Vec<f64> = d
-            .coordinates
-            .iter()
-            .map(|c| {
-                let (lo, hi) = if c.lower.is_finite() && c.upper.is_finite() {
-                    (c.lower, c.upper)
-                } else {
-                    (-std::f64::consts::PI, std::f64::consts::PI)
-                };
-                rng.random_range(lo..=hi)
-            })
-            .collect();
+        let q = super::random_posture(d, &mut rng);
         let placements = body_placements(d, &q);
         let world: Vec<SweptSphere<f64>> = attached
             .iter()

@@ -167,22 +167,11 @@ fn manipulability(jacobian: &DMatrix<f64>, arm: &[bool]) -> f64 {
 /// `w = ∇m M⁻¹ ∇mᵀ` and the largest `|∂m/∂q_i| / τ_max,i`.
 fn singularity_survey(description: &Description, layout: &Layout, tcps: &[String]) -> Result<(f64, f64), String> {
     use rand::rngs::Xoshiro256PlusPlus;
-    use rand::{RngExt, SeedableRng};
+    use rand::SeedableRng;
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(SINGULARITY_SEED);
     let postures: Vec<State> = (0..SINGULARITY_SAMPLES)
         .map(|_| {
-            let q = description
-                .coordinates
-                .iter()
-                .map(|c| {
-                    let (lo, hi) = if c.lower.is_finite() && c.upper.is_finite() {
-                        (c.lower, c.upper)
-                    } else {
-                        (-core::f64::consts::PI, core::f64::consts::PI)
-                    };
-                    rng.random_range(lo..=hi)
-                })
-                .collect::<Vec<f64>>();
+            let q = super::random_posture(description, &mut rng);
             State { v: vec![0.0; q.len()], q }
         })
         .collect();

@@ -191,6 +191,24 @@ fn scenario_source(home: &[f64], elbow: &str) -> String {
     )
 }
 
+/// A posture drawn uniformly within every coordinate's limits (±π where a limit is infinite):
+/// the sampled surveys of the collision pairs and of the singularity rule.
+pub(crate) fn random_posture(description: &Description, rng: &mut rand::rngs::Xoshiro256PlusPlus) -> Vec<f64> {
+    use rand::RngExt;
+    description
+        .coordinates
+        .iter()
+        .map(|c| {
+            let (lo, hi) = if c.lower.is_finite() && c.upper.is_finite() {
+                (c.lower, c.upper)
+            } else {
+                (-std::f64::consts::PI, std::f64::consts::PI)
+            };
+            rng.random_range(lo..=hi)
+        })
+        .collect()
+}
+
 /// `--home` or `--scenario-home` (`option`): one value per coordinate, each inside its joint's
 /// limits.
 fn check_home(description: &Description, option: &str, home: &[f64]) -> Result<(), String> {
