@@ -217,7 +217,9 @@ fn justin_consumers_on_the_tree_factor_match_the_dense_reference_f32() {
 /// `κ₁(M̃) ≈ 10⁴`, whose backward-error bound `ε κ₁` (Higham, Sec. 10.1) is ≈ 1.3e-3 in `f32`;
 /// observed at most 1.02e-5 in `f32`.
 fn justin_barrier_inverse_matches<T: RealField + Copy>(tolerance: f64, accuracy: f64) {
-    use kernel::controller::speed_barrier::{speed_barrier, InverseInertia, JointLimits, SpeedBarrierParameters};
+    use kernel::controller::speed_barrier::{
+        speed_barrier, BarrierHold, InverseInertia, JointLimits, SpeedBarrierParameters,
+    };
     const N: usize = justin::N;
     let model = justin::model::<T>().unwrap();
     let layout =
@@ -268,7 +270,7 @@ fn justin_barrier_inverse_matches<T: RealField + Copy>(tolerance: f64, accuracy:
         let task = torque.map(convert::<f64, T>);
         let barrier = |source: InverseInertia<'_, T, N>| {
             let drive = |t: &SVector<T, N>| source.apply(&(task + t));
-            speed_barrier(&parameters, &v, limits, |i| source.mobility(i), drive, &upper, &mut [T::zero(); N])
+            speed_barrier(&parameters, &v, limits, |i| source.mobility(i), drive, &upper, &mut BarrierHold::new())
                 .map(f64_of)
         };
         let (fast, reference) = (barrier(dense), barrier(factor));

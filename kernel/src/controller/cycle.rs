@@ -16,7 +16,7 @@ use super::guard::{
 };
 use super::layout::{ArmId, JointGroup};
 use super::settings::ControllerSettings;
-use super::speed_barrier::{speed_barrier, InverseInertia, JointLimits};
+use super::speed_barrier::{speed_barrier, BarrierHold, InverseInertia, JointLimits};
 use super::state::{ControllerState, InertiaFactors, Workspace};
 use super::task_set::{evaluate, row_summary, EvaluationContext, Scratch};
 use super::trajectory::{JointTrajectory, PoseTrajectory};
@@ -390,7 +390,7 @@ impl<
         v: &SVector<T, N>,
         inverse: InverseInertia<'_, T, N>,
         coriolis_transpose: &mut Option<SVector<T, N>>,
-        held: &mut [T; N],
+        held: &mut BarrierHold<T, N>,
     ) -> SVector<T, N> {
         let active = self.settings.config.layout.coordinates(JointGroup::UpperBody);
         let limits =

@@ -13,6 +13,7 @@ use super::frames::ActuatorFrame;
 use super::layout::PerArm;
 use super::observer::MomentumObserver;
 use super::recovery::Recovery;
+use super::speed_barrier::BarrierHold;
 use super::telemetry::Telemetry;
 use super::trajectory::{JointTrajectory, PoseTrajectory};
 use crate::dynamics::{TreeFactorization, TreeStructure};
@@ -46,8 +47,8 @@ pub(super) struct ControllerState<T: RealField, const N: usize, const U: usize, 
     /// The last torque and platform command, for the rate limits.
     pub(super) previous_torque: SVector<T, N>,
     pub(super) previous_base_velocity: Vector3<T>,
-    /// The speed barrier's held feedforward activations ([`super::speed_barrier::speed_barrier`]).
-    pub(super) barrier_hold: [T; N],
+    /// What the speed barrier holds ([`super::speed_barrier::BarrierHold`]).
+    pub(super) barrier_hold: BarrierHold<T, N>,
     pub(super) telemetry: Telemetry<T, N, A>,
     pub(super) output: ActuatorFrame<T, U>,
 }
@@ -77,7 +78,7 @@ impl<T: RealField + Copy, const N: usize, const U: usize, const A: usize> Contro
             hold_gravity: SVector::zeros(),
             previous_torque: SVector::zeros(),
             previous_base_velocity: Vector3::zeros(),
-            barrier_hold: [T::zero(); N],
+            barrier_hold: BarrierHold::new(),
             telemetry: Telemetry::empty(),
             output: ActuatorFrame::initial(),
         }
