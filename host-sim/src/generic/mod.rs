@@ -345,11 +345,11 @@ where
             .map_err(|e| format!("TcpGoal: {e}"))
     }
 
-    /// The translational stiffness of `arm`'s Cartesian impedance along world `x` (N/m, the
+    /// The translational stiffness of `arm`'s Cartesian impedance along world `z` (N/m, the
     /// configuration's).
     pub fn translational_stiffness(&self, arm: usize) -> Result<f64, String> {
         let cartesian = self.controller.config().cartesian.get(arm).ok_or("no such arm")?;
-        Ok(cartesian.translational_stiffness[0].into())
+        Ok(cartesian.translational_stiffness[2].into())
     }
 
     /// The TCP position error of `arm` (m): `‖p − p_des‖` from the telemetry.

@@ -2,8 +2,19 @@
 //!
 //! Setup: the rig of [`super::GenericRig`] at the robot's home posture. At [`STEP_AT_S`] arm 0's
 //! goal steps [`STEP_M`] up (world `z`, a `TcpGoal` of duration 0); the other arms hold. From
-//! [`PUSH_AT_S`] a force of [`PUSH_N`] along world `x` acts on arm 0's TCP for [`PUSH_S`]; then
-//! the robot returns.
+//! [`PUSH_AT_S`] a force of [`PUSH_N`] straight down (world `−z`) acts on arm 0's TCP for
+//! [`PUSH_S`]; then the robot returns.
+//!
+//! The push is vertical because that is the direction in which every robot, on a fixed or on a
+//! planar base, has a rest state under a constant force. A planar base is driven by the
+//! admittance (5.1) with the platform rows of the controller's torque alone (`τ_r,ext = 0`: no
+//! force sensing in the platform, as on Rollin' Justin, Sec. 5.1). At rest its rows need
+//! `J_rᵀ K e = 0` while the arm's need `K e = F`, so under a horizontal force the robot drifts
+//! instead of coming to rest: on Justin, 20 N along `x` for 1 s leave the base moving at
+//! 0.041 m/s against the push, its damping (400 Ns/m × 0.041 m/s = 16.2 N) balancing the
+//! Cartesian spring's 16.5 N, with the TCP 33 mm off for the 40 mm of `F/K`. A vertical force has
+//! no component on the platform's `x`, `y`, `θ` (`J_rᵀ F = 0`), so `K e = F` at rest for every
+//! base.
 //!
 //! Claims:
 //! - **settling**: the TCP error enters and stays within 5 % of the step before the push, at most
@@ -32,7 +43,7 @@ use crate::sim::{run_loop, CONTROL_PERIOD_S};
 pub const NAME: &str = "reach";
 /// One-line description.
 pub const DESCRIPTION: &str =
-    "imported robot (--robot): TCP goal step 10 cm up, 20 N push on the TCP for 1 s, return (settling, F/K, recovery)";
+    "imported robot (--robot): TCP goal step 10 cm up, 20 N push down on the TCP for 1 s, return (settling, F/K, recovery)";
 /// Time of the goal step (s).
 pub const STEP_AT_S: f64 = 0.5;
 /// The goal step (m, world `z`).
@@ -41,7 +52,7 @@ pub const STEP_M: f64 = 0.1;
 pub const PUSH_AT_S: f64 = 2.0;
 /// Duration of the push (s).
 pub const PUSH_S: f64 = 1.0;
-/// The push (N, world `x`).
+/// The push (N, world `−z`).
 pub const PUSH_N: f64 = 20.0;
 /// Time from the release to the recovery check (s).
 pub const RECOVERY_S: f64 = 1.0;
@@ -79,7 +90,7 @@ impl Scenario for Reach {
         let mut rig = GenericRig::new(spec, parts()?, options)?;
         let stiffness = rig.translational_stiffness(0)?;
         let tcp = *spec.tcps.first().ok_or("no arm")?;
-        rig.sim.push(tcp, Vector3::new(PUSH_N, 0.0, 0.0), PUSH_AT_S, PUSH_S)?;
+        rig.sim.push(tcp, Vector3::new(0.0, 0.0, -PUSH_N), PUSH_AT_S, PUSH_S)?;
         let mut series = TimeSeries::new(super::columns::<N, U, A>(spec));
         let mut before_push = None;
         let mut end_of_push = None;
@@ -89,13 +100,14 @@ impl Scenario for Reach {
             if info.cycle == (STEP_AT_S / CONTROL_PERIOD_S).round() as u64 {
                 rig.step_goal(0, Vector3::new(0.0, 0.0, STEP_M))?;
             }
-            let x = rig.tcp_position(spec, 0)?.x;
-            let held = *before_push.get_or_insert(x);
+            // Along the push: downwards.
+            let along = -rig.tcp_position(spec, 0)?.z;
+            let held = *before_push.get_or_insert(along);
             if info.time_s < PUSH_AT_S {
-                before_push = Some(x);
+                before_push = Some(along);
             } else if info.time_s < PUSH_AT_S + PUSH_S {
-                largest_deflection = largest_deflection.max(x - held);
-                end_of_push = Some(x - held);
+                largest_deflection = largest_deflection.max(along - held);
+                end_of_push = Some(along - held);
             }
             rig.cycle(info)?;
             record(rig, spec, info.time_s, &mut series)
