@@ -2,16 +2,21 @@
 //! and the singularity avoidance keep the robot inside its limits without a fault.
 //!
 //! Setup: the rig of [`super::GenericRig`] at the robot's home posture. At [`MOVE_AT_S`] arm 0's
-//! goal starts to move [`GOAL_OFFSET_M`] straight up (world `z`, orientation kept) along the
-//! kernel's cubic of [`MOVE_S`] (peak speed `1.5 D / T` = [`GOAL_SPEED_M_S`]); no arm reaches
-//! that high, so the Cartesian spring stretches the arm toward its workspace boundary, where the
-//! shaping fades the singular direction out of the Cartesian level, the singularity avoidance
-//! takes it over below its threshold `m₀`, and the end stops guard every joint's range. The goal
-//! then holds for [`HOLD_S`].
+//! goal starts to move `D` straight up (world `z`, orientation kept) along the kernel's cubic of
+//! [`MOVE_S`] (peak speed `1.5 D / T`). One rule makes the goal unreachable on every robot: `D`
+//! puts it [`BEYOND_REACH_M`] beyond the chain's length `L` from the chain's first joint after a
+//! planar base (`chain_reach`: the sum of the joint placements' offsets from that joint to the TCP,
+//! the TCP's offset and each prismatic joint's largest travel, an upper bound of the TCP's distance
+//! from that joint in any posture), so every posture's TCP is at least that far from it (Panda
+//! `L` = 1.090 m, `D` = 1.356 m; TIAGo++ 1.564 m, 1.582 m; Justin 2.385 m, 2.480 m). The Cartesian
+//! spring stretches the arm toward its workspace boundary, where the shaping fades the singular
+//! direction out of the Cartesian level, the singularity avoidance takes it over below its
+//! threshold `m₀`, and the end stops guard every joint's range. The goal then holds for
+//! [`HOLD_S`].
 //!
 //! Claims:
 //! - **position limits**: every actuated joint stays within `[q_min, q_max]` over the whole run
-//!   (the deepest entry into the end stops' margin band is reported);
+//!   (the deepest entry into the end stops' margin band is reported, with its joint and time);
 //! - **velocity limits**: every actuated joint's `|q̇| ≤ q̇_max` (the URDF's);
 //! - **torques within limits**: every applied torque `|τ| ≤ τ_max`;
 //! - **no fault, no NaN** over the whole run;
@@ -19,9 +24,10 @@
 //!   `d_range`, the smallest distance of any posture within the joint ranges, and `d_m₀`, the
 //!   smallest distance of any posture with manipulability `m ≥ m₀` (the avoidance exerts no force
 //!   above `m₀`, so the arm gets at least that close; it cannot beat the ranges). Both are found
-//!   from the home posture by active-set damped least squares on the TCP position over the
-//!   robot's plant model (`nearest_reachable`); [`NEAREST_ALLOWANCE_M`] absorbs their
-//!   convergence;
+//!   by active-set damped least squares on the TCP position over the robot's plant model
+//!   (`nearest_reachable`), a local search seeded at home and at the run's end posture (the
+//!   smaller distance; from home alone TIAGo++'s search stops in a local minimum 53 mm farther);
+//!   [`NEAREST_ALLOWANCE_M`] absorbs their convergence;
 //! - **settling**: from the end of the goal's motion the TCP enters and stays within 5 % of its
 //!   total motion around its final position within `ln(1 / (0.05 √(1 − ξ²))) / (ξ ω)`, the 5 %
 //!   settling time of the Cartesian impedance (`ξ` the configuration's damping ratio,
@@ -31,7 +37,7 @@
 
 use kernel::controller::config::{ArmId, JointGroup};
 use kernel::dynamics::{crba, forward_kinematics, frame_jacobian};
-use kernel::model::{Data, FrameId, Model};
+use kernel::model::{Body, BodyId, Data, FrameId, JointKind, Model, Placement};
 use kernel::tasks::cartesian_impedance::AxisMask;
 use kernel::tasks::manipulability::manipulability;
 use nalgebra::{Matrix3, RealField, SMatrix, SVector, Vector3};
@@ -44,16 +50,15 @@ use crate::sim::{run_loop, CONTROL_PERIOD_S};
 /// Registry name.
 pub const NAME: &str = "limits";
 /// One-line description.
-pub const DESCRIPTION: &str = "imported robot (--robot): TCP goal 1.5 m straight up, out of reach (end stops, \
-                               singularity avoidance: joints within their limits, no fault, nearest reachable point)";
+pub const DESCRIPTION: &str = "imported robot (--robot): TCP goal straight up, 0.5 m beyond the chain's length (end \
+                               stops, singularity avoidance: joints within their limits, no fault, nearest reachable point)";
 /// Start of the goal's motion (s).
 pub const MOVE_AT_S: f64 = 0.5;
-/// The goal's motion (m, world `z`): above every arm's reach.
-pub const GOAL_OFFSET_M: f64 = 1.5;
-/// Peak speed of the goal's cubic (m/s).
-pub const GOAL_SPEED_M_S: f64 = 0.75;
-/// Duration of the goal's cubic (s): peak speed `1.5 D / T` = [`GOAL_SPEED_M_S`].
-pub const MOVE_S: f64 = 1.5 * GOAL_OFFSET_M / GOAL_SPEED_M_S;
+/// How far the goal lies beyond the chain's length from its first joint (m): every posture's
+/// TCP is at least this far from it.
+pub const BEYOND_REACH_M: f64 = 0.5;
+/// Duration of the goal's cubic (s): peak speed `1.5 D / T` for the goal's motion `D`.
+pub const MOVE_S: f64 = 3.0;
 /// The hold at the final goal (s).
 pub const HOLD_S: f64 = 1.5;
 /// Simulated time (s).
@@ -65,17 +70,72 @@ const SEARCH_DAMPING: f64 = 0.02;
 /// Iterations of the least-squares search.
 const SEARCH_ITERATIONS: usize = 2000;
 
-/// The smallest TCP distance to `goal` (m) from `home` by active-set damped least squares within
-/// the ranges of `model` (joints at a bound whose step points outward are taken out of the step),
-/// with `m ≥ min_manipulability` of the TCP's `rows` over the `arm` coordinates if given (a step
-/// that crosses it is halved until it does not).
+/// The anchor and the length of the kinematic chain from the root (after a planar base) to the
+/// TCP: the world position (m) of the first joint after the `platform` coordinates at the
+/// placements `data` holds, and an upper bound (m) of the TCP's distance from it in any posture
+/// within the ranges: the sum of the joint placements' offsets below it, the TCP's offset in its
+/// body and each prismatic joint's largest travel from zero.
+fn chain_reach<const N: usize, const B: usize, const F: usize>(
+    model: &Model<f64, N, B, F>,
+    data: &Data<f64, N, B, F>,
+    tcp: FrameId,
+    platform: &[bool; N],
+) -> Result<(Vector3<f64>, f64), String> {
+    let frame = model.frame(tcp).ok_or("no TCP frame")?;
+    let on_platform = |body: &Body<f64>| body.drive.terms().iter().any(|t| platform.get(t.coordinate) == Some(&true));
+    let chain: Vec<BodyId> = match frame.parent {
+        Some(id) => model.support(id).take_while(|id| model.body(*id).is_some_and(|b| !on_platform(b))).collect(),
+        None => Vec::new(),
+    };
+    let limits = &model.limits;
+    let travel = |body: &Body<f64>| match body.joint {
+        JointKind::Prismatic { .. } => body.drive.terms().iter().fold(body.drive.offset().abs(), |sum, t| {
+            let lower = limits.position_lower.get(t.coordinate).map_or(f64::INFINITY, |x| x.abs());
+            let upper = limits.position_upper.get(t.coordinate).map_or(f64::INFINITY, |x| x.abs());
+            sum + t.coefficient.abs() * lower.max(upper)
+        }),
+        JointKind::Revolute { .. } => 0.0,
+    };
+    let mut length = frame.placement.translation.vector.norm();
+    for (k, id) in chain.iter().enumerate() {
+        let body = model.body(*id).ok_or("no body")?;
+        length += travel(body);
+        if k + 1 < chain.len() {
+            length += body.joint_placement.translation.vector.norm();
+        }
+    }
+    let anchor = match chain.last().and_then(|id| model.body(*id)) {
+        Some(top) => {
+            let parent =
+                top.parent.and_then(|p| data.body_placements.get(p.0)).copied().unwrap_or_else(Placement::identity);
+            (parent * top.joint_placement).translation.vector
+        }
+        None => data.frame_placements.get(tcp.0).ok_or("no TCP")?.translation.vector,
+    };
+    Ok((anchor, length))
+}
+
+/// The goal's motion `D` (m) straight up from the TCP at `start` that puts the goal
+/// [`BEYOND_REACH_M`] beyond the chain's `length` from its `anchor` ([`chain_reach`]):
+/// `|start + D ẑ − anchor| = length + BEYOND_REACH_M`.
+fn goal_offset(start: &Vector3<f64>, anchor: &Vector3<f64>, length: f64) -> f64 {
+    let d = start - anchor;
+    let radius = length + BEYOND_REACH_M;
+    -d.z + (radius * radius - d.x * d.x - d.y * d.y).max(0.0).sqrt()
+}
+
+/// The smallest TCP distance to `goal` (m) from the posture `seed` (clamped into the ranges) by
+/// active-set damped least squares within the ranges of `model` (joints at a bound whose step
+/// points outward are taken out of the step), with `m ≥ min_manipulability` of the TCP's `rows`
+/// over the `arm` coordinates if given (a step that crosses it is halved until it does not);
+/// `None` if the seed is below that bound.
 fn nearest_reachable<const N: usize, const B: usize, const F: usize>(
     model: &Model<f64, N, B, F>,
     tcp: FrameId,
-    home: &SVector<f64, N>,
+    seed: &SVector<f64, N>,
     goal: &Vector3<f64>,
     constraint: Option<(AxisMask, [bool; N], f64)>,
-) -> Result<f64, String> {
+) -> Result<Option<f64>, String> {
     let mut data = Data::new(model);
     let limits = &model.limits;
     let clamp =
@@ -90,10 +150,10 @@ fn nearest_reachable<const N: usize, const B: usize, const F: usize>(
         Ok((p, m))
     };
     let allowed = |m: f64| constraint.as_ref().is_none_or(|(_, _, m0)| m >= *m0);
-    let mut q = clamp(*home);
+    let mut q = clamp(*seed);
     let (mut p, m) = evaluate(&mut data, &q)?;
     if !allowed(m) {
-        return Err(format!("home posture below the manipulability bound: m = {m}"));
+        return Ok(None);
     }
     let mut jacobian = SMatrix::<f64, 6, N>::zeros();
     for _ in 0..SEARCH_ITERATIONS {
@@ -136,7 +196,7 @@ fn nearest_reachable<const N: usize, const B: usize, const F: usize>(
             break;
         }
     }
-    Ok((goal - p).norm())
+    Ok(Some((goal - p).norm()))
 }
 
 /// The 5 % settling time (s) of the Cartesian impedance of stiffness `stiffness` and damping
@@ -164,6 +224,8 @@ fn settling_bound<const N: usize, const B: usize, const F: usize>(
 struct Extremes {
     /// Smallest distance of any joint to its nearer stop (rad, m; negative: past it).
     stop_clearance: f64,
+    /// The coordinate of that smallest distance and when (s).
+    closest: (usize, f64),
     /// Largest `|q̇| / q̇_max`.
     velocity_ratio: f64,
     /// Largest `|τ| / τ_max`.
@@ -196,15 +258,18 @@ impl Scenario for Limits {
         let config = rig.controller.config();
         let arm = config.layout.coordinates(JointGroup::Arm(ArmId::all::<A>().first().copied().ok_or("no arm")?));
         let singularity = (config.singularity.rows, arm, config.singularity.threshold.into());
+        let platform = config.layout.coordinates(JointGroup::Platform);
         let margin: f64 = config.end_stops.margin.into();
         let ratio: f64 = config.cartesian.first().ok_or("no arm")?.damping_ratio.into();
         let stiffness = rig.translational_stiffness(0)?;
         let home = SVector::from((spec.home)());
         let start = rig.tcp_position(spec, 0)?;
-        let goal = start + Vector3::new(0.0, 0.0, GOAL_OFFSET_M);
         let model = rig.sim.model().clone();
-        let nearest_in_range = nearest_reachable(&model, tcp, &home, &goal, None)?;
-        let nearest_above_threshold = nearest_reachable(&model, tcp, &home, &goal, Some(singularity))?;
+        let mut data = Data::new(&model);
+        forward_kinematics(&model, &mut data, &home, &SVector::zeros()).map_err(|e| e.to_string())?;
+        let (anchor, length) = chain_reach(&model, &data, tcp, &platform)?;
+        let offset = Vector3::new(0.0, 0.0, goal_offset(&start, &anchor, length));
+        let goal = start + offset;
         let bound = settling_bound(&model, tcp, &home, stiffness, ratio)?;
         let limits = &model.limits;
         let mut extremes = Extremes { stop_clearance: f64::INFINITY, ..Extremes::default() };
@@ -212,14 +277,17 @@ impl Scenario for Limits {
         run_loop(&mut rig, DURATION_S, CONTROL_PERIOD_S, |rig, info| {
             options.progress.report(NAME, info.time_s, DURATION_S);
             if info.cycle == (MOVE_AT_S / CONTROL_PERIOD_S).round() as u64 {
-                rig.move_goal(0, Vector3::new(0.0, 0.0, GOAL_OFFSET_M), MOVE_S)?;
+                rig.move_goal(0, offset, MOVE_S)?;
             }
             rig.cycle(info)?;
             let (q, v, tau) = (rig.sim.q(), rig.sim.v(), rig.sim.applied_torque());
             let bounds = limits.position_lower.iter().zip(limits.position_upper.iter());
             let joints = q.iter().zip(v.iter()).zip(bounds).zip(limits.velocity.iter()).skip(N - U);
-            for (((q, v), (lower, upper)), speed) in joints {
-                extremes.stop_clearance = extremes.stop_clearance.min((q - lower).min(upper - q));
+            for (k, (((q, v), (lower, upper)), speed)) in joints.enumerate() {
+                let clearance = (q - lower).min(upper - q);
+                if clearance < extremes.stop_clearance {
+                    (extremes.stop_clearance, extremes.closest) = (clearance, (N - U + k, info.time_s));
+                }
                 extremes.velocity_ratio = extremes.velocity_ratio.max(v.abs() / speed);
             }
             let ratios = tau.iter().zip(limits.effort.iter().skip(N - U)).map(|(tau, limit)| tau.abs() / limit);
@@ -227,6 +295,16 @@ impl Scenario for Limits {
             record(rig, spec, info.time_s, &mut series)
         })?;
         options.progress.finish();
+        // The search is local: seeded at home and at the run's end posture.
+        let end_posture = SVector::from_iterator(rig.sim.q().iter().copied());
+        let nearest = |constraint: Option<(AxisMask, [bool; N], f64)>| -> Result<f64, String> {
+            let from_home = nearest_reachable(&model, tcp, &home, &goal, constraint)?
+                .ok_or("home posture below the manipulability bound")?;
+            let from_end = nearest_reachable(&model, tcp, &end_posture, &goal, constraint)?;
+            Ok(from_end.map_or(from_home, |d| d.min(from_home)))
+        };
+        let nearest_in_range = nearest(None)?;
+        let nearest_above_threshold = nearest(Some(singularity))?;
 
         let t = series.column("t").ok_or("no t")?;
         let xyz = ["x", "y", "z"].map(|axis| series.column(&format!("tcp0.{axis}")));
@@ -245,9 +323,14 @@ impl Scenario for Limits {
         let final_distance = (goal - end).norm();
 
         let mut summary = Summary::new(NAME);
+        let closest_joint = spec.joint_names.get(extremes.closest.0).copied().unwrap_or("none");
         summary.value("robot", spec.name).value("controller", format!("host {}", options.scalar.name()));
+        summary.value("closest_joint", closest_joint);
         summary
+            .metric("chain_length_m", length)
+            .metric("goal_offset_m", offset.z)
             .metric("stop_clearance_rad", extremes.stop_clearance)
+            .metric("closest_at_s", extremes.closest.1)
             .metric("end_stop_margin_rad", margin)
             .metric("largest_velocity_ratio", extremes.velocity_ratio)
             .metric("largest_torque_ratio", extremes.torque_ratio)
