@@ -40,7 +40,8 @@
 //! collision rows and the Cartesian tasks alike) to 0–8 % and clamps the compensation every
 //! other cycle, so the arms coast into each other: the hands' boxes interpenetrate by 115.2 mm
 //! (reference −144.0 mm). The same goals over 8 s instead of 1.5 s keep every pair 20.5 mm apart
-//! with all four claims holding (f64 and f32).
+//! with all four claims holding (f64 and f32); so do the file's arm torque rates at
+//! 1000 τ_max/s instead of the import rule's 100 τ_max/s (7.1 mm, |τ|/τ_max = 1.00, f64).
 
 use kernel::controller::config::{ArmId, JointGroup, TaskKind, TaskSpec};
 use kernel::controller::messages::Command;
