@@ -1,5 +1,5 @@
 //! The generic scenarios (issue 15, item 4): `reach`, `posture_push`, `self_collision` and
-//! `limits` on the Panda, on TIAGo++ and (`reach`, `posture_push`, `limits`) on Justin (its full controller: platform, torso,
+//! `limits` on the Panda, on TIAGo++ and on Justin (its full controller: platform, torso,
 //! two arms), with the controller in f64 and in f32, on the gains of each robot's `config.toml`;
 //! `--robot` refused by the scenarios that run their own robot.
 #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
@@ -87,10 +87,10 @@ fn posture_push_holds_on_tiago_dual_in_f64_and_f32() {
 
 /// Runs `self_collision` and checks its numbers: every claim holds; the goals collide without the
 /// avoidance (the reference interpenetrates by more than 5 cm and reaches its goals within 25 mm)
-/// and with it every pair stays above `min_distance` (measured: Panda 29.8 mm),
-/// the TCPs stop at least 10 cm short (Panda 137 mm), the torques stay within
-/// their limits, no fault.
-fn self_collision_holds(robot: RobotName, scalar: Scalar, min_distance: f64) {
+/// and with it every pair stays above `min_distance` (measured: Panda 29.8 mm, Justin 30.4 mm),
+/// the TCPs stop at least `min_shortfall` short (Panda 136.9 mm, Justin 70.0 mm per hand), the
+/// torques stay within their limits, no fault.
+fn self_collision_holds(robot: RobotName, scalar: Scalar, min_distance: f64, min_shortfall: f64) {
     let options = RunOptions { robot: Some(robot), scalar, ..RunOptions::default() };
     let outcome = self_collision::simulate(&options).unwrap();
     let summary = &outcome.summary;
@@ -101,7 +101,8 @@ fn self_collision_holds(robot: RobotName, scalar: Scalar, min_distance: f64) {
     assert!(summary.get("reference_shortfall_m").unwrap() < 0.025);
     let smallest = summary.get("smallest_distance_m").unwrap();
     assert!(smallest > min_distance, "{smallest} m");
-    assert!(summary.get("shortfall_m").unwrap() > 0.1);
+    let shortfall = summary.get("shortfall_m").unwrap();
+    assert!(shortfall > min_shortfall, "{shortfall} m");
     assert!(summary.get("largest_torque_ratio").unwrap() <= 1.0);
     assert_eq!(summary.get("faulty_cycles"), Some(0.0));
     assert_eq!(summary.get("non_finite_cycles"), Some(0.0));
@@ -110,18 +111,31 @@ fn self_collision_holds(robot: RobotName, scalar: Scalar, min_distance: f64) {
 
 #[test]
 fn self_collision_holds_on_the_panda_in_f64_and_f32() {
-    self_collision_holds(RobotName::Panda, Scalar::F64, 0.025);
-    self_collision_holds(RobotName::Panda, Scalar::F32, 0.025);
+    self_collision_holds(RobotName::Panda, Scalar::F64, 0.025, 0.1);
+    self_collision_holds(RobotName::Panda, Scalar::F32, 0.025, 0.1);
 }
 
 #[test]
-#[ignore = "open (issue 15): the goal (the TCPs' midpoint, 0.08 m ahead of the root at the hands' height \
-            1.2 m) lies in the head; with only arm 0 Cartesian in the file's Fig. 6.3 hierarchy (K = 740 N/m) \
-            the left hand enters head_2 by 59.3 mm in f64 and f32 (reference 197.2 mm) and ends 7.2 mm (f32 8.0 mm) \
-            apart; a goal at arm 0's shoulder instead leaves −4.5 mm on torso_lift – left hand with 461 faulty cycles"]
+#[ignore = "open (issue 15): the hands, driven to their meeting point 0.35 m ahead of their midpoint at up to \
+            0.55 m/s each, ask TIAGo++'s wrists (3 Nm, 300 Nm/s on joint 5) for more than the torque box holds; \
+            the guard scales the whole top level (collision rows and Cartesian tasks) to 0-8 % and clamps the \
+            compensation every other cycle, so the arms coast: the hand boxes interpenetrate by 115.2 mm in f64 \
+            and f32 (reference -144.0 mm); over 8 s instead of 1.5 s every pair stays 20.5 mm apart, and with the \
+            file's arm torque rates at 1000 instead of 100 tau_max/s 7.1 mm (reference shortfall 29.1 mm)"]
 fn self_collision_holds_on_tiago_dual_in_f64_and_f32() {
-    self_collision_holds(RobotName::TiagoDual, Scalar::F64, 0.012);
-    self_collision_holds(RobotName::TiagoDual, Scalar::F32, 0.012);
+    self_collision_holds(RobotName::TiagoDual, Scalar::F64, 0.012, 0.05);
+    self_collision_holds(RobotName::TiagoDual, Scalar::F32, 0.012, 0.05);
+}
+
+/// `self_collision` on Justin with his own collision model (`fixtures::justin::collision`, the
+/// floor included) and the full controller (platform, torso, two arms): the hands meet 0.12 m
+/// ahead of their midpoint; the fingers stay 30.4 mm apart (f64 and f32; reference −100.0 mm,
+/// the cores touching), each hand stops 70.0 mm short for the 65.5 mm of
+/// `(d_end − d_ref) / 2` (× 1.07), largest |τ|/τ_max 0.22.
+#[test]
+fn self_collision_holds_on_justin_in_f64_and_f32() {
+    self_collision_holds(RobotName::Justin, Scalar::F64, 0.025, 0.05);
+    self_collision_holds(RobotName::Justin, Scalar::F32, 0.025, 0.05);
 }
 
 /// `reach` on Justin: the full controller (platform admittance, torso, both arms) on Justin's

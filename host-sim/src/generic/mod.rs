@@ -30,7 +30,6 @@ pub mod posture_push;
 pub mod reach;
 pub mod self_collision;
 
-use fixtures::collision_table::{self, VolumeSpec};
 use fixtures::justin::{self, whole_body};
 use hal::{JointTorqueInterface, PlatformVelocityInterface};
 use kernel::controller::config::*;
@@ -38,7 +37,7 @@ use kernel::controller::faults::SafeOutput;
 use kernel::controller::messages::{Command, Pose};
 use kernel::controller::{Controller, SensorFrame};
 use kernel::model::{FrameId, Model};
-use kernel::tasks::collision::VolumeId;
+use kernel::tasks::collision::CollisionModel;
 use nalgebra::{convert, RealField, SVector, Vector3};
 
 use crate::output::TimeSeries;
@@ -59,11 +58,8 @@ pub struct RobotSpec<const N: usize, const A: usize> {
     pub elbow: FrameId,
     /// URDF joint of each coordinate.
     pub joint_names: [&'static str; N],
-    /// The collision volumes of an imported robot (`fixtures::robots::<name>::collision::
-    /// VOLUME_SPECS`; none for Justin, whose model is written in Rust).
-    pub collision_volumes: &'static [VolumeSpec],
-    /// The pairs the collision file excludes (`…::collision::EXCLUDED`).
-    pub collision_excluded: &'static [(VolumeId, VolumeId)],
+    /// The name of collision volume `i` of [`RigParts::plant_collision`] (its `VOLUME_SPECS`).
+    pub volume_name: fn(usize) -> Option<&'static str>,
 }
 
 /// The spec of an imported robot: its generated `HOME` and `ELBOW` (`host-sim/src/import/`).
@@ -75,8 +71,7 @@ macro_rules! imported_spec {
             home: || fixtures::robots::$robot::HOME,
             elbow: fixtures::robots::$robot::ELBOW,
             joint_names: fixtures::robots::$robot::JOINT_NAMES,
-            collision_volumes: &fixtures::robots::$robot::collision::VOLUME_SPECS,
-            collision_excluded: &fixtures::robots::$robot::collision::EXCLUDED,
+            volume_name: |i| fixtures::robots::$robot::collision::VOLUME_SPECS.get(i).map(|v| v.name),
         }
     };
 }
@@ -89,8 +84,7 @@ pub const JUSTIN: RobotSpec<{ justin::N }, { whole_body::ARMS }> = RobotSpec {
     home: || justin::home_configuration::<f64>().into(),
     elbow: justin::RIGHT_ARM_LINK4,
     joint_names: justin::JOINT_NAMES,
-    collision_volumes: &[],
-    collision_excluded: &[],
+    volume_name: |i| justin::collision::VOLUME_SPECS.get(i).map(|v| v.name),
 };
 
 /// A generic scenario: one function over the robot's sizes and the controller's scalar.
@@ -116,8 +110,8 @@ pub trait Scenario {
 }
 
 /// What the rig is built of: the controller in `T` (the robot's model, collision model,
-/// compiled configuration and Fig. 6.3 hierarchy), the simulated plant's model in `f64` and the
-/// simulator's settings.
+/// compiled configuration and Fig. 6.3 hierarchy), the simulated plant's model and collision
+/// model in `f64` and the simulator's settings.
 pub struct RigParts<
     T: RealField + Copy,
     const N: usize,
@@ -132,6 +126,10 @@ pub struct RigParts<
     pub controller: Box<Controller<T, N, B, F, U, V, P, A>>,
     /// The simulated robot's model.
     pub plant: Model<f64, N, B, F>,
+    /// The controller's collision model in `f64` on the simulated robot's model (the imported
+    /// robot's table, Justin's `fixtures::justin::collision`), where a scenario measures the
+    /// pair distances.
+    pub plant_collision: CollisionModel<f64, V, P>,
     /// The simulator's settings.
     pub sim_config: SimConfig,
 }
@@ -142,8 +140,8 @@ macro_rules! imported {
         use fixtures::robots::$robot;
         let error = |e: kernel::model::ModelError| format!("model: {e}");
         let model = $robot::model::<$t>().map_err(error)?;
-        let collision = collision_table::build(&model, &$robot::collision::VOLUME_SPECS, &$robot::collision::EXCLUDED)
-            .map_err(|e| format!("collision model: {e}"))?;
+        let collision = $robot::collision::collision_model(&model).map_err(|e| format!("collision model: {e}"))?;
+        let plant = $robot::model::<f64>().map_err(error)?;
         let config = $robot::controller_config::<$t>().map_err(|e| format!("{}: {e:?}", stringify!($robot)))?;
         let hierarchy = &$robot::config::hierarchy::fig_6_3::LEVELS;
         RigParts::<
@@ -159,7 +157,8 @@ macro_rules! imported {
             controller: Box::new(
                 Controller::try_new(model, collision, config, hierarchy).map_err(|e| format!("controller: {e}"))?,
             ),
-            plant: $robot::model::<f64>().map_err(error)?,
+            plant_collision: $robot::collision::collision_model(&plant).map_err(|e| format!("collision model: {e}"))?,
+            plant,
             sim_config: SimConfig::default(),
         }
     }};
@@ -181,9 +180,12 @@ fn justin_parts<T: RealField + Copy>() -> Result<
     String,
 > {
     let hierarchy = whole_body::fig_6_3_hierarchy(ArmId::RIGHT);
+    let plant = justin::model::<f64>().map_err(|e| format!("model: {e}"))?;
     Ok(RigParts {
         controller: Box::new(crate::wbc::whole_body_controller(&[], crate::wbc::ConfigChanges::NONE, &hierarchy)?),
-        plant: justin::model::<f64>().map_err(|e| format!("model: {e}"))?,
+        plant_collision: justin::collision::collision_model_with_environment(&plant, &[])
+            .map_err(|e| format!("collision model: {e}"))?,
+        plant,
         sim_config: SimConfig { base_lag_s: crate::wbc::BASE_LAG_S, ..SimConfig::default() },
     })
 }
@@ -276,7 +278,7 @@ where
         parts: RigParts<T, N, B, F, U, V, P, A>,
         options: &RunOptions,
     ) -> Result<Self, String> {
-        let RigParts { controller, plant, sim_config } = parts;
+        let RigParts { controller, plant, sim_config, .. } = parts;
         let mut sim = options.simulator(plant, sim_config)?;
         sim.set_state(SVector::from((spec.home)()), SVector::zeros())?;
         sim.set_joint_stops(Some(JointStops::JUSTIN))?;

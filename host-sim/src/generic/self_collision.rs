@@ -1,15 +1,25 @@
-//! `self_collision` on an imported robot (`--robot panda|tiago_dual`): TCP goals that drive two links into each
-//! other, and the self-collision avoidance that keeps every pair apart.
+//! `self_collision` on a robot of the generic rig (`--robot panda|tiago_dual|justin`): TCP goals
+//! that drive two links into each other, and the self-collision avoidance that keeps every pair
+//! apart.
 //!
 //! Setup: the rig of [`super::GenericRig`] (the robot's `config.toml` and its Fig. 6.3 hierarchy
-//! with both collision fields) at the robot's home posture. From [`GOAL_AT_S`] the goals move along the kernel's cubic of
-//! [`GOAL_S`]: with two or more arms, arms 0 and 1 both to the midpoint of their TCPs (TIAGo++:
-//! hand into hand); with one arm, its TCP onto the vertical axis through the root at its own
-//! height (the Panda: the hand into its shoulder, links 1 to 3). The rest is the hold.
+//! with both collision fields) at the robot's home posture. From [`GOAL_AT_S`] the goals move
+//! along the kernel's cubic of [`GOAL_S`]: with one arm, its TCP onto the origin of its first
+//! body (the Panda: the hand into its shoulder, links 1 to 3); with two or more arms, arms 0 and 1
+//! both to their meeting point, the TCPs' midpoint moved forward (world `+x`) until it lies
+//! [`MEETING_CLEARANCE_M`] outside every volume at home, ahead of the chest and the head (hand
+//! into hand; TIAGo++: 0.35 m ahead of the midpoint, at (0.43, 0, 1.20) m; Justin: 0.12 m, at
+//! (0.58, 0, 0.96) m). So that both hands follow their goals, the run's hierarchy is the file's
+//! Fig. 6.3 with arm 1's joint impedance replaced by its Cartesian impedance on arm 0's level
+//! (`SetHierarchy` before the first cycle). The rest is the hold.
+//!
+//! The pair distances are measured on [`super::RigParts::plant_collision`], the controller's
+//! collision model in `f64` on the simulated robot (an imported robot's generated table,
+//! Justin's `fixtures::justin::collision` with the floor).
 //!
 //! The same goals run a second time with the two collision tasks taken out of the hierarchy
-//! (`SetHierarchy` before the first cycle; the reference): there the
-//! closest pair's volumes interpenetrate, which shows that the goals would collide.
+//! (the reference): there the closest pair's volumes interpenetrate, which shows that the goals
+//! would collide.
 //!
 //! Claims:
 //! - **every pair apart**: the smallest distance of every enabled pair of the robot's collision
@@ -20,11 +30,20 @@
 //!   avoidance the pairs end at `d_end > 0`. The TCPs give up the distance the pairs gain, shared
 //!   by the driven arms: the mean shortfall is `(d_end − d_ref) / arms` within a factor
 //!   [`SHORTFALL_FACTOR`] (the closest points lie between the shoulder and the hand, and an
-//!   interpenetration is not a TCP distance: measured 1.43 on the Panda; open on TIAGo++, issue 15).
+//!   interpenetration is not a TCP distance: measured 1.43 on the Panda, 1.07 on Justin).
 //! - **torques within limits**: every applied joint torque within its effort limit.
 //! - **no fault, no NaN**.
+//!
+//! Open on TIAGo++ (issue 15): the hands approach at up to 0.55 m/s each, and the avoidance's
+//! rows ask TIAGo++'s wrists (3 Nm, 300 Nm/s on joint 5) for more than the torque box holds; the
+//! priority-preserving guard (`kernel::controller::guard`) then scales the whole level (the
+//! collision rows and the Cartesian tasks alike) to 0–8 % and clamps the compensation every
+//! other cycle, so the arms coast into each other: the hands' boxes interpenetrate by 115.2 mm
+//! (reference −144.0 mm). The same goals over 8 s instead of 1.5 s keep every pair 20.5 mm apart
+//! with all four claims holding (f64 and f32); so do the file's arm torque rates at
+//! 1000 τ_max/s instead of the import rule's 100 τ_max/s (7.1 mm, |τ|/τ_max = 1.00, f64).
 
-use kernel::controller::config::{TaskKind, TaskSpec};
+use kernel::controller::config::{ArmId, JointGroup, TaskKind, TaskSpec};
 use kernel::controller::messages::Command;
 use kernel::dynamics::forward_kinematics;
 use kernel::model::{Data, Model};
@@ -39,8 +58,8 @@ use crate::sim::{run_loop, CONTROL_PERIOD_S};
 /// Registry name.
 pub const NAME: &str = "self_collision";
 /// One-line description.
-pub const DESCRIPTION: &str = "imported robot (--robot): TCP goals that drive the hand into the shoulder (one arm) or \
-     the hands into each other (two arms); the collision avoidance keeps every pair apart";
+pub const DESCRIPTION: &str = "generic robot (--robot): TCP goals that drive the hand into the shoulder (one arm) or \
+     the hands into each other ahead of the chest (two arms); the collision avoidance keeps every pair apart";
 /// Start of the goal motion (s).
 pub const GOAL_AT_S: f64 = 0.5;
 /// Duration of the goal motion (s).
@@ -51,6 +70,12 @@ pub const DURATION_S: f64 = GOAL_AT_S + GOAL_S + 2.0;
 pub const MARGIN_M: f64 = 0.005;
 /// Allowed factor between the shortfall and the distance the pairs gain per driven arm.
 pub const SHORTFALL_FACTOR: f64 = 2.5;
+/// How far the hands' meeting point keeps from every volume at home (m): the weak field's
+/// influence distance `d₀` (Table 3.1), so that the goal itself lies outside every field.
+pub const MEETING_CLEARANCE_M: f64 = 0.15;
+/// The step (m) and the farthest distance (m) of the search for the meeting point.
+const MEETING_STEP_M: f64 = 0.01;
+const MEETING_SEARCH_M: f64 = 1.0;
 
 /// The scenario.
 pub struct SelfCollision;
@@ -63,11 +88,40 @@ struct PairDistances<const N: usize, const B: usize, const F: usize, const V: us
 }
 
 impl<const N: usize, const B: usize, const F: usize, const V: usize, const P: usize> PairDistances<N, B, F, V, P> {
-    fn new<const A: usize>(spec: &RobotSpec<N, A>, plant: &Model<f64, N, B, F>) -> Result<Self, String> {
-        let model = fixtures::collision_table::build(plant, spec.collision_volumes, spec.collision_excluded)
-            .map_err(|e| format!("collision model: {e}"))?;
+    fn new(model: CollisionModel<f64, V, P>, plant: &Model<f64, N, B, F>) -> Self {
         let collision = CollisionData::new(&model);
-        Ok(Self { model, collision, data: Data::new(plant) })
+        Self { model, collision, data: Data::new(plant) }
+    }
+
+    /// The smallest signed distance (m) of `point` (world) to every volume at `q`.
+    fn clearance(
+        &mut self,
+        plant: &Model<f64, N, B, F>,
+        q: &SVector<f64, N>,
+        point: &Vector3<f64>,
+    ) -> Result<f64, String> {
+        forward_kinematics(plant, &mut self.data, q, &SVector::zeros()).map_err(|e| e.to_string())?;
+        self.model.update_world(&self.data, &mut self.collision);
+        Ok(self.collision.world_volumes.iter().map(|v| v.signed_distance_to(point)).fold(f64::INFINITY, f64::min))
+    }
+
+    /// The meeting point of two hands at `q`: `middle` (m, world) moved forward (world `+x`) in
+    /// [`MEETING_STEP_M`] steps until it is [`MEETING_CLEARANCE_M`] outside every volume.
+    fn meeting_point(
+        &mut self,
+        plant: &Model<f64, N, B, F>,
+        q: &SVector<f64, N>,
+        middle: Vector3<f64>,
+    ) -> Result<Vector3<f64>, String> {
+        for step in 0..=(MEETING_SEARCH_M / MEETING_STEP_M).round() as usize {
+            let point = middle + Vector3::x() * (step as f64 * MEETING_STEP_M);
+            if self.clearance(plant, q, &point)? >= MEETING_CLEARANCE_M {
+                return Ok(point);
+            }
+        }
+        Err(format!(
+            "no point within {MEETING_SEARCH_M} m ahead of the hands' midpoint is {MEETING_CLEARANCE_M} m clear"
+        ))
     }
 
     /// The world origin (m) at `q` of the body of the first coordinate of `arm` (a coordinate
@@ -119,17 +173,45 @@ struct Run {
     non_finite_cycles: u64,
 }
 
-/// The goal offsets (m, world) of each arm from the TCP positions at home (module docs); `shoulder`
-/// is the origin of arm 0's first body.
-fn goal_offsets(tcps: &[Vector3<f64>], shoulder: Vector3<f64>) -> Vec<Vector3<f64>> {
-    match tcps {
-        [only] => vec![shoulder - only],
+/// The goal offsets (m, world) of each arm from its TCP position at home `tcps` (module docs):
+/// one arm to the origin of its first body (`arm`, a coordinate mask), two arms to their meeting
+/// point.
+fn goal_offsets<const N: usize, const B: usize, const F: usize, const V: usize, const P: usize>(
+    pairs: &mut PairDistances<N, B, F, V, P>,
+    plant: &Model<f64, N, B, F>,
+    q: &SVector<f64, N>,
+    arm: &[bool; N],
+    tcps: &[Vector3<f64>],
+) -> Result<Vec<Vector3<f64>>, String> {
+    Ok(match tcps {
+        [only] => vec![pairs.shoulder(arm, plant, q)? - only],
         [first, second, rest @ ..] => {
-            let middle = (first + second) / 2.0;
-            [middle - first, middle - second].into_iter().chain(rest.iter().map(|_| Vector3::zeros())).collect()
+            let meeting = pairs.meeting_point(plant, q, (first + second) / 2.0)?;
+            [meeting - first, meeting - second].into_iter().chain(rest.iter().map(|_| Vector3::zeros())).collect()
         }
         [] => Vec::new(),
-    }
+    })
+}
+
+/// The run's hierarchy from the file's Fig. 6.3 (`file`): the joint impedance of arm 1 replaced
+/// by its Cartesian impedance on the level of arm 0's (both hands driven to their goals), and
+/// without the two collision tasks unless `collision_tasks`.
+fn run_hierarchy(
+    file: &[TaskSpec],
+    collision_tasks: bool,
+) -> heapless::Vec<TaskSpec, { kernel::controller::capacity::MAX_TASKS }> {
+    let cartesian = |arm| TaskKind::CartesianImpedance(arm);
+    let level = file.iter().find(|t| t.kind == cartesian(ArmId(0))).map_or(0, |t| t.level);
+    file.iter()
+        .copied()
+        .filter(|t| collision_tasks || !matches!(t.kind, TaskKind::CollisionAvoidance(_)))
+        .map(|t| match t.kind {
+            TaskKind::JointImpedance(JointGroup::Arm(arm)) if arm == ArmId(1) => {
+                TaskSpec { kind: cartesian(arm), level }
+            }
+            _ => t,
+        })
+        .collect()
 }
 
 /// Runs the goals on the controller of `parts`, with its collision tasks or without them.
@@ -151,16 +233,14 @@ fn run<
 where
     T: RealField + Copy + Into<f64>,
 {
-    let mut pairs = PairDistances::<N, B, F, V, P>::new(spec, &parts.plant)?;
+    let mut pairs = PairDistances::new(parts.plant_collision.clone(), &parts.plant);
     let mut rig = GenericRig::new(spec, parts, options)?;
-    if !collision_tasks {
-        let without: heapless::Vec<TaskSpec, { kernel::controller::capacity::MAX_TASKS }> =
-            rig.controller.hierarchy().filter(|t| !matches!(t.kind, TaskKind::CollisionAvoidance(_))).collect();
-        rig.controller.apply(&Command::SetHierarchy(without)).map_err(|e| format!("SetHierarchy: {e}"))?;
-    }
+    let file: Vec<TaskSpec> = rig.controller.hierarchy().collect();
+    let hierarchy = run_hierarchy(&file, collision_tasks);
+    rig.controller.apply(&Command::SetHierarchy(hierarchy)).map_err(|e| format!("SetHierarchy: {e}"))?;
     let home: Vec<Vector3<f64>> = (0..A).map(|arm| rig.tcp_position(spec, arm)).collect::<Result<_, _>>()?;
     let arm = *rig.controller.config().layout.arms.first().ok_or("no arm")?;
-    let offsets = goal_offsets(&home, pairs.shoulder(&arm, rig.sim.model(), rig.sim.q())?);
+    let offsets = goal_offsets(&mut pairs, rig.sim.model(), rig.sim.q(), &arm, &home)?;
     let goals: Vec<Vector3<f64>> = home.iter().zip(&offsets).map(|(p, o)| p + o).collect();
     let effort = rig.sim.model().limits.effort.fixed_rows::<U>(N - U).into_owned();
     let mut series = TimeSeries::new(super::columns::<N, U, A>(spec));
@@ -227,13 +307,10 @@ impl Scenario for SelfCollision {
     where
         T: RealField + Copy + Into<f64>,
     {
-        if spec.collision_volumes.is_empty() {
-            return Err(format!("self_collision needs an imported robot's volume table; {} has none", spec.name));
-        }
         let reference = run(spec, parts()?, options, false)?;
         let avoided = run(spec, parts()?, options, true)?;
         let predicted = (avoided.final_distance - reference.smallest) / avoided.driven.max(1) as f64;
-        let name = |i: usize| spec.collision_volumes.get(i).map_or("?", |v| v.name);
+        let name = |i: usize| (spec.volume_name)(i).unwrap_or("?");
         let (a, b) = avoided.closest;
 
         let mut summary = Summary::new(NAME);
