@@ -324,24 +324,31 @@ fn preprocess(text: &str) -> Result<Preprocessed, String> {
     Ok(Preprocessed { text: root.to_string(), couplings, joints_with_limit })
 }
 
-/// The namespace of `xmlns:prefix` declarations, which `xml` keeps as attributes.
-const XMLNS: &str = "http://www.w3.org/2000/xmlns/";
+/// The namespace of xacro's macros: a `.xacro` file still to be expanded.
+const XACRO: &str = "http://www.ros.org/wiki/xacro";
 
-/// Drops the namespace declarations (a URDF uses no namespace; xacro output still declares
-/// `xmlns:xacro`) and refuses any element or attribute in a namespace, so that the normalized
-/// text can be written back for `urdf-rs` (`xml`'s writer panics on a namespace it cannot
-/// name, e.g. after a mangled `xmlns:` declaration).
+/// Drops every namespaced attribute and element below the root: the namespace declarations
+/// (xacro output still declares `xmlns:xacro`) and the simulators' extensions, which URDF
+/// parsers ignore (Drake's `drake:acceleration` on `<limit>`, `<drake:joint>`), so that the
+/// normalized text written back for `urdf-rs` names no namespace (`xml`'s writer panics on one
+/// it cannot name, e.g. after a mangled `xmlns:` declaration). Refuses a root in a namespace and
+/// an element of xacro's (a macro left unexpanded).
 fn drop_namespaces(element: &mut xml::Element) -> Result<(), String> {
-    element.attributes.retain(|(_, ns), _| ns.as_deref() != Some(XMLNS));
     if let Some(ns) = &element.ns {
         return Err(format!("malformed URDF: <{}> is in the XML namespace \"{ns}\" (URDF uses none)", element.name));
     }
-    if let Some(((name, Some(ns)), _)) = element.attributes.iter().find(|((_, ns), _)| ns.is_some()) {
+    element.attributes.retain(|(_, ns), _| ns.is_none());
+    let in_namespace = |child: &xml::Xml, namespace: Option<&str>| match child {
+        xml::Xml::ElementNode(child) => child.ns.is_some() && (namespace.is_none() || child.ns.as_deref() == namespace),
+        _ => false,
+    };
+    if let Some(xml::Xml::ElementNode(macro_element)) = element.children.iter().find(|c| in_namespace(c, Some(XACRO))) {
         return Err(format!(
-            "malformed URDF: <{}> attribute {name} is in the XML namespace \"{ns}\" (URDF uses none)",
-            element.name
+            "malformed URDF: <xacro:{}> in the file: expand the .xacro to URDF first",
+            macro_element.name
         ));
     }
+    element.children.retain(|child| !in_namespace(child, None));
     element.children.iter_mut().try_for_each(|child| match child {
         xml::Xml::ElementNode(child) => drop_namespaces(child),
         _ => Ok(()),
@@ -648,8 +655,8 @@ fn link_inertia(link: &urdf_rs::Link) -> Result<Inertia<f64>, String> {
     if !inertia.is_physical() {
         return Err(format!(
             "link {}: inertia is not physical (negative or non-finite mass, or principal moments violating \
-             the triangle inequality)",
-            link.name
+             the triangle inequality; mass {} kg): correct its <inertial> in the URDF",
+            link.name, link.inertial.mass.value
         ));
     }
     Ok(inertia)
@@ -693,6 +700,25 @@ mod tests {
               </joint>
             </robot>"#
         )
+    }
+
+    #[test]
+    fn simulator_extensions_in_a_namespace_are_ignored() {
+        // Drake's URDFs (e.g. the iiwa's) carry `drake:acceleration` on `<limit>` and `<drake:*>`
+        // elements; URDF parsers ignore them.
+        let plain = two_link(2.0, 0.7, 1.5, 0.4);
+        let drake = plain
+            .replace("<robot name=\"arm\">", "<robot name=\"arm\" xmlns:drake=\"http://drake.mit.edu\">")
+            .replace("<limit lower", "<limit drake:acceleration=\"8.57\" lower")
+            .replace("</robot>", "<drake:collision_filter_group name=\"g\"/></robot>");
+        assert_ne!(drake, plain);
+        let (a, b) = (
+            load_str::<2, 2, 3>(&plain, Coupling::Independent).unwrap(),
+            load_str::<2, 2, 3>(&drake, Coupling::Independent).unwrap(),
+        );
+        assert_eq!(a.frame_names, b.frame_names);
+        assert_eq!(a.model.limits.velocity, b.model.limits.velocity);
+        assert_eq!(a.model.limits.position_upper, b.model.limits.position_upper);
     }
 
     #[test]
@@ -922,11 +948,17 @@ mod tests {
         assert!(error_of::<1>("<model/>", Coupling::Independent).contains("expected <robot>"));
         // Found by the host_parsers fuzz target: `xml` panicked writing a namespace back.
         let mangled = "<robot name='x' xmlns:xmlns='urn:x'><link name='a'/></robot>";
-        let e = error_of::<1>(mangled, Coupling::Independent);
-        assert!(e.contains("<robot> attribute xmlns is in the XML namespace \"urn:x\""), "{e}");
-        let prefixed = "<robot name='x' xmlns:p='urn:x'><link name='a' p:colour='red'/></robot>";
-        let e = error_of::<1>(prefixed, Coupling::Independent);
-        assert!(e.contains("attribute colour is in the XML namespace"), "{e}");
+        let prefixed = "<robot name='x' xmlns:p='urn:x'><link name='a' p:colour='red'/><p:a/></robot>";
+        for text in [mangled, prefixed] {
+            let written = preprocess(text).unwrap().text;
+            assert_eq!(written.replace(['"', '\''], ""), "<robot name=x><link name=a/></robot>", "{text}");
+        }
+        let namespaced_root = "<p:robot xmlns:p='urn:x'><link name='a'/></p:robot>";
+        let e = error_of::<1>(namespaced_root, Coupling::Independent);
+        assert!(e.contains("<robot> is in the XML namespace \"urn:x\""), "{e}");
+        let xacro = "<robot name='x' xmlns:xacro='http://www.ros.org/wiki/xacro'><xacro:include filename='a'/></robot>";
+        let e = error_of::<1>(xacro, Coupling::Independent);
+        assert!(e.contains("<xacro:include> in the file: expand the .xacro to URDF first"), "{e}");
         let no_child =
             "<robot name='x'><link name='a'/><joint name='j' type='fixed'><parent link='a'/></joint></robot>";
         assert!(error_of::<1>(no_child, Coupling::Independent).contains("malformed URDF"));

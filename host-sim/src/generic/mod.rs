@@ -7,7 +7,8 @@
 //! (`host-sim/src/import/`); Justin is added by hand.
 //!
 //! An imported robot (`fixtures::robots::<name>`) has its generated layout: a fixed base
-//! (`U = N`, every platform axis absent), one arm per TCP of the import, and its torso
+//! (`U = N`, every platform axis absent) or, imported with `--base planar`, the admitted
+//! platform (`U = N − 3`, its generated `JOINTS`), one arm per TCP of the import, and its torso
 //! coordinates if it has any (TIAGo++'s lift), and its imported collision model
 //! (`fixtures::robots::<name>::collision`, compiled from `<name>.collision`). Justin (`fixtures::justin`) runs with its full controller: the
 //! platform admittance (`U = N − 3`, the platform's velocity command written to the simulator),
@@ -149,7 +150,7 @@ macro_rules! imported {
             { $robot::N },
             { $robot::BODIES },
             { $robot::FRAMES },
-            { $robot::N },
+            { $robot::JOINTS },
             { $robot::collision::VOLUMES },
             { $robot::collision::PAIRS },
             { $robot::ARMS },

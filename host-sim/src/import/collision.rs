@@ -202,8 +202,18 @@ pub fn mesh_vertices(filename: &str, scale: [f64; 3], packages: Option<&Path>) -
         }
         None => Path::new(filename.strip_prefix("file://").unwrap_or(filename)).to_path_buf(),
     };
-    let collada = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("dae"));
-    let vertices = if collada { collada_vertices(&path)? } else { stl_vertices(&path)? };
+    let extension = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
+    let vertices = match extension.as_deref() {
+        Some("dae") => collada_vertices(&path)?,
+        None | Some("stl") => stl_vertices(&path)?,
+        Some(other) => {
+            return Err(format!(
+                "mesh {}: the import reads STL and COLLADA .dae meshes, not .{other}: convert it to STL or take \
+                 a variant of the URDF with primitive collision geometry",
+                path.display()
+            ))
+        }
+    };
     Ok(vertices.iter().map(|v| v.component_mul(&Vector3::from(scale))).collect())
 }
 
@@ -801,6 +811,14 @@ mod tests {
         assert!(error.ends_with("<node> node has a transform, which the import does not apply"), "{error}");
         let beyond = DAE.replace("<p>1 0 0 0</p>", "<p>1 0 3 0</p>");
         assert!(collada(&beyond).unwrap_err().ends_with("vertex index 3 of 3 positions"));
+        // Drake's iiwa names OBJ collision meshes; they were read as STL ("failed to fill whole buffer").
+        let obj = mesh_vertices("package://drake_models/link_6.obj", [1.0; 3], Some(Path::new("/meshes"))).unwrap_err();
+        assert!(
+            obj.starts_with(
+                "mesh /meshes/drake_models/link_6.obj: the import reads STL and COLLADA .dae meshes, not .obj"
+            ),
+            "{obj}"
+        );
     }
 
     #[test]

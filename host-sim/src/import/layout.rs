@@ -90,7 +90,7 @@ fn chain(description: &Description, tcp: &str) -> Result<Vec<bool>, String> {
 }
 
 /// The Rust items of `layout` in a robot's generated module (after `N`, `TCPS` and the imports
-/// of [`crate::codegen`]): `ARMS`, `ARM_COORDINATES`, `TORSO_COORDINATES` and `layout()`.
+/// of [`crate::codegen`]): `JOINTS`, `ARMS`, `ARM_COORDINATES`, `TORSO_COORDINATES` and `layout()`.
 pub(crate) fn source(layout: &Layout) -> String {
     let mask =
         |coordinates: &[bool]| format!("[{}]", coordinates.iter().map(bool::to_string).collect::<Vec<_>>().join(", "));
@@ -101,13 +101,15 @@ pub(crate) fn source(layout: &Layout) -> String {
     } else {
         "[Axis::Absent; 3]"
     };
-    let platform_doc = if layout.planar_base {
-        "the planar platform `base_x`, `base_y`, `base_theta` (coordinates 0 to 2), admitted"
+    let (platform_doc, joints) = if layout.planar_base {
+        ("the planar platform `base_x`, `base_y`, `base_theta` (coordinates 0 to 2), admitted", "N - 3")
     } else {
-        "none (a fixed base)"
+        ("none (a fixed base)", "N")
     };
     format!(
-        "\n/// Number of arms: one per TCP, in the order of [`TCPS`].\n\
+        "\n/// Torque-controlled joints (the controller's `U`): the coordinates after the platform's.\n\
+         pub const JOINTS: usize = {joints};\n\
+         /// Number of arms: one per TCP, in the order of [`TCPS`].\n\
          pub const ARMS: usize = {arms_len};\n\
          /// Coordinates of each arm: those on the chain from the root to its TCP that no other TCP's chain drives.\n\
          pub const ARM_COORDINATES: [[bool; N]; ARMS] = [{arms}];\n\
@@ -161,6 +163,16 @@ mod tests {
         let description = urdf::describe(TREE, Coupling::Coupled).unwrap();
         assert_eq!(elbow(&description, &layout_of(&["ta", "tb"])).unwrap(), "a");
         assert_eq!(elbow(&description, &layout_of(&["ta"])).unwrap(), "a");
+    }
+
+    #[test]
+    fn a_planar_base_leaves_the_controller_the_joints_after_its_three_coordinates() {
+        let fixed = layout_of(&["ta"]);
+        assert!(source(&fixed).contains("pub const JOINTS: usize = N;"));
+        assert!(source(&fixed).contains("[Axis::Absent; 3]"));
+        let planar = Layout { planar_base: true, ..fixed };
+        assert!(source(&planar).contains("pub const JOINTS: usize = N - 3;"));
+        assert!(source(&planar).contains("[Axis::Admitted(0), Axis::Admitted(1), Axis::Admitted(2)]"));
     }
 
     #[test]

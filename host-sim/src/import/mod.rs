@@ -18,8 +18,8 @@
 //!    `collision`, which `fixtures/build.rs` compiles from that file (`collision_model::<T>(&model)`).
 //!    [`collision_model`] gives the same fit on the bodies, for the constructor's test.
 //! 4. **Layout** ([`layout`]): one arm per TCP, the torso and the platform, derived from the
-//!    chains to the TCPs, as `ARMS`, `ARM_COORDINATES`, `TORSO_COORDINATES` and `layout()` in
-//!    `mod.rs`.
+//!    chains to the TCPs, as `JOINTS`, `ARMS`, `ARM_COORDINATES`, `TORSO_COORDINATES` and
+//!    `layout()` in `mod.rs`.
 //! 5. **Configuration** ([`config`]): the default `config.toml` (the rule from the model is in
 //!    its module docs), validated by `robot-config`; `fixtures/build.rs` compiles it into the
 //!    module `config` of `mod.rs`.
@@ -56,6 +56,9 @@ const PLANAR_LIMITS: [(&str, &str, &str, f64, f64); 3] = [
 ];
 /// Position range of the planar translations (m): a room-sized floor.
 const PLANAR_RANGE_M: f64 = 100.0;
+/// The massless links `--base planar` adds between `world` and the URDF's root, moved by
+/// `base_x` and `base_y`.
+const PLANAR_TRANSLATION_LINKS: [&str; 2] = ["base_x_link", "base_y_link"];
 
 /// What to import.
 #[derive(Clone, Debug)]
@@ -325,7 +328,9 @@ fn describe(text: &str, tcps: &[String], planar_base: bool) -> Result<(Prepared,
     let prepared = prepare(text, tcps, planar_base)?;
     let description = urdf::describe(&prepared.text, Coupling::Coupled)?;
     check_names(&description)?;
-    if let Some(body) = description.bodies.iter().find(|b| b.inertia.mass <= 0.0) {
+    // The platform's translations move massless links; the platform's mass is on `base_theta`'s.
+    let added = |link: &str| planar_base && PLANAR_TRANSLATION_LINKS.contains(&link);
+    if let Some(body) = description.bodies.iter().find(|b| b.inertia.mass <= 0.0 && !added(&b.link)) {
         return Err(format!(
             "link {} (joint {}) has no mass, with the links fixed to it: a controlled body needs a positive mass",
             body.link, body.joint
@@ -485,13 +490,13 @@ fn add_planar_base(root: &mut xml::Element, links: &HashSet<String>) -> Result<(
     let (Some(robot_root), None) = (roots.next(), roots.next()) else {
         return Err("--base planar needs exactly one root link".to_owned());
     };
-    let chain = ["world", "base_x_link", "base_y_link", robot_root.as_str()];
+    let [x_link, y_link] = PLANAR_TRANSLATION_LINKS;
+    let chain = ["world", x_link, y_link, robot_root.as_str()];
     if let Some(taken) = chain.iter().take(3).find(|name| links.contains(**name)) {
         return Err(format!("--base planar adds a link {taken}, but the URDF already has one"));
     }
-    let mut snippet = String::from(
-        "<robot name=\"base\"><link name=\"world\"/><link name=\"base_x_link\"/><link name=\"base_y_link\"/>",
-    );
+    let mut snippet =
+        format!("<robot name=\"base\"><link name=\"world\"/><link name=\"{x_link}\"/><link name=\"{y_link}\"/>");
     for (k, (name, kind, axis, velocity, effort)) in PLANAR_LIMITS.iter().enumerate() {
         let (parent, child) =
             (chain.get(k).copied().unwrap_or_default(), chain.get(k + 1).copied().unwrap_or_default());
@@ -524,8 +529,9 @@ fn check_identifier(name: &str, what: &str) -> Result<(), String> {
 
 /// Every link name gives a distinct constant that clashes with none the module defines.
 fn check_names(d: &Description) -> Result<(), String> {
-    const RESERVED: [&str; 13] = [
+    const RESERVED: [&str; 14] = [
         "N",
+        "JOINTS",
         "BODIES",
         "FRAMES",
         "FROZEN_JOINTS",
@@ -644,6 +650,10 @@ mod tests {
         let joints: Vec<&str> = d.coordinates.iter().map(|c| c.joint.as_str()).collect();
         assert_eq!(joints, ["base_x", "base_y", "base_theta", "j1", "j2", "g"]);
         assert_eq!((d.coordinates[0].lower, d.coordinates[0].upper, d.coordinates[2].velocity), (-100.0, 100.0, 2.1));
+        // The added translation links carry no mass; a massless link of the robot still fails.
+        assert!(describe(&with_masses(&[]), &["finger".to_owned()], true).is_ok());
+        let error = describe(&with_masses(&[("a", "0")]), &["finger".to_owned()], true).err().unwrap();
+        assert!(error.contains("link a (joint j1) has no mass"), "{error}");
     }
 
     /// `URDF` with a point mass on every link: 1 kg, or the mass `masses` gives the link.
