@@ -572,7 +572,7 @@ mod tests {
         let inverse = Matrix2::new(10.3, -14.5, -14.5, 23.1);
         let p = SpeedBarrierParameters { onset: 0.5, full: 0.9, braking_time_s: 0.002, max_torque_fraction: 0.25 };
         let (limit, effort) = (Vector2::new(1.92, 2.23), Vector2::new(176.0, 100.0));
-        let run = delayed_and_lagged(&p, &inverse, limits(&limit, &effort), &Vector2::new(15.0, 5.0));
+        let run = delayed_and_lagged(&p, &inverse, limits(&limit, &effort), |_, _| Vector2::new(15.0, 5.0));
         assert!((run.high - run.low).amax() < 0.01, "still oscillating: {} .. {}", run.low, run.high);
         assert!(run.fastest < 0.9, "fastest {} × the limit", run.fastest);
         assert!(run.low.component_div(&limit).min() > 0.6, "settled inside the band: {}", run.low);
@@ -590,11 +590,38 @@ mod tests {
         let inverse = SMatrix::<f64, 1, 1>::new(1.0 / 0.0076);
         let (limit, effort) = (SVector::<f64, 1>::new(3.21), SVector::<f64, 1>::new(38.0));
         let p = SpeedBarrierParameters { onset: 0.5, full: 0.9, braking_time_s: 0.002, max_torque_fraction: 0.25 };
-        let run = delayed_and_lagged(&p, &inverse, limits(&limit, &effort), &SVector::<f64, 1>::new(4.0));
+        let run = delayed_and_lagged(&p, &inverse, limits(&limit, &effort), |_, _| SVector::<f64, 1>::new(4.0));
         let swing = (run.high[0] - run.low[0]) / limit[0];
         assert!(swing < 0.03, "swing {swing} of the limit");
         assert!(run.fastest < 0.93, "fastest {} × the limit", run.fastest);
         assert!((run.low[0] / limit[0] - 0.72).abs() < 0.02, "settled at {}", run.low[0] / limit[0]);
+    }
+
+    /// Justin's right wrist joint 6 in `T` (`m` = 0.005 kg m² with the other joints free, limit
+    /// 3.21 rad/s, peak torque 38 Nm) under Justin's barrier parameters (25 % budget below
+    /// `full`, 2 ms braking time).
+    struct Wrist<T> {
+        m: T,
+        limit: SVector<T, 1>,
+        effort: SVector<T, 1>,
+        parameters: SpeedBarrierParameters<T>,
+    }
+
+    impl<T: RealField + Copy> Wrist<T> {
+        fn new() -> Self {
+            let f = |x: f64| nalgebra::convert::<f64, T>(x);
+            Self {
+                m: f(0.005),
+                limit: SVector::<T, 1>::new(f(3.21)),
+                effort: SVector::<T, 1>::new(f(38.0)),
+                parameters: SpeedBarrierParameters {
+                    onset: f(0.5),
+                    full: f(0.9),
+                    braking_time_s: f(0.002),
+                    max_torque_fraction: f(0.25),
+                },
+            }
+        }
     }
 
     /// Justin's right arm joint 6 at t = 2073.2 s of the realistic one-hour soak with seed 3
@@ -608,38 +635,15 @@ mod tests {
     /// held budget relaxes and the joint speeds up again.
     fn a_joint_driven_past_the_budget_stays_below_its_limit<T: RealField + Copy>() {
         let f = |x: f64| nalgebra::convert::<f64, T>(x);
-        let (m, limit, effort, drive) =
-            (f(0.005), SVector::<T, 1>::new(f(3.21)), SVector::<T, 1>::new(f(38.0)), f(12.0));
-        let p = SpeedBarrierParameters {
-            onset: f(0.5),
-            full: f(0.9),
-            braking_time_s: f(0.002),
-            max_torque_fraction: f(0.25),
+        let Wrist { m, limit, effort, parameters } = Wrist::new();
+        let inverse = SMatrix::<T, 1, 1>::new(T::one() / m);
+        // The levels' torque grows over the first 300 cycles, as the soak's did.
+        let drive = |cycle: u32, v: &SVector<T, 1>| {
+            v * f(-0.5) + SVector::<T, 1>::new(f(12.0 * f64::from(cycle.min(300)) / 300.0))
         };
-        let (steps, lag) = (6, 5e-4_f64);
-        let h = f(1e-3 / 6.0);
-        let follow = f(1.0 - (-1e-3 / 6.0 / lag).exp());
-        let (mut v, mut applied, mut pending) = (SVector::<T, 1>::zeros(), T::zero(), T::zero());
-        let mut hold = BarrierHold::new();
-        let (mut fastest, mut low, mut high) = (0.0_f64, f64::MAX, f64::MIN);
-        for cycle in 0..1000 {
-            let set_point = pending;
-            let limits = JointLimits { speed: &limit, effort: &effort };
-            // The levels' torque grows over the first 300 cycles, as the soak's did.
-            let push = drive * f(f64::from(cycle.min(300)) / 300.0) - f(0.5) * v[0];
-            let drive_of = |t: &SVector<T, 1>| (t.add_scalar(push)) / m;
-            pending = speed_barrier(&p, &v, limits, |_| T::one() / m, drive_of, &[true], &mut hold)[0];
-            for _ in 0..steps {
-                applied += (set_point - applied) * follow;
-                v[0] += (push + applied) / m * h;
-            }
-            let ratio = nalgebra::try_convert::<T, f64>(v[0] / limit[0]).unwrap();
-            fastest = fastest.max(ratio);
-            if cycle >= 700 {
-                (low, high) = (low.min(ratio), high.max(ratio));
-            }
-        }
-        assert!(fastest < 0.94, "fastest {fastest} × the limit (last 300 cycles {low} .. {high})");
+        let run = delayed_and_lagged(&parameters, &inverse, JointLimits { speed: &limit, effort: &effort }, drive);
+        let fastest = run.fastest;
+        assert!(fastest < 0.94, "fastest {fastest} × the limit (last 300 cycles {} .. {} rad/s)", run.low, run.high);
     }
 
     #[test]
@@ -655,21 +659,12 @@ mod tests {
     /// continuous there, and it reaches the full cancellation again at the onset.
     fn the_held_feedforward_is_continuous_at_rest<T: RealField + Copy>(tolerance: f64) {
         let f = |x: f64| nalgebra::convert::<f64, T>(x);
-        let m = f(0.005);
-        let (limit, effort) = (SVector::<T, 1>::new(f(3.21)), SVector::<T, 1>::new(f(38.0)));
-        let p = SpeedBarrierParameters {
-            onset: f(0.5),
-            full: f(0.9),
-            braking_time_s: f(0.002),
-            max_torque_fraction: f(0.25),
-        };
+        let Wrist { m, limit, effort, parameters: p } = Wrist::new();
         let barrier = |v: f64, hold: &mut BarrierHold<T, 1>| {
             let limits = JointLimits { speed: &limit, effort: &effort };
             let drive = |t: &SVector<T, 1>| t.add_scalar(f(4.0 * v.signum())) / m;
-            nalgebra::try_convert::<T, f64>(
-                speed_barrier(&p, &SVector::<T, 1>::new(f(v)), limits, |_| T::one() / m, drive, &[true], hold)[0],
-            )
-            .unwrap()
+            let tau = speed_barrier(&p, &SVector::<T, 1>::new(f(v)), limits, |_| T::one() / m, drive, &[true], hold);
+            nalgebra::convert_unchecked::<T, f64>(tau[0])
         };
         let mut braked = BarrierHold::new();
         barrier(0.95 * 3.21, &mut braked);
@@ -727,34 +722,36 @@ mod tests {
         high: SVector<f64, N>,
     }
 
-    /// 1000 cycles of the barrier on joints with the inverse inertia `inverse` under a steady
-    /// `drive`, each command applied one cycle late through the 0.5 ms first-order torque lag (as
-    /// `host-sim`'s realistic plant), integrated in 6 steps per cycle; the barrier's driven
-    /// acceleration is `M⁻¹ (drive + τ)`.
-    fn delayed_and_lagged<const N: usize>(
-        p: &SpeedBarrierParameters<f64>,
-        inverse: &SMatrix<f64, N, N>,
-        limits: JointLimits<'_, f64, N>,
-        drive: &SVector<f64, N>,
+    /// 1000 cycles of the barrier on joints with the inverse inertia `inverse` under the torque
+    /// `drive(cycle, q̇)` of the other terms (taken once per cycle), each command applied one
+    /// cycle late through the 0.5 ms first-order torque lag (as `host-sim`'s realistic plant),
+    /// integrated in 6 steps per cycle, in `T`; the barrier's driven acceleration is
+    /// `M⁻¹ (drive + τ)`.
+    fn delayed_and_lagged<T: RealField + Copy, const N: usize>(
+        p: &SpeedBarrierParameters<T>,
+        inverse: &SMatrix<T, N, N>,
+        limits: JointLimits<'_, T, N>,
+        drive: impl Fn(u32, &SVector<T, N>) -> SVector<T, N>,
     ) -> DelayedRun<N> {
         let (steps, h, lag) = (6, 1e-3 / 6.0, 5e-4_f64);
-        let follow = 1.0 - (-h / lag).exp();
+        let (h, follow): (T, T) = (nalgebra::convert(h), nalgebra::convert(1.0 - (-h / lag).exp()));
         let (mut v, mut applied, mut pending) =
-            (SVector::<f64, N>::zeros(), SVector::<f64, N>::zeros(), SVector::<f64, N>::zeros());
+            (SVector::<T, N>::zeros(), SVector::<T, N>::zeros(), SVector::<T, N>::zeros());
         let mut run = DelayedRun::<N> { fastest: 0.0, low: SVector::repeat(f64::MAX), high: SVector::repeat(f64::MIN) };
         let mut hold = BarrierHold::new();
         for cycle in 0..1000 {
-            let set_point = pending;
+            let (set_point, drive) = (pending, drive(cycle, &v));
             let mobility = |i: usize| inverse[(i, i)];
             pending = speed_barrier(p, &v, limits, mobility, |t| inverse * (drive + t), &[true; N], &mut hold);
             for _ in 0..steps {
                 applied += (set_point - applied) * follow;
                 v += inverse * (drive + applied) * h;
             }
-            run.fastest = run.fastest.max(v.component_div(limits.speed).amax());
+            let to_f64 = |x: &SVector<T, N>| x.map(nalgebra::convert_unchecked::<T, f64>);
+            run.fastest = run.fastest.max(to_f64(&v.component_div(limits.speed)).amax());
             if cycle >= 700 {
-                run.low = run.low.inf(&v);
-                run.high = run.high.sup(&v);
+                run.low = run.low.inf(&to_f64(&v));
+                run.high = run.high.sup(&to_f64(&v));
             }
         }
         run
