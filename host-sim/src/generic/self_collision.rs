@@ -93,35 +93,26 @@ impl<const N: usize, const B: usize, const F: usize, const V: usize, const P: us
         Self { model, collision, data: Data::new(plant) }
     }
 
-    /// The smallest signed distance (m) of `point` (world) to every volume at `q`.
-    fn clearance(
-        &mut self,
-        plant: &Model<f64, N, B, F>,
-        q: &SVector<f64, N>,
-        point: &Vector3<f64>,
-    ) -> Result<f64, String> {
-        forward_kinematics(plant, &mut self.data, q, &SVector::zeros()).map_err(|e| e.to_string())?;
-        self.model.update_world(&self.data, &mut self.collision);
-        Ok(self.collision.world_volumes.iter().map(|v| v.signed_distance_to(point)).fold(f64::INFINITY, f64::min))
-    }
-
     /// The meeting point of two hands at `q`: `middle` (m, world) moved forward (world `+x`) in
-    /// [`MEETING_STEP_M`] steps until it is [`MEETING_CLEARANCE_M`] outside every volume.
+    /// [`MEETING_STEP_M`] steps until its smallest signed distance to every volume at `q` is
+    /// [`MEETING_CLEARANCE_M`].
     fn meeting_point(
         &mut self,
         plant: &Model<f64, N, B, F>,
         q: &SVector<f64, N>,
         middle: Vector3<f64>,
     ) -> Result<Vector3<f64>, String> {
-        for step in 0..=(MEETING_SEARCH_M / MEETING_STEP_M).round() as usize {
-            let point = middle + Vector3::x() * (step as f64 * MEETING_STEP_M);
-            if self.clearance(plant, q, &point)? >= MEETING_CLEARANCE_M {
-                return Ok(point);
-            }
-        }
-        Err(format!(
-            "no point within {MEETING_SEARCH_M} m ahead of the hands' midpoint is {MEETING_CLEARANCE_M} m clear"
-        ))
+        forward_kinematics(plant, &mut self.data, q, &SVector::zeros()).map_err(|e| e.to_string())?;
+        self.model.update_world(&self.data, &mut self.collision);
+        let volumes = &self.collision.world_volumes;
+        let clearance =
+            |point: &Vector3<f64>| volumes.iter().map(|v| v.signed_distance_to(point)).fold(f64::INFINITY, f64::min);
+        (0..=(MEETING_SEARCH_M / MEETING_STEP_M).round() as usize)
+            .map(|step| middle + Vector3::x() * (step as f64 * MEETING_STEP_M))
+            .find(|point| clearance(point) >= MEETING_CLEARANCE_M)
+            .ok_or_else(|| {
+                format!("no point within {MEETING_SEARCH_M} m ahead of the hands' midpoint is {MEETING_CLEARANCE_M} m clear")
+            })
     }
 
     /// The world origin (m) at `q` of the body of the first coordinate of `arm` (a coordinate

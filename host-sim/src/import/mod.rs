@@ -98,15 +98,18 @@ impl ImportOptions {
         if let Some(dir) = &self.package_path {
             command.push_str(&format!(" --package-path {dir}"));
         }
-        if let Some(home) = &self.home {
+        for (option, home) in self.postures() {
             let values: Vec<String> = home.iter().map(f64::to_string).collect();
-            command.push_str(&format!(" --home={}", values.join(",")));
-        }
-        if let Some(home) = &self.scenario_home {
-            let values: Vec<String> = home.iter().map(f64::to_string).collect();
-            command.push_str(&format!(" --scenario-home={}", values.join(",")));
+            command.push_str(&format!(" {option}={}", values.join(",")));
         }
         command
+    }
+
+    /// The postures given on the command line, with their options: `--home`, `--scenario-home`.
+    fn postures(&self) -> impl Iterator<Item = (&'static str, &[f64])> {
+        [("--home", &self.home), ("--scenario-home", &self.scenario_home)]
+            .into_iter()
+            .filter_map(|(option, home)| home.as_deref().map(|home| (option, home)))
     }
 
     /// The robot's directory.
@@ -146,10 +149,8 @@ pub fn generate(options: &ImportOptions) -> Result<Files, String> {
         planar_base: options.planar_base,
     };
     let robot_layout = layout::derive(&description, &options.tcps, options.planar_base)?;
-    for (option, home) in [("--home", &options.home), ("--scenario-home", &options.scenario_home)] {
-        if let Some(home) = home {
-            check_home(&description, option, home)?;
-        }
+    for (option, home) in options.postures() {
+        check_home(&description, option, home)?;
     }
     let scenario_home = options
         .scenario_home
