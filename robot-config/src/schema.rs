@@ -212,6 +212,8 @@ pub struct Joint {
     pub damping: PerCoordinate,
     /// Damping of the safe (hold) output.
     pub safe_damping: PerCoordinate,
+    /// Largest loop gain `Δt λ_max(M̃⁻¹ D)` of each joint task's damping.
+    pub damping_loop_gain: NonNegative,
 }
 
 /// A value per coordinate: the platform's `(x, y, θ)` (a robot with a platform), one for every

@@ -160,7 +160,7 @@ mod chapter3_tasks {
             crba(&model, &mut data);
             let target = CartesianTarget::at_rest(data.frame_placements[justin::RIGHT_TCP.0]);
             let report = cartesian_impedance(&model, &data, &cartesian, &target, &mut *rows).unwrap();
-            joint_impedance(&posture, &q, &v, &JointTarget::at_rest(q), &mut *rows).unwrap();
+            joint_impedance(&posture, &q, &v, &JointTarget::at_rest(q), None, &mut *rows).unwrap();
             end_stops(&stops, &q, &v, &mut *rows).unwrap();
             let measure = manipulability_avoidance(&model, &data, &singularity, &mut *rows).unwrap();
             frame_jacobian_derivative(&model, &data, justin::LEFT_TCP, &v, &mut derivative).unwrap();

@@ -373,7 +373,7 @@ impl<const N: usize, const B: usize, const F: usize> ArmHierarchy<N, B, F> {
 
         self.rows.clear();
         let joint_target = JointTarget::at_rest(self.joint_target);
-        joint_impedance(&self.joints, q, v, &joint_target, &mut self.rows).map_err(|e| e.to_string())?;
+        joint_impedance(&self.joints, q, v, &joint_target, None, &mut self.rows).map_err(|e| e.to_string())?;
         for (row, error) in self.rows.rows().iter().zip((q - self.joint_target).iter()) {
             let compliance = ComplianceRow::from_task_row(row, RowSVector::zeros(), -K3 * error);
             self.stack.push(2, compliance).map_err(|e| e.to_string())?;

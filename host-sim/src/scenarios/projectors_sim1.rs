@@ -244,7 +244,7 @@ impl Controller {
             stack.push(level, task).map_err(|e| err(&e))?;
         }
         let mut joint_rows = TaskRows::<f64, 4, 4>::new();
-        joint_impedance(&self.joints, q, v, &self.target, &mut joint_rows).map_err(|e| err(&e))?;
+        joint_impedance(&self.joints, q, v, &self.target, None, &mut joint_rows).map_err(|e| err(&e))?;
         stack.push_rows(3, &joint_rows).map_err(|e| err(&e))?;
 
         let weighting = match self.variant.consistency {

@@ -98,6 +98,12 @@ impl TaskKind {
         )
     }
 
+    /// `true` for a joint impedance or a joint damping (the tasks whose damping is bounded by
+    /// the sampled loop, [`crate::tasks::joint_impedance::sampled_damping`]).
+    pub fn is_joint_task(self) -> bool {
+        matches!(self, TaskKind::JointImpedance(_) | TaskKind::JointDamping(_))
+    }
+
     /// A short name for logs, column headers and configuration files, e.g. `cartesian_right`,
     /// `joint_impedance_left_arm` (arms named by [`ArmId::name`]).
     pub fn name(self) -> &'static str {
@@ -277,6 +283,9 @@ pub struct ControllerConfig<T: RealField, const N: usize, const A: usize> {
     pub joint_damping: SVector<T, N>,
     /// Damping of the joint-damping task and of the safe output (Nms/rad), `≥ 0`.
     pub safe_damping: SVector<T, N>,
+    /// The largest loop gain `κ = Δt λ_max(M̃⁻¹ D)` of each joint task's damping, `> 0`
+    /// ([`crate::tasks::joint_impedance::sampled_damping`]).
+    pub joint_damping_loop_gain: T,
     /// The platform.
     pub platform: PlatformParameters<T>,
     /// Output guards.
@@ -303,7 +312,7 @@ impl<T: RealField + Copy, const N: usize, const A: usize> ControllerConfig<T, N,
         let non_negative = |v: &SVector<T, N>| v.iter().all(|x| x.is_finite() && *x >= T::zero());
         let limits = &config.output_limits;
         let force_limit = &config.force_limit;
-        let checks: [(bool, &'static str); 15] = [
+        let checks: [(bool, &'static str); 16] = [
             (config.speed_barrier.is_valid(), "speed_barrier"),
             (config.recovery.is_valid(), "recovery"),
             (positive(config.period_s), "period_s"),
@@ -311,6 +320,7 @@ impl<T: RealField + Copy, const N: usize, const A: usize> ControllerConfig<T, N,
             (non_negative(&config.joint_stiffness), "joint_stiffness"),
             (non_negative(&config.joint_damping), "joint_damping"),
             (non_negative(&config.safe_damping), "safe_damping"),
+            (positive(config.joint_damping_loop_gain), "joint_damping_loop_gain"),
             (limits.torque_rate.iter().all(|x| positive(*x)), "torque_rate"),
             (limits.base_velocity.iter().chain(limits.base_acceleration.iter()).all(|x| positive(*x)), "base limits"),
             (positive(limits.leg_rate), "leg_rate"),

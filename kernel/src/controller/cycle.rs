@@ -146,14 +146,16 @@ impl<
         }
         self.advance_targets(dt);
         self.limit_contact_forces(dt)?;
-        self.build_stack(mass, inertia)?;
-
         let dynamic = self.settings.config.consistency == Consistency::Dynamic;
         // `M̃⁻¹` of the same tree factor the collision rows used: the `j M̃⁻¹ jᵀ` they carry
-        // (`StackRow::metric_norm_squared`) is this weighting's quadratic form.
-        if dynamic {
+        // (`StackRow::metric_norm_squared`) is this weighting's quadratic form. The joint tasks
+        // bound their damping with it (`joint_impedance::sampled_damping`).
+        let joint_tasks = self.state.hierarchy.entries().iter().any(|e| e.kind.is_joint_task());
+        let inverse_formed = dynamic || joint_tasks;
+        if inverse_formed {
             inertia.inverse_into(&mut self.work.inverse_inertia);
         }
+        self.build_stack(mass, inertia, inverse_formed)?;
         let weighting =
             if dynamic { Weighting::InverseInertia(&self.work.inverse_inertia) } else { Weighting::Identity };
         let config = HierarchyConfig {
@@ -174,7 +176,7 @@ impl<
         let compensation = terms.torque(self.settings.config.platform.compensation)
             + self.speed_barrier(
                 &v,
-                if dynamic {
+                if inverse_formed {
                     InverseInertia::Dense(&self.work.inverse_inertia)
                 } else {
                     InverseInertia::Factor(inertia)
@@ -258,10 +260,12 @@ impl<
     }
 
     /// Evaluates every hierarchy entry onto the stack; fills the per-task telemetry.
+    /// `inverse_formed`: `work.inverse_inertia` holds this cycle's `M̃⁻¹`.
     fn build_stack(
         &mut self,
         mass: Option<&TreeFactorization<T, N>>,
         inertia: &TreeFactorization<T, N>,
+        inverse_formed: bool,
     ) -> Result<(), Fault> {
         self.work.stack.clear();
         let t = &mut self.state.telemetry;
@@ -292,6 +296,7 @@ impl<
                     joint_goal: &self.state.joint_goal,
                     mass,
                     inertia,
+                    inverse_inertia: inverse_formed.then_some(&self.work.inverse_inertia),
                     tcp_jacobians: &self.work.tcp_jacobians,
                 },
                 &mut self.work.data,

@@ -24,7 +24,7 @@ use crate::tasks::collision::{
     collision_rows_shared, CollisionData, CollisionModel, CollisionParameters, PairRowCache,
 };
 use crate::tasks::end_stops::{end_stops, EndStop, EndStopConfig};
-use crate::tasks::joint_impedance::{joint_impedance, JointImpedance, JointImpedanceConfig, JointTarget};
+use crate::tasks::joint_impedance::{joint_impedance, JointImpedance, JointImpedanceConfig, JointTarget, SampledLoop};
 use crate::tasks::manipulability::{manipulability_avoidance, Manipulability, ManipulabilityConfig};
 use crate::tasks::torso_workspace::{torso_workspace, TorsoWorkspace};
 use crate::tasks::{RowSink, TaskError};
@@ -224,6 +224,9 @@ pub(super) struct EvaluationContext<
     pub(super) mass: Option<&'a TreeFactorization<T, N>>,
     /// The tree-sparse factor of the closed-loop inertia (5.17) (collision and torso rows).
     pub(super) inertia: &'a TreeFactorization<T, N>,
+    /// Its inverse `M̃⁻¹`, formed whenever the hierarchy has a joint task (their damping's
+    /// sampled-loop bound) or the projection is dynamically consistent.
+    pub(super) inverse_inertia: Option<&'a SMatrix<T, N, N>>,
     /// The world-aligned TCP Jacobians at `data` (from the contact-force limiter).
     pub(super) tcp_jacobians: &'a PerArm<SMatrix<T, 6, N>, A>,
 }
@@ -318,7 +321,12 @@ pub(super) fn evaluate<
             };
             let (position, velocity) = cx.joint_goal.sample();
             let target = if damping_only { JointTarget::at_rest(data.q) } else { JointTarget { position, velocity } };
-            joint_impedance(task, &data.q, &data.v, &target, rows).map_err(Fault::Task)?;
+            let sampled = cx.inverse_inertia.map(|inverse_inertia| SampledLoop {
+                inverse_inertia,
+                period_s: cx.config.period_s,
+                loop_gain: cx.config.joint_damping_loop_gain,
+            });
+            joint_impedance(task, &data.q, &data.v, &target, sampled.as_ref(), rows).map_err(Fault::Task)?;
         }
     }
     Ok(())
