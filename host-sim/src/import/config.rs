@@ -449,9 +449,9 @@ damping = {end_stop_damping}
 stiffness = {stiffness}
 damping = {damping}
 safe_damping = {safe_damping}
-# chosen: each joint task's damping lowered where the sampled loop would exceed 0.25 (the
-# delayed loop rings from 0.18 and is unstable beyond 0.88; kernel::tasks::joint_impedance).
-damping_loop_gain = 0.25
+# chosen: each joint task's damping lowered where its sampled loop would exceed 0.4 (two joint
+# tasks reach 0.8, inside the delayed loop's 0.88; kernel::tasks::joint_impedance).
+damping_loop_gain = 0.4
 {platform_tables}
 [output_limits]
 torque_rate = {torque_rate}

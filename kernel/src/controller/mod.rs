@@ -208,7 +208,7 @@ use crate::tasks::collision::{CollisionData, CollisionModel};
 ///     joint_stiffness: SVector::repeat(50.0),
 ///     joint_damping: SVector::repeat(5.0),
 ///     safe_damping: SVector::repeat(5.0),
-///     joint_damping_loop_gain: 0.25,
+///     joint_damping_loop_gain: 0.4,
 ///     platform: PlatformParameters {
 ///         admittance: AdmittanceConfig {
 ///             mass: Vector3::new(50.0, 50.0, 10.0),
