@@ -159,10 +159,12 @@ fn posture_push_holds_on_justin_in_f64_and_f32() {
 }
 
 /// Runs `limits` and checks its numbers: every claim holds; every joint stays clear of its stops
-/// (measured: Panda 0.300 rad, f32 0.285), every speed below its limit (0.84) and every torque
-/// (0.60, f32 0.74); the TCP ends between the nearest point within the joint ranges and the
-/// nearest with `m ≥ m₀` (642.5 mm from the goal for [642.2, 644.1] mm), the goal is at least
-/// 0.5 m out of reach (by the scenario's rule), no fault, no NaN.
+/// (measured: Panda 0.367 rad, f32 0.340; TIAGo++ 1.3 mrad, arm joint 2), every speed below its
+/// limit (Panda 0.88, TIAGo++ 0.91) and every torque (Panda 0.50, f32 0.58; TIAGo++ 0.60); the TCP
+/// ends between the nearest point within the joint ranges and the nearest where no avoidance acts
+/// (Panda 643.5 mm from the goal, f32 644.6, for [642.2, 644.2] mm; TIAGo++ 1074.8 mm for
+/// [995.7, 1115.2] mm), the goal is at least 0.5 m out of reach (by the scenario's rule), no fault,
+/// no NaN.
 fn limits_holds(robot: RobotName, scalar: Scalar) {
     let options = RunOptions { robot: Some(robot), scalar, ..RunOptions::default() };
     let outcome = limits::simulate(&options).unwrap();
@@ -172,7 +174,7 @@ fn limits_holds(robot: RobotName, scalar: Scalar) {
     assert!(summary.get("stop_clearance_rad").unwrap() >= 0.0);
     assert!(summary.get("largest_velocity_ratio").unwrap() <= 1.0);
     assert!(summary.get("largest_torque_ratio").unwrap() <= 1.0);
-    let (low, high) = (summary.get("nearest_in_range_m").unwrap(), summary.get("nearest_above_threshold_m").unwrap());
+    let (low, high) = (summary.get("nearest_in_range_m").unwrap(), summary.get("nearest_unguarded_m").unwrap());
     assert!(low > 0.5 && low <= high, "the goal is not out of reach: [{low}, {high}] m");
     let distance = summary.get("final_goal_distance_m").unwrap();
     assert!(distance >= low - 1e-3 && distance <= high + 1e-3, "{distance} m for [{low}, {high}] m");
@@ -189,39 +191,36 @@ fn limits_holds_on_the_panda_in_f64_and_f32() {
 }
 
 #[test]
-#[ignore = "open (issue 15): the Cartesian level (torque norm 658 Nm) pulls arm joint 2 onto its lower stop, \
-            0.79 mrad past it at 2.62 s (f32 0.85 mrad): the level-1 end stop gives its full 10.05 Nm (2 k_mes \
-            margin) and the null-space projection removes it along the Cartesian task; the TCP settles in 0.423 s \
-            (f32 0.478 s) for 0.351 s. End stops on level 0 instead (tried): arm joint 2 still 0.64 mrad past (f32 0.78), the \
-            lift 2.4 mm past its upper stop at 4.9 s (the Cartesian pull, 740 N/m x ~1 m, exceeds the stop's \
-            2 k_mes margin = 653 N), arm joint 5 at 1.05 (f32 1.25) x its speed, settling 0.599 s"]
 fn limits_holds_on_tiago_dual_in_f64_and_f32() {
     limits_holds(RobotName::TiagoDual, Scalar::F64);
     limits_holds(RobotName::TiagoDual, Scalar::F32);
 }
 
 #[test]
-#[ignore = "open (issue 15): right arm joint 7 passes its upper stop by 0.23 mrad at 2.43 s (f64 and f32): the \
-            level-1 end stop gives its full 80 Nm (2 k_mes margin) of which the wrist gets 10.3 Nm after the \
-            Cartesian null-space projection; the TCP ends 954.0 mm from the goal for [775.1, 782.9] mm with the \
-            base still moving (0.73 m in y over the last second) and settles in 0.990 s for 0.562 s"]
+#[ignore = "open (issue 15): with the end stops on top and the pull capped at K x 0.5 m = 250 N Justin holds his \
+            ranges (0.158 rad clear, right arm joint 4), speeds (0.92) and torques (0.29) without a fault in f64 \
+            and f32, but the TCP ends 1106.1 mm from the goal for [775.1, 786.1] mm and settles in 1.356 s for \
+            0.562 s: the TCP stops at 2.39 m height with the torso still bent (torso joints 2 and 3 at -0.13 and 0.20 \
+            rad at the end) under its workspace task, which the bracket's search over the joint ranges does not \
+            know, and the platform, driven by the horizontal rest of the capped pull, turns 0.75 rad and moves \
+            up to 0.56 m in x and 0.35 m in y"]
 fn limits_holds_on_justin_in_f64_and_f32() {
     limits_holds(RobotName::Justin, Scalar::F64);
     limits_holds(RobotName::Justin, Scalar::F32);
 }
 
-/// `limits` on TIAGo++ and Justin: what holds while the rest is open (the ignored tests above):
-/// no fault, no NaN, torques within limits.
+/// `limits` on Justin: what holds while the rest is open (the ignored test above): no fault, no
+/// NaN, joints within their ranges, speeds and torques within limits.
 #[test]
-fn limits_runs_without_a_fault_on_tiago_dual_and_justin() {
-    for robot in [RobotName::TiagoDual, RobotName::Justin] {
-        for scalar in [Scalar::F64, Scalar::F32] {
-            let options = RunOptions { robot: Some(robot), scalar, ..RunOptions::default() };
-            let summary = limits::simulate(&options).unwrap().summary;
-            assert_eq!(summary.get("faulty_cycles"), Some(0.0), "{robot:?} {scalar:?}");
-            assert_eq!(summary.get("non_finite_cycles"), Some(0.0), "{robot:?} {scalar:?}");
-            assert!(summary.get("largest_torque_ratio").unwrap() <= 1.0, "{robot:?} {scalar:?}");
-        }
+fn limits_runs_within_the_limits_on_justin() {
+    for scalar in [Scalar::F64, Scalar::F32] {
+        let options = RunOptions { robot: Some(RobotName::Justin), scalar, ..RunOptions::default() };
+        let summary = limits::simulate(&options).unwrap().summary;
+        assert_eq!(summary.get("faulty_cycles"), Some(0.0), "{scalar:?}");
+        assert_eq!(summary.get("non_finite_cycles"), Some(0.0), "{scalar:?}");
+        assert!(summary.get("stop_clearance_rad").unwrap() >= 0.0, "{scalar:?}");
+        assert!(summary.get("largest_velocity_ratio").unwrap() <= 1.0, "{scalar:?}");
+        assert!(summary.get("largest_torque_ratio").unwrap() <= 1.0, "{scalar:?}");
     }
 }
 

@@ -125,6 +125,9 @@ pub struct RigParts<
 > {
     /// The controller; boxed: it is large.
     pub controller: Box<Controller<T, N, B, F, U, V, P, A>>,
+    /// The controller's collision model, for a scenario that builds the controller again with
+    /// its own hierarchy (`limits`).
+    pub collision: CollisionModel<T, V, P>,
     /// The simulated robot's model.
     pub plant: Model<f64, N, B, F>,
     /// The controller's collision model in `f64` on the simulated robot's model (the imported
@@ -156,8 +159,10 @@ macro_rules! imported {
             { $robot::ARMS },
         > {
             controller: Box::new(
-                Controller::try_new(model, collision, config, hierarchy).map_err(|e| format!("controller: {e}"))?,
+                Controller::try_new(model, collision.clone(), config, hierarchy)
+                    .map_err(|e| format!("controller: {e}"))?,
             ),
+            collision,
             plant_collision: $robot::collision::collision_model(&plant).map_err(|e| format!("collision model: {e}"))?,
             plant,
             sim_config: SimConfig::default(),
@@ -184,6 +189,11 @@ fn justin_parts<T: RealField + Copy>() -> Result<
     let plant = justin::model::<f64>().map_err(|e| format!("model: {e}"))?;
     Ok(RigParts {
         controller: Box::new(crate::wbc::whole_body_controller(&[], crate::wbc::ConfigChanges::NONE, &hierarchy)?),
+        collision: justin::collision::collision_model_with_environment(
+            &justin::model::<T>().map_err(|e| format!("model: {e}"))?,
+            &[],
+        )
+        .map_err(|e| format!("collision model: {e}"))?,
         plant_collision: justin::collision::collision_model_with_environment(&plant, &[])
             .map_err(|e| format!("collision model: {e}"))?,
         plant,
