@@ -5,8 +5,6 @@
 #![no_std]
 
 #[cfg(feature = "panda")]
-pub mod collision_file;
-#[cfg(feature = "panda")]
 pub mod panda;
 
 use fixtures::justin;

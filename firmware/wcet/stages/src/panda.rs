@@ -19,14 +19,12 @@ use kernel::platform::{PlatformAxis, PlatformLayout};
 use kernel::tasks::collision::CollisionModel;
 use nalgebra::{ComplexField, SVector, UnitQuaternion, Vector3};
 
-use crate::{c, collision_file, S};
+use crate::{c, S};
 
 /// Collision volumes of `panda.collision`.
-pub const VOLUMES: usize = 21;
-/// Enabled pairs of `panda.collision` (every pair less the kernel's rules and the 19 listed).
-pub const PAIRS: usize = 80;
-/// The Panda's collision file, as the import wrote it.
-pub const COLLISION_FILE: &str = include_str!("../../../../fixtures/robots/panda/panda.collision");
+pub const VOLUMES: usize = panda::collision::VOLUMES;
+/// Enabled pairs of `panda.collision` (every pair less the kernel's rules and the listed ones).
+pub const PAIRS: usize = panda::collision::PAIRS;
 
 /// The Panda's whole-body controller: N = U = 7 (fixed base), one arm, 21 volumes, 80 pairs.
 pub type PandaController =
@@ -97,9 +95,10 @@ pub fn controller_config() -> Option<ControllerConfig<S, { panda::N }, 1>> {
     ))
 }
 
-/// The Panda's collision model, read from [`COLLISION_FILE`].
+/// The Panda's collision model: `fixtures/robots/panda/panda.collision` as `fixtures/build.rs`
+/// compiles it (the constructor the host-sim rig uses).
 pub fn collision_model(model: &panda::RobotModel<S>) -> Option<CollisionModel<S, VOLUMES, PAIRS>> {
-    collision_file::collision_model(COLLISION_FILE, model, &panda::FRAME_NAMES)
+    panda::collision::collision_model(model).ok()
 }
 
 /// The controller with [`controller_config`] and [`HIERARCHY`]. Always inlined into the caller's
