@@ -71,29 +71,25 @@ pub struct SampledLoop<'a, T, const N: usize> {
 /// `S = D^{1/2} W D^{1/2}` and `Σ = diag(min(1, κ / r_k))`, and `S'` to `Σ S`, whose row `k`
 /// sums to `min(1, κ / r_k) r_k / Δt ≤ κ / Δt` in absolute value: by Gershgorin's theorem
 /// every eigenvalue `g` of `Δt W D'` satisfies `g ≤ κ` (and `g ≥ 0`, `W` being positive
-/// definite). Cost: one pass over the selected `k × k` block of `W`.
+/// definite). Cost: one pass over the columns of `W` of the selected coordinates (`√d_k` is
+/// computed once, in [`JointImpedance::try_new`]).
 /// Errors: [`TaskError::NonFinite`] if `W` or the period is not finite, or `κ` is not positive.
 pub fn sampled_damping<T: RealField + Copy, const N: usize>(
     task: &JointImpedance<T, N>,
     sampled: &SampledLoop<'_, T, N>,
 ) -> Result<SVector<T, N>, TaskError> {
-    let c = &task.config;
     let (period, gain) = (sampled.period_s, sampled.loop_gain);
     if !(period.is_finite() && period > T::zero() && gain.is_finite() && gain > T::zero()) {
         return Err(TaskError::NonFinite);
     }
-    let root = SVector::<T, N>::from_fn(|k, _| {
-        let selected = c.selected.get(k).copied().unwrap_or(false);
-        if selected {
-            c.damping.get(k).map_or(T::zero(), |d| sqrt(*d))
-        } else {
-            T::zero()
-        }
-    });
+    let root = &task.root_damping;
     let mut damping = SVector::<T, N>::zeros();
-    let rows = sampled.inverse_inertia.row_iter().zip(root.iter()).zip(c.damping.iter()).zip(damping.iter_mut());
+    // `W` is symmetric: its column `k` (contiguous in storage) is its row `k`.
+    let columns = sampled.inverse_inertia.as_slice().chunks_exact(N);
+    let root = root.as_slice();
+    let rows = columns.zip(root).zip(task.config.damping.as_slice()).zip(damping.as_mut_slice());
     for (((w, &root_k), &configured), d) in rows.filter(|(((_, root_k), _), _)| **root_k > T::zero()) {
-        let sum = w.iter().zip(root.iter()).fold(T::zero(), |s, (w_kj, root_j)| s + w_kj.abs() * *root_j);
+        let sum = w.iter().zip(root).fold(T::zero(), |s, (w_kj, root_j)| s + w_kj.abs() * *root_j);
         let r = period * root_k * sum;
         if !r.is_finite() {
             return Err(TaskError::NonFinite);
@@ -107,6 +103,8 @@ pub fn sampled_damping<T: RealField + Copy, const N: usize>(
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct JointImpedance<T, const N: usize> {
     config: JointImpedanceConfig<T, N>,
+    /// `√d_k` of the selected coordinates, 0 for the others ([`sampled_damping`]).
+    root_damping: SVector<T, N>,
 }
 
 impl<T: RealField + Copy, const N: usize> JointImpedance<T, N> {
@@ -120,7 +118,15 @@ impl<T: RealField + Copy, const N: usize> JointImpedance<T, N> {
         if !valid(&config.damping) {
             return Err(TaskError::InvalidParameter { name: "damping" });
         }
-        Ok(Self { config })
+        let root_damping = SVector::<T, N>::from_fn(|k, _| {
+            let selected = config.selected.get(k).copied().unwrap_or(false);
+            if selected {
+                config.damping.get(k).map_or(T::zero(), |d| sqrt(*d))
+            } else {
+                T::zero()
+            }
+        });
+        Ok(Self { config, root_damping })
     }
 
     /// The validated parameters.
