@@ -116,13 +116,10 @@ fn self_collision_holds_on_the_panda_in_f64_and_f32() {
 }
 
 #[test]
-#[ignore = "open (issue 15): the torque rate binds, not the box: from 1.363 s (|tau|/tau_max <= 0.41) the collision \
-            rows ask arm_right_5_joint (3 Nm, 300 Nm/s) for more than 0.3 Nm per cycle and the guard's top-level \
-            scale alternates 0 (compensation clamped) / 24-45 % every other cycle, so the arms coast: the hand boxes \
-            interpenetrate by 115.2 mm in f64 and f32 (reference -144.0 mm); over 8 s instead of 1.5 s 13.6 mm. A guard \
-            that slows the whole change (tau_prev + alpha (tau_e - tau_prev)) after the effort box holds all four \
-            claims at 1.5 s (20.8 mm; trial build). Either way the reference ends 29.1 mm short (> 25 mm) with \
-            arm_*_6_joint at its upper stop: the meeting point is outside the arms' reach in the home orientation"]
+#[ignore = "open (issue 15): the torque rate binds, not the box: the collision rows ask arm_right_5_joint (3 Nm, \
+            300 Nm/s) for more than 0.3 Nm per cycle and the guard's top-level scale is cut every other cycle, so the \
+            arms coast: the hand boxes interpenetrate by 70.4 mm in f64 and f32 (reference -142.6 mm, ending 1.1 mm \
+            from its reachable goals)"]
 fn self_collision_holds_on_tiago_dual_in_f64_and_f32() {
     self_collision_holds(RobotName::TiagoDual, Scalar::F64, 0.012, 0.05);
     self_collision_holds(RobotName::TiagoDual, Scalar::F32, 0.012, 0.05);

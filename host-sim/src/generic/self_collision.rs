@@ -6,12 +6,18 @@
 //! with both collision fields) at the robot's home posture. From [`GOAL_AT_S`] the goals move
 //! along the kernel's cubic of [`GOAL_S`]: with one arm, its TCP onto the origin of its first
 //! body (the Panda: the hand into its shoulder, links 1 to 3); with two or more arms, arms 0 and 1
-//! both to their meeting point, the TCPs' midpoint moved forward (world `+x`) until it lies
-//! [`MEETING_CLEARANCE_M`] outside every volume at home, ahead of the chest and the head (hand
-//! into hand; TIAGo++: 0.35 m ahead of the midpoint, at (0.43, 0, 1.20) m; Justin: 0.12 m, at
-//! (0.58, 0, 0.96) m). So that both hands follow their goals, the run's hierarchy is the file's
-//! Fig. 6.3 with arm 1's joint impedance replaced by its Cartesian impedance on arm 0's level
-//! (`SetHierarchy` before the first cycle). The rest is the hold.
+//! each to the position nearest to their meeting point that it reaches in its home orientation.
+//! The meeting point is the TCPs' midpoint moved forward (world `+x`) until it lies
+//! [`MEETING_CLEARANCE_M`] outside every volume at home, ahead of the chest and the head; each
+//! hand's goal is the TCP position of the posture found by damped least squares on the hand's pose
+//! error over its arm's coordinates alone, within the joint ranges narrowed by the end stops'
+//! margin (`nearest_pose`), so the goal is reachable by construction, without an end stop acting
+//! (hand into hand; TIAGo++: meeting point 0.35 m ahead of the midpoint, at (0.43, 0, 1.20) m,
+//! outside what the arms reach in the home orientation, goals at (0.375, ±0.13, 1.198) m, 0.14 m
+//! from it, the reference's hand boxes still interpenetrating by 142.6 mm; Justin: 0.12 m ahead,
+//! at (0.58, 0, 0.96) m, reached). So that both hands follow their goals, the run's hierarchy is
+//! the file's Fig. 6.3 with arm 1's joint impedance replaced by its Cartesian impedance on arm 0's
+//! level (`SetHierarchy` before the first cycle). The rest is the hold.
 //!
 //! The pair distances are measured on [`super::RigParts::plant_collision`], the controller's
 //! collision model in `f64` on the simulated robot (an imported robot's generated table,
@@ -26,40 +32,33 @@
 //!   model, measured on the simulated robot's geometry every control cycle, stays above
 //!   [`MARGIN_M`]; the reference's goes below zero.
 //! - **the TCP stops short of the goal by what the repulsion needs**: the reference reaches its
-//!   goals (shortfall of a few mm) with the closest pair interpenetrating by `−d_ref`; with the
-//!   avoidance the pairs end at `d_end > 0`. The TCPs give up the distance the pairs gain, shared
-//!   by the driven arms: the mean shortfall is `(d_end − d_ref) / arms` within a factor
-//!   [`SHORTFALL_FACTOR`] (the closest points lie between the shoulder and the hand, and an
-//!   interpenetration is not a TCP distance: measured 1.43 on the Panda, 1.07 on Justin).
+//!   goals (shortfall: Panda 16.8 mm, TIAGo++ 1.1 mm, Justin 0.0 mm) with the closest pair
+//!   interpenetrating by `−d_ref`; with the avoidance the pairs end at `d_end > 0`. The TCPs give
+//!   up the distance the pairs gain, shared by the driven arms: the mean shortfall is
+//!   `(d_end − d_ref) / arms` within a factor [`SHORTFALL_FACTOR`] (the closest points lie between
+//!   the shoulder and the hand, and an interpenetration is not a TCP distance: measured 1.43 on
+//!   the Panda, 1.07 on Justin).
 //! - **torques within limits**: every applied joint torque within its effort limit.
 //! - **no fault, no NaN**.
 //!
-//! Open on TIAGo++ (issue 15): not the torque box but the torque *rate* binds. The hands approach
-//! at up to 0.55 m/s each; at 1.363 s, with |τ|/τ_max ≤ 0.41 on every joint, the collision rows
-//! ask `arm_right_5_joint` (3 Nm, 300 Nm/s: 0.3 Nm per cycle) for a faster change than its rate.
-//! The priority-preserving guard (`kernel::controller::guard`) scales levels towards the
-//! compensation `τ₀`, which itself lies more than one rate step from the previous torque: the top
-//! level (collision rows and Cartesian tasks) alternates between 0 with `τ₀` clamped and 24–45 %,
-//! every other cycle, to the end of the motion, so the arms coast: the hand boxes interpenetrate
-//! by 115.2 mm in f64 and f32 (reference −144.0 mm; in f64 the shortfall claim fails too,
-//! × 2.81). Slower goals do not cure it in proportion
-//! (2 s: −85.5 mm, 3 s: −67.4 mm, 4 s: −23.1 mm, 6 s: 13.5 mm, 8 s: 13.6 mm, f64). The same
-//! goals over 1.5 s hold all four claims (20.8 mm, shortfall 112.1 mm for 83.3 mm, × 1.35, f64
-//! and f32; the Panda and Justin unchanged) with the guard changed to take the effort box first
-//! and then limit the rate by slowing the whole change, `τ = τ_prev + α (τ_e − τ_prev)` (measured
-//! on a trial build; not in the kernel). Independently of the guard, TIAGo++'s reference ends 29.1 mm short of
-//! the meeting point with `arm_*_6_joint` at its upper stop: the point 0.35 m ahead, held in the
-//! home orientation, is outside what the arms reach, so "the reference reaches its goals" does
-//! not hold there either. The import's torque-rate rule (100 τ_max/s) is kept: libfranka's
-//! `kMaxTorqueRate` is 1000 Nm/s on every Panda joint, 83 τ_max/s on its 12 Nm wrists and
-//! 11.5 τ_max/s on its 87 Nm joints, so the rule is not conservative for a small wrist.
+//! Open on TIAGo++ (issue 15): not the torque box but the torque *rate* binds. The collision rows
+//! ask `arm_right_5_joint` (3 Nm, 300 Nm/s: 0.3 Nm per cycle) for a faster change than its rate
+//! while every |τ|/τ_max stays well below 1; the priority-preserving guard
+//! (`kernel::controller::guard`) scales levels towards the compensation `τ₀`, which itself lies
+//! more than one rate step from the previous torque, so the top level (collision rows and
+//! Cartesian tasks) is cut every other cycle and the arms coast: with the reachable goals the
+//! hand boxes interpenetrate by 70.4 mm in f64 and f32 (reference −142.6 mm; the other three
+//! claims hold: shortfall 169.7 mm for 92.8 mm, × 1.83, f64; 158.6 mm for 92.9 mm, × 1.71, f32).
+//! The import's torque-rate rule (100 τ_max/s) is kept: libfranka's `kMaxTorqueRate` is
+//! 1000 Nm/s on every Panda joint, 83 τ_max/s on its 12 Nm wrists and 11.5 τ_max/s on its 87 Nm
+//! joints, so the rule is not conservative for a small wrist.
 
 use kernel::controller::config::{ArmId, JointGroup, TaskKind, TaskSpec};
 use kernel::controller::messages::Command;
-use kernel::dynamics::forward_kinematics;
-use kernel::model::{Data, Model};
+use kernel::dynamics::{forward_kinematics, frame_jacobian};
+use kernel::model::{Data, FrameId, Model};
 use kernel::tasks::collision::{CollisionData, CollisionModel};
-use nalgebra::{RealField, SVector, Vector3};
+use nalgebra::{Matrix6, RealField, SMatrix, SVector, Vector3, Vector6};
 
 use super::{record, GenericRig, RigParts, RobotSpec, Scenario};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
@@ -87,6 +86,14 @@ pub const MEETING_CLEARANCE_M: f64 = 0.15;
 /// The step (m) and the farthest distance (m) of the search for the meeting point.
 const MEETING_STEP_M: f64 = 0.01;
 const MEETING_SEARCH_M: f64 = 1.0;
+/// Weight (m/rad) of the orientation error in [`nearest_pose`]: a rad counts as 10 m, so the
+/// hand keeps its orientation and gives up position where it cannot have both.
+const ORIENTATION_WEIGHT_M: f64 = 10.0;
+/// Damping `λ` (m) and iterations of [`nearest_pose`]' least squares.
+const REACH_DAMPING: f64 = 0.02;
+const REACH_ITERATIONS: usize = 500;
+/// The largest step of [`nearest_pose`] (rad).
+const REACH_STEP_RAD: f64 = 0.2;
 
 /// The scenario.
 pub struct SelfCollision;
@@ -154,6 +161,73 @@ impl<const N: usize, const B: usize, const F: usize, const V: usize, const P: us
     }
 }
 
+/// The TCP position (m, world) nearest to `target` that `frame` reaches in its orientation at
+/// `q`, moving only the coordinates of `arm` (a coordinate mask) and keeping them `margin` inside
+/// their ranges (the end stops' margin: no stop acts there): active-set damped least squares
+/// from `q` on the pose error `(p* − p, W log(R Rᵀ(q)))` with the frame's world-aligned Jacobian
+/// (`W` = [`ORIENTATION_WEIGHT_M`] per rad), joints at a bound whose step points outward taken
+/// out of the step, steps of at most [`REACH_STEP_RAD`], until a step is below `1e-9` or after
+/// [`REACH_ITERATIONS`]. The position reached is a goal the arm reaches in that orientation.
+#[allow(clippy::too_many_arguments, reason = "one plant, one hand, one target")]
+fn nearest_pose<const N: usize, const B: usize, const F: usize>(
+    plant: &Model<f64, N, B, F>,
+    data: &mut Data<f64, N, B, F>,
+    frame: FrameId,
+    arm: &[bool; N],
+    margin: f64,
+    q: &SVector<f64, N>,
+    target: &Vector3<f64>,
+) -> Result<Vector3<f64>, String> {
+    let narrowed = |bound: f64, inward: f64| if bound.is_finite() { bound + inward } else { bound };
+    let lower = plant.limits.position_lower.map(|l| narrowed(l, margin));
+    let upper = plant.limits.position_upper.map(|u| narrowed(u, -margin));
+    let pose = |data: &mut Data<f64, N, B, F>, q: &SVector<f64, N>| -> Result<_, String> {
+        forward_kinematics(plant, data, q, &SVector::zeros()).map_err(|e| e.to_string())?;
+        Ok(*data.frame_placements.get(frame.0).ok_or("no TCP frame")?)
+    };
+    let rotation = pose(data, q)?.rotation;
+    let mut q = q.zip_zip_map(&lower, &upper, |x, l, u| x.clamp(l, u));
+    let mut jacobian = SMatrix::<f64, 6, N>::zeros();
+    for _ in 0..REACH_ITERATIONS {
+        let placement = pose(data, &q)?;
+        frame_jacobian(plant, data, frame, &mut jacobian).map_err(|e| e.to_string())?;
+        let translation = target - placement.translation.vector;
+        let turn = (rotation * placement.rotation.inverse()).scaled_axis() * ORIENTATION_WEIGHT_M;
+        let error = Vector6::new(translation.x, translation.y, translation.z, turn.x, turn.y, turn.z);
+        jacobian.fixed_rows_mut::<3>(3).scale_mut(ORIENTATION_WEIGHT_M);
+        let mut free = *arm;
+        let mut step = SVector::<f64, N>::zeros();
+        for _ in 0..=N {
+            let mut j = jacobian;
+            for (k, moves) in free.iter().enumerate() {
+                if !moves {
+                    j.column_mut(k).fill(0.0);
+                }
+            }
+            let gram = j * j.transpose() + Matrix6::identity() * REACH_DAMPING * REACH_DAMPING;
+            step = j.transpose() * gram.try_inverse().ok_or("singular Gram matrix")? * error;
+            let mut blocked = false;
+            let bounds = lower.iter().zip(upper.iter());
+            for (((moves, x), dx), (l, u)) in free.iter_mut().zip(q.iter()).zip(step.iter()).zip(bounds) {
+                if *moves && ((x <= l && *dx < 0.0) || (x >= u && *dx > 0.0)) {
+                    (*moves, blocked) = (false, true);
+                }
+            }
+            if !blocked {
+                break;
+            }
+        }
+        let next =
+            (q + step * (REACH_STEP_RAD / step.norm()).min(1.0)).zip_zip_map(&lower, &upper, |x, l, u| x.clamp(l, u));
+        let moved = (next - q).norm();
+        q = next;
+        if moved < 1e-9 {
+            break;
+        }
+    }
+    Ok(pose(data, &q)?.translation.vector)
+}
+
 /// What one run measured.
 struct Run {
     series: TimeSeries,
@@ -176,22 +250,32 @@ struct Run {
 }
 
 /// The goal offsets (m, world) of each arm from its TCP position at home `tcps` (module docs):
-/// one arm to the origin of its first body (`arm`, a coordinate mask), two arms to their meeting
-/// point.
+/// one arm (`arms[0]`, a coordinate mask) to the origin of its first body, two arms to the TCP
+/// positions nearest to their meeting point that each reaches in its home orientation
+/// ([`nearest_pose`] with the end stops' `margin`; `frames`: the TCP frames).
+#[allow(clippy::too_many_arguments, reason = "one plant, its hands and the end stops' margin")]
 fn goal_offsets<const N: usize, const B: usize, const F: usize, const V: usize, const P: usize>(
     pairs: &mut PairDistances<N, B, F, V, P>,
     plant: &Model<f64, N, B, F>,
     q: &SVector<f64, N>,
-    arm: &[bool; N],
+    frames: &[FrameId],
+    arms: &[[bool; N]],
+    margin: f64,
     tcps: &[Vector3<f64>],
 ) -> Result<Vec<Vector3<f64>>, String> {
-    Ok(match tcps {
-        [only] => vec![pairs.shoulder(arm, plant, q)? - only],
-        [first, second, rest @ ..] => {
+    Ok(match (tcps, arms) {
+        ([only], [arm, ..]) => vec![pairs.shoulder(arm, plant, q)? - only],
+        ([first, second, rest @ ..], [_, _, ..]) => {
             let meeting = pairs.meeting_point(plant, q, (first + second) / 2.0)?;
-            [meeting - first, meeting - second].into_iter().chain(rest.iter().map(|_| Vector3::zeros())).collect()
+            let mut data = Data::new(plant);
+            let mut goal = |arm: usize| {
+                let (frame, mask) = frames.get(arm).zip(arms.get(arm)).ok_or("no such arm")?;
+                nearest_pose(plant, &mut data, *frame, mask, margin, q, &meeting)
+            };
+            [goal(0)? - first, goal(1)? - second].into_iter().chain(rest.iter().map(|_| Vector3::zeros())).collect()
         }
-        [] => Vec::new(),
+        ([], _) => Vec::new(),
+        _ => return Err("a TCP without its arm's coordinates".into()),
     })
 }
 
@@ -241,8 +325,9 @@ where
     let hierarchy = run_hierarchy(&file, collision_tasks);
     rig.controller.apply(&Command::SetHierarchy(hierarchy)).map_err(|e| format!("SetHierarchy: {e}"))?;
     let home: Vec<Vector3<f64>> = (0..A).map(|arm| rig.tcp_position(spec, arm)).collect::<Result<_, _>>()?;
-    let arm = *rig.controller.config().layout.arms.first().ok_or("no arm")?;
-    let offsets = goal_offsets(&mut pairs, rig.sim.model(), rig.sim.q(), &arm, &home)?;
+    let config = rig.controller.config();
+    let (arms, margin) = (config.layout.arms, config.end_stops.margin.into());
+    let offsets = goal_offsets(&mut pairs, rig.sim.model(), rig.sim.q(), &spec.tcps, &arms, margin, &home)?;
     let goals: Vec<Vector3<f64>> = home.iter().zip(&offsets).map(|(p, o)| p + o).collect();
     let effort = rig.sim.model().limits.effort.fixed_rows::<U>(N - U).into_owned();
     let mut series = TimeSeries::new(super::columns::<N, U, A>(spec));
