@@ -5,7 +5,8 @@
 #   3. the firmware image for thumbv7em-none-eabihf, linked WITHOUT a global allocator:
 #      the link fails if anything in the kernel's dependency graph pulls in `alloc`
 #   4. a QEMU smoke run of that image on Cortex-M7 (mps2-an500) and Cortex-M4F (mps2-an386)
-#   5. the link-time panic check: Controller::step and apply_bytes linked with an undefined panic handler
+#   5. the link-time panic check: Controller::step and apply_bytes linked with an undefined panic handler;
+#      the step images of Justin and the Panda run to their end on the Cortex-M7
 #   6. formatting (`cargo fmt --check`), rustdoc with warnings as errors, no import cycle
 #      between the kernel's modules (.ci/module_cycles.py)
 #   7. processor in the loop: the runtime image under QEMU (Cortex-M7) controls the simulated
@@ -65,6 +66,19 @@ step "clippy on the firmware (both step images' stages)"
 
 step "no panic path from Controller::step in the release image (link fails on any)"
 bash firmware/wcet/panic_check.sh m7-f32 m7-f64 m4-f32
+
+step "the step images run to their end on the Cortex-M7 in f32 (Justin's wcet-step, the Panda's wcet-step-panda)"
+# The same build directory and flags as the panic check's m7-f32 variant, so its dependencies are
+# reused; an image that fails (a refused command, a controller error) exits non-zero.
+mkdir -p firmware/target
+for image in "wcet-step" "wcet-step-panda --features wcet-panda"; do
+    log="target/${image%% *}.log"
+    # shellcheck disable=SC2086
+    (cd firmware && CARGO_TARGET_DIR=target/wcet-m7-f32 RUSTFLAGS="-C link-arg=-Tlink.x -C target-cpu=cortex-m7" \
+        QEMU_MACHINE=mps2-an500 QEMU_TIMEOUT=600 cargo run --locked --release --bin $image > "$log") \
+        || { tail -n 20 "firmware/$log" >&2; exit 1; }
+    echo "${image%% *}: ran to its end ($(grep -c . "firmware/$log") lines of output)"
+done
 
 # The firmware builds (four release targets with fat LTO, ~1 GB) are done: free the disk for
 # the host build.

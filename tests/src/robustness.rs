@@ -262,6 +262,19 @@ fn check_fault<T: Float>(row: &Case<T>) {
         let g = if finite(&q) { gravity_at(&controller, &q) } else { last_valid_gravity };
         let v = if finite(&v) { v } else { SVector::zeros() };
         let hold = g - config.safe_damping.component_mul(&v);
+        // The guard's law (kernel::controller::guard): the hold clamped to the effort box, then
+        // reached from the previous torque along a straight line at the slowest joint's rate.
+        let clamped = |j: usize| hold[j].to_f64().clamp(-effort[j].to_f64(), effort[j].to_f64());
+        let alpha = (0..U).fold(1.0_f64, |alpha, i| {
+            let j = i + PLATFORM_DOF;
+            let change = (clamped(j) - previous.torque[i].to_f64()).abs();
+            let step = (config.output_limits.torque_rate[j] * dt).to_f64();
+            if change > step {
+                alpha.min(step / change)
+            } else {
+                alpha
+            }
+        });
         for i in 0..U {
             let j = i + PLATFORM_DOF;
             let (tau, prev) = (out.torque[i].to_f64(), previous.torque[i].to_f64());
@@ -269,9 +282,7 @@ fn check_fault<T: Float>(row: &Case<T>) {
             assert!(tau.is_finite(), "{what}: torque {i} not finite");
             assert!(tau.abs() <= e * (1.0 + tol), "{what}: |τ_{i}| = {tau} > {e}");
             assert!((tau - prev).abs() <= r * (1.0 + 1e-6) + tol * e, "{what}: joint {i} moved {} > {r}", tau - prev);
-            let lo = (-e).max(prev - r);
-            let hi = e.min(prev + r);
-            let expected = hold[j].to_f64().clamp(lo, hi);
+            let expected = prev + alpha * (clamped(j) - prev);
             assert!((tau - expected).abs() <= tol * e.max(1.0) * 10.0, "{what}: τ_{i} = {tau}, expected {expected}");
         }
         // Platform: ramped to rest at the acceleration limit, legs stopped.

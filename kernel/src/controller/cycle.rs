@@ -11,9 +11,7 @@ use super::config::{Consistency, TaskKind};
 use super::faults::{validate_frame, Fault, SafeOutput};
 use super::force_limit::HandLimits;
 use super::frames::SensorFrame;
-use super::guard::{
-    limit_base_velocity, limit_leg_rates, rate_exceeded, saturate_with_priority, torque_box, Saturation,
-};
+use super::guard::{limit_base_velocity, limit_leg_rates, limit_rate, saturate_with_priority, Saturation};
 use super::layout::{ArmId, JointGroup};
 use super::settings::ControllerSettings;
 use super::speed_barrier::{speed_barrier, BarrierHold, InverseInertia, JointLimits};
@@ -462,19 +460,14 @@ impl<
             }
         }
         let compensation = &(compensation + limit.torque);
-        let desired = compensation + tasks;
-        let active = self.settings.config.layout.coordinates(JointGroup::UpperBody);
-        let rate = &self.settings.config.output_limits.torque_rate;
-        self.state.telemetry.saturation.torque_rate_limited =
-            rate_exceeded(&desired, &self.state.previous_torque, rate, dt, &active);
         let mut saturation = self.state.telemetry.saturation;
         let torque = self.guarded(compensation, levels, dt, &mut saturation);
         self.state.telemetry.saturation = saturation;
         torque
     }
 
-    /// `compensation + Σ levels` through the effort and rate box of the upper body with
-    /// priority-preserving scaling ([`super::guard`]); zero on the platform coordinates.
+    /// `compensation + Σ levels` through the upper body's effort box with priority-preserving
+    /// scaling, then its torque-rate limit ([`super::guard`]); zero on the platform coordinates.
     fn guarded(
         &self,
         compensation: &SVector<T, N>,
@@ -484,9 +477,11 @@ impl<
     ) -> SVector<T, N> {
         let active = self.settings.config.layout.coordinates(JointGroup::UpperBody);
         let rate = &self.settings.config.output_limits.torque_rate;
-        let (lower, upper) =
-            torque_box(&self.settings.model.limits.effort, rate, &self.state.previous_torque, dt, &active);
-        let mut torque = saturate_with_priority(compensation, levels, &lower, &upper, &active, saturation);
+        let effort = &self.settings.model.limits.effort;
+        let within_effort = saturate_with_priority(compensation, levels, &-effort, effort, &active, saturation);
+        let (mut torque, rate_limited) =
+            limit_rate(&within_effort, &self.state.previous_torque, rate, effort, dt, &active);
+        saturation.torque_rate_limited = rate_limited;
         for (t, a) in torque.as_mut_slice().iter_mut().zip(active.iter()) {
             if !a {
                 *t = T::zero();

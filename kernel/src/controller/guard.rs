@@ -1,16 +1,25 @@
-//! Output guards: joint torque and torque-rate limits that keep the hierarchy's priorities,
-//! platform velocity and acceleration limits, leg-rate limits.
+//! Output guards: joint torque limits that keep the hierarchy's priorities, a torque-rate limit
+//! that keeps the direction of the change, platform velocity and acceleration limits, leg-rate
+//! limits.
 //!
 //! **Priority under saturation.** The joint torque is `τ = τ₀ + Σ_i τ_i^p`: the compensation
 //! `τ₀` (gravity and platform coupling (5.14)) and the projected torques `τ_i^p = N_i τ_i` of
-//! the levels (4.7). Each joint's admissible interval is the intersection of its effort limit
-//! `±τ_max` and its rate limit `τ_prev ± τ̇_max Δt`. If `τ` leaves the box, the levels are
-//! scaled from the lowest priority upwards: level `k` gets the largest `s_k ∈ [0, 1]` with
-//! `τ₀ + Σ_{i<k} τ_i^p + s_k τ_k^p` inside the box; if no `s_k ≥ 0` fits, `s_k = 0` and the next
-//! higher level is scaled. A higher level is therefore only reduced once every level below it is
-//! switched off, and a level's torque keeps its direction (it stays in the null space of the
-//! levels above). Only if `τ₀` alone does not fit is the torque clamped per joint (reported as
-//! [`Saturation::compensation_clamped`]).
+//! the levels (4.7). Each joint's admissible interval is its effort limit `±τ_max`. If `τ`
+//! leaves the box, the levels are scaled from the lowest priority upwards: level `k` gets the
+//! largest `s_k ∈ [0, 1]` with `τ₀ + Σ_{i<k} τ_i^p + s_k τ_k^p` inside the box; if no `s_k ≥ 0`
+//! fits, `s_k = 0` and the next higher level is scaled. A higher level is therefore only reduced
+//! once every level below it is switched off, and a level's torque keeps its direction (it stays
+//! in the null space of the levels above). Only if `τ₀` alone does not fit is the torque clamped
+//! per joint (reported as [`Saturation::compensation_clamped`]).
+//!
+//! **Rate.** The torque `τ_e` of the effort box is then reached from the previous output
+//! `τ_prev` along the straight line between them, `τ = τ_prev + α (τ_e − τ_prev)` with the
+//! largest `α ∈ [0, 1]` that moves no joint by more than `τ̇_max Δt` ([`limit_rate`]). The
+//! change keeps its direction, so every joint arrives at `τ_e` in the same cycle and the output
+//! converges to the priority-preserving torque; while it slews, the guard does not trade one
+//! level against another. (A rate box inside the priority scaling does not work when `τ₀` itself
+//! moves faster than the rate allows: scaling the levels towards a `τ₀` that lies outside the
+//! box switches them off and on in alternate cycles.)
 
 use nalgebra::{RealField, SVector, Vector3};
 
@@ -22,9 +31,9 @@ use crate::platform::LEGS;
 pub struct Saturation<T> {
     /// Scale `s_i ∈ [0, 1]` applied to each level's projected torque (1 = untouched).
     pub level_scale: [T; MAX_LEVELS],
-    /// `true` if the compensation alone exceeded the box and was clamped per joint.
+    /// `true` if the compensation alone exceeded the effort box and was clamped per joint.
     pub compensation_clamped: bool,
-    /// `true` if the torque-rate limit was the binding side of some joint's interval.
+    /// `true` if the torque-rate limit slowed this cycle's change ([`limit_rate`]).
     pub torque_rate_limited: bool,
     /// `true` where the platform velocity was limited (by the velocity or the acceleration
     /// limit).
@@ -55,57 +64,41 @@ impl<T: RealField + Copy> Saturation<T> {
     }
 }
 
-/// The admissible interval of each coordinate: effort limit ∩ rate limit around `previous`.
-/// Coordinates outside `active` get an unbounded interval (the platform is velocity controlled).
-pub fn torque_box<T: RealField + Copy, const N: usize>(
-    effort: &SVector<T, N>,
-    rate: &SVector<T, N>,
-    previous: &SVector<T, N>,
-    dt: T,
-    active: &[bool; N],
-) -> (SVector<T, N>, SVector<T, N>) {
-    let mut lower = SVector::<T, N>::zeros();
-    let mut upper = SVector::<T, N>::zeros();
-    for (((((lo, hi), e), r), p), a) in lower
-        .as_mut_slice()
-        .iter_mut()
-        .zip(upper.as_mut_slice().iter_mut())
-        .zip(effort.as_slice().iter())
-        .zip(rate.as_slice().iter())
-        .zip(previous.as_slice().iter())
-        .zip(active.iter())
-    {
-        if !a {
-            continue;
-        }
-        let step = *r * dt;
-        *lo = (-*e).max(*p - step);
-        *hi = (*e).min(*p + step);
-        if *lo > *hi {
-            // The previous torque is outside the effort box (limits changed): move towards it.
-            let towards = (-*e).max((*e).min(*p));
-            *lo = towards;
-            *hi = towards;
-        }
-    }
-    (lower, upper)
-}
-
-/// `true` if `desired` moves some active coordinate by more than `rate · dt` from `previous`.
-pub fn rate_exceeded<T: RealField + Copy, const N: usize>(
+/// The rate limit (module docs, "Rate"): `τ_prev + α (desired − τ_prev)` with the largest
+/// `α ∈ [0, 1]` such that no active coordinate moves by more than `rate · dt`, then clamped to
+/// `±effort` (which only acts if `previous` lies outside the effort box: the limits changed).
+/// Coordinates outside `active` are returned as `desired`. Returns the torque and whether the
+/// rate limit slowed the change (`α < 1`).
+pub fn limit_rate<T: RealField + Copy, const N: usize>(
     desired: &SVector<T, N>,
     previous: &SVector<T, N>,
     rate: &SVector<T, N>,
+    effort: &SVector<T, N>,
     dt: T,
     active: &[bool; N],
-) -> bool {
-    desired
-        .as_slice()
-        .iter()
+) -> (SVector<T, N>, bool) {
+    let change = desired - previous;
+    let mut alpha = T::one();
+    for ((c, r), a) in change.as_slice().iter().zip(rate.as_slice().iter()).zip(active.iter()) {
+        let step = *r * dt;
+        if *a && c.abs() > step {
+            alpha = alpha.min(step / c.abs());
+        }
+    }
+    let mut torque = *desired;
+    for ((((t, p), c), e), a) in torque
+        .as_mut_slice()
+        .iter_mut()
         .zip(previous.as_slice().iter())
-        .zip(rate.as_slice().iter())
+        .zip(change.as_slice().iter())
+        .zip(effort.as_slice().iter())
         .zip(active.iter())
-        .any(|(((d, p), r), a)| *a && (*d - *p).abs() > *r * dt)
+    {
+        if *a {
+            *t = (*p + *c * alpha).max(-*e).min(*e);
+        }
+    }
+    (torque, alpha < T::one())
 }
 
 /// The largest `s ∈ [0, 1]` with `base + s · add` inside `[lower, upper]` on `active`
@@ -218,7 +211,7 @@ pub fn limit_leg_rates<T: RealField + Copy>(rates: &mut [T; LEGS], limit: T) -> 
 mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
     use super::*;
-    use nalgebra::Vector2;
+    use nalgebra::{Vector2, Vector3};
 
     #[test]
     fn lower_levels_are_scaled_before_higher_ones() {
@@ -258,13 +251,38 @@ mod tests {
     }
 
     #[test]
-    fn the_rate_limit_narrows_the_box_around_the_previous_torque() {
-        let (effort, rate, previous) =
-            (Vector2::new(10.0_f64, 10.0), Vector2::new(1000.0, 1000.0), Vector2::new(9.5, 0.0));
-        let (lower, upper) = torque_box(&effort, &rate, &previous, 1e-3, &[true, false]);
-        assert_eq!((lower[0], upper[0]), (8.5, 10.0));
-        assert_eq!((lower[1], upper[1]), (0.0, 0.0));
-        assert!(rate_exceeded(&Vector2::new(8.0, 50.0), &previous, &rate, 1e-3, &[true, false]));
-        assert!(!rate_exceeded(&Vector2::new(9.0, 50.0), &previous, &rate, 1e-3, &[true, false]));
+    fn the_rate_limit_slows_the_whole_change_and_keeps_its_direction() {
+        let (effort, rate, dt) = (Vector3::repeat(10.0_f64), Vector3::repeat(1000.0), 1e-3);
+        let active = [true, true, false];
+        // (3, 1) from rest with 1 Nm per cycle: α = 1/3 on both active joints; the inactive
+        // coordinate is passed through.
+        let (tau, limited) = limit_rate(&Vector3::new(3.0, 1.0, 50.0), &Vector3::zeros(), &rate, &effort, dt, &active);
+        assert!((tau - Vector3::new(1.0, 1.0 / 3.0, 50.0)).norm() < 1e-12 && limited);
+        // Within one rate step: untouched, not reported.
+        let (tau, limited) = limit_rate(&Vector3::new(0.5, -1.0, 0.0), &Vector3::zeros(), &rate, &effort, dt, &active);
+        assert_eq!((tau, limited), (Vector3::new(0.5, -1.0, 0.0), false));
+        // A previous torque outside the effort box (the limits changed): clamped to the box.
+        let (tau, limited) =
+            limit_rate(&Vector3::new(9.0, 0.0, 0.0), &Vector3::new(12.0, 0.0, 0.0), &rate, &effort, dt, &active);
+        assert_eq!((tau, limited), (Vector3::new(10.0, 0.0, 0.0), true));
+    }
+
+    /// The compensation moves 5 rate steps in one cycle: the output slews to `τ₀ + τ_1^p` in 5
+    /// cycles, every joint by at most one step, and the level is never switched off (a rate box
+    /// inside the priority scaling would have set `s_1 = 0` in the first cycle).
+    #[test]
+    fn a_compensation_faster_than_the_rate_is_reached_without_switching_a_level_off() {
+        let (compensation, level) = (Vector2::new(5.0_f32, 0.0), [Vector2::new(0.0, 1.0)]);
+        let (effort, rate, dt) = (Vector2::repeat(10.0), Vector2::repeat(1000.0), 1e-3);
+        let mut previous = Vector2::zeros();
+        for cycle in 1..=5 {
+            let mut saturation = Saturation::none();
+            let within = saturate_with_priority(&compensation, &level, &-effort, &effort, &[true; 2], &mut saturation);
+            let (tau, limited) = limit_rate(&within, &previous, &rate, &effort, dt, &[true; 2]);
+            assert_eq!(saturation.level_scale[0], 1.0, "cycle {cycle}");
+            assert!((tau - previous).amax() <= 1.0 + 1e-6 && (limited || cycle == 5), "cycle {cycle}");
+            previous = tau;
+        }
+        assert!((previous - Vector2::new(5.0, 1.0)).norm() < 1e-5);
     }
 }

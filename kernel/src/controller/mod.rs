@@ -27,7 +27,7 @@
 //!    `τ₀ = M_qr r̈ + C_qr ṙ + g_q` (5.14) for the commanded platform acceleration, plus the
 //!    limiter's command-side correction, which keeps the rigid-contact force of `Σ_i N_i τ_i`
 //!    along the limited TCP axes inside the bounds ([`force_limit`]).
-//! 7. **Guards** ([`guard`]): torque and torque-rate limits with priority-preserving scaling,
+//! 7. **Guards** ([`guard`]): torque limits with priority-preserving scaling, a torque-rate limit that keeps the change's direction,
 //!    platform velocity and acceleration limits, leg-rate limits.
 //! 8. **Telemetry**: TCP errors, storage (potential) per level and its rate, activations and
 //!    torque norms per task, collision distance, contact from the momentum residual
