@@ -14,8 +14,8 @@
 //! margin (`nearest_pose`), so the goal is reachable by construction, without an end stop acting
 //! (hand into hand; TIAGo++: meeting point 0.35 m ahead of the midpoint, at (0.43, 0, 1.20) m,
 //! outside what the arms reach in the home orientation, goals at (0.375, ±0.13, 1.198) m, 0.14 m
-//! from it, the reference's hand boxes still interpenetrating by 142.6 mm; Justin: 0.12 m ahead,
-//! at (0.58, 0, 0.96) m, reached). So that both hands follow their goals, the run's hierarchy is
+//! from it, close enough for the hand boxes to collide; Justin: 0.12 m ahead, at
+//! (0.58, 0, 0.96) m, reached). So that both hands follow their goals, the run's hierarchy is
 //! the file's Fig. 6.3 with arm 1's joint impedance replaced by its Cartesian impedance on arm 0's
 //! level (`SetHierarchy` before the first cycle). The rest is the hold.
 //!
@@ -32,23 +32,24 @@
 //!   model, measured on the simulated robot's geometry every control cycle, stays above
 //!   [`MARGIN_M`]; the reference's goes below zero.
 //! - **the TCP stops short of the goal by what the repulsion needs**: the reference reaches its
-//!   goals (shortfall: Panda 16.8 mm, TIAGo++ 1.1 mm, Justin 0.0 mm) with the closest pair
+//!   goals (shortfall: Panda 16.8 mm, TIAGo++ 6.8 mm, Justin 0.0 mm) with the closest pair
 //!   interpenetrating by `−d_ref`; with the avoidance the pairs end at `d_end > 0`. The TCPs give
 //!   up the distance the pairs gain, shared by the driven arms: the mean shortfall is
 //!   `(d_end − d_ref) / arms` within a factor [`SHORTFALL_FACTOR`] (the closest points lie between
 //!   the shoulder and the hand, and an interpenetration is not a TCP distance: measured 1.43 on
-//!   the Panda, 1.07 on Justin).
+//!   the Panda, 0.88 on TIAGo++, 1.07 on Justin).
 //! - **torques within limits**: every applied joint torque within its effort limit.
 //! - **no fault, no NaN**.
 //!
-//! Open on TIAGo++ (issue 15): not the torque box but the torque *rate* binds. The collision rows
-//! ask `arm_right_5_joint` (3 Nm, 300 Nm/s: 0.3 Nm per cycle) for a faster change than its rate
-//! while every |τ|/τ_max stays well below 1; the priority-preserving guard
-//! (`kernel::controller::guard`) scales levels towards the compensation `τ₀`, which itself lies
-//! more than one rate step from the previous torque, so the top level (collision rows and
-//! Cartesian tasks) is cut every other cycle and the arms coast: with the reachable goals the
-//! hand boxes interpenetrate by 70.4 mm in f64 and f32 (reference −142.6 mm; the other three
-//! claims hold: shortfall 169.7 mm for 92.8 mm, × 1.83, f64; 158.6 mm for 92.9 mm, × 1.71, f32).
+//! Measured (f64 and f32 alike): the Panda 29.8 mm apart (link 2 – link 5; reference −59.0 mm),
+//! stopping 136.8 mm short for 95.5 mm (× 1.43), largest |τ|/τ_max 0.39; TIAGo++ 21.7 mm
+//! (`arm_left_4_link` – the left hand's box; reference −73.9 mm, the hand boxes), each hand
+//! 49.0 mm short for 55.5 mm (× 0.88), largest |τ|/τ_max 1.00; Justin 30.4 mm (the fingers;
+//! reference −100.0 mm), 70.0 mm short for 65.5 mm (× 1.07), largest |τ|/τ_max 0.22. On
+//! TIAGo++ the torque *rate* binds (`arm_right_5_joint`: 3 Nm, 300 Nm/s, 0.3 Nm per cycle):
+//! the guard (`kernel::controller::guard`) takes the effort box first, preserving the priorities,
+//! and then meets the rate by slowing the whole change, `τ = τ_prev + α (τ_e − τ_prev)`, so the
+//! collision rows keep their share of every cycle's torque.
 //! The import's torque-rate rule (100 τ_max/s) is kept: libfranka's `kMaxTorqueRate` is
 //! 1000 Nm/s on every Panda joint, 83 τ_max/s on its 12 Nm wrists and 11.5 τ_max/s on its 87 Nm
 //! joints, so the rule is not conservative for a small wrist.
