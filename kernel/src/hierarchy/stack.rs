@@ -23,7 +23,7 @@ use nalgebra::{RealField, RowSVector};
 
 use super::error::HierarchyError;
 use crate::math::switching::transition_weight;
-use crate::tasks::{RowSink, TaskError, TaskRow, TaskRows};
+use crate::tasks::{fill_entries, RowEntries, RowSink, TaskError, TaskRow, TaskRows};
 
 /// One task row on a priority level (0 = highest priority).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -38,6 +38,10 @@ pub struct StackRow<T, const N: usize> {
     /// projection uses it with that weighting instead of forming the quadratic form. `None` for
     /// rows pushed one by one.
     pub metric_norm_squared: Option<T>,
+    /// `(first, end)`: the Jacobian entries outside `first..end` are zero (rows appended with
+    /// [`RowSink::push_with`] carry their columns; `(0, N)` for the others). The projection adds
+    /// a last-level row's torque over these columns only.
+    pub support: (usize, usize),
 }
 
 /// All rows of all tasks, capacity `R`, in insertion order. Levels need not be inserted in
@@ -74,7 +78,8 @@ impl<T: RealField + Copy, const N: usize, const R: usize> Stack<T, N, R> {
     pub fn new() -> Self {
         let zero =
             TaskRow { jacobian: RowSVector::zeros(), force: T::zero(), potential: T::zero(), activation: T::zero() };
-        Self { slots: [StackRow { level: 0, row: zero, metric_norm_squared: None }; R], len: 0, level_count: 0 }
+        let slot = StackRow { level: 0, row: zero, metric_norm_squared: None, support: (0, N) };
+        Self { slots: [slot; R], len: 0, level_count: 0 }
     }
 
     /// Removes every row.
@@ -92,7 +97,7 @@ impl<T: RealField + Copy, const N: usize, const R: usize> Stack<T, N, R> {
         let Some(slot) = self.slots.get_mut(self.len) else {
             return Err(HierarchyError::Capacity { capacity: R });
         };
-        *slot = StackRow { level, row, metric_norm_squared: None };
+        *slot = StackRow { level, row, metric_norm_squared: None, support: (0, N) };
         self.len += 1;
         self.level_count = self.level_count.max(level.saturating_add(1));
         Ok(())
@@ -133,7 +138,7 @@ impl<T: RealField + Copy, const N: usize, const R: usize> Stack<T, N, R> {
         let free = self.slots.get_mut(start..).unwrap_or_default();
         let mut copied = 0;
         for ((slot, row), &metric_norm_squared) in free.iter_mut().zip(rows.rows()).zip(rows.metric_norm_squared()) {
-            *slot = StackRow { level: 0, row: *row, metric_norm_squared };
+            *slot = StackRow { level: 0, row: *row, metric_norm_squared, support: (0, N) };
             copied += 1;
         }
         self.len = start + copied;
@@ -297,20 +302,24 @@ impl<T: RealField + Copy, const N: usize, const R: usize, const Q: usize> RowSin
         let slot = self.slot()?;
         slot.row = row;
         slot.metric_norm_squared = None;
+        slot.support = (0, N);
         self.stack.len += 1;
         Ok(())
     }
 
     #[inline]
-    fn push_with(&mut self, fill: impl FnOnce(&mut TaskRow<T, N>)) -> Result<(), TaskError> {
-        self.push_with_metric(|row| {
-            row.jacobian.fill(T::zero());
-            row.force = T::zero();
-            row.potential = T::zero();
-            row.activation = T::zero();
-            fill(row);
-            None
-        })
+    fn push_with(
+        &mut self,
+        columns: core::ops::Range<usize>,
+        fill: impl FnOnce(&mut RowEntries<'_, T>),
+    ) -> Result<(), TaskError> {
+        let slot = self.slot()?;
+        slot.row.jacobian.fill(T::zero());
+        let support = fill_entries(&mut slot.row, columns, fill).ok_or(TaskError::NonFinite)?;
+        slot.metric_norm_squared = None;
+        slot.support = support;
+        self.stack.len += 1;
+        Ok(())
     }
 
     #[inline]
@@ -321,6 +330,7 @@ impl<T: RealField + Copy, const N: usize, const R: usize, const Q: usize> RowSin
             return Err(TaskError::NonFinite);
         }
         slot.metric_norm_squared = metric;
+        slot.support = (0, N);
         self.stack.len += 1;
         Ok(())
     }

@@ -67,8 +67,8 @@ fn write<T: RealField + Copy, const M: usize>(sink: &mut impl RowSink<T, N, M>, 
                 })
                 .unwrap(),
             1 => sink
-                .push_with(|row| {
-                    row.jacobian[s.entry] = c(s.values[s.entry]);
+                .push_with(s.entry..s.entry + 1, |row| {
+                    row.jacobian[0] = c(s.values[s.entry]);
                     row.force = c(s.force);
                     row.activation = c(s.activation);
                 })
@@ -103,6 +103,19 @@ fn stale<T: RealField + Copy>(rng: &mut Rng) -> Stack<T, N, R> {
     stack
 }
 
+/// `stack` with every row's support widened to all columns (as a [`TaskRows`] list's rows
+/// have it on the stack), after checking that each row is zero outside its support.
+fn full_support<T: RealField + Copy>(stack: &Stack<T, N, R>) -> Stack<T, N, R> {
+    let mut full = stack.clone();
+    for slot in full.slots.iter_mut().take(full.len) {
+        let (first, end) = slot.support;
+        let outside = slot.row.jacobian.iter().enumerate().filter(|(i, _)| *i < first || *i >= end);
+        assert!(outside.clone().all(|(_, &x)| x == T::zero()), "support {:?}", slot.support);
+        slot.support = (0, N);
+    }
+    full
+}
+
 /// How a task's rows are placed.
 #[derive(Clone, Copy, Debug)]
 enum Placement {
@@ -128,7 +141,7 @@ fn window_equals_owned_list<T: RealField + Copy>() {
         Placement::Transition(2, 0, 0.71),
         Placement::Transition(1, 0, 1.0),
     ];
-    let mut compared = 0;
+    let (mut compared, mut narrow) = (0, 0);
     for trial in 0..40 {
         let placement = placements[trial % placements.len()];
         let (earlier, task) = (random_specs(&mut rng, 3), random_specs(&mut rng, 1 + trial % 4));
@@ -161,12 +174,13 @@ fn window_equals_owned_list<T: RealField + Copy>() {
                 window.place_transitioning(from, to, convert(progress)).unwrap();
             }
         }
-        assert_eq!(fast, plain, "trial {trial}: {placement:?}");
+        narrow += fast.rows().iter().filter(|r| r.support != (0, N)).count();
+        assert_eq!(full_support(&fast), plain, "trial {trial}: {placement:?}");
         assert!(fast.rows().len() >= 3 && fast.level_count() >= 2);
         compared += fast.rows().len();
     }
     // Not vacuous: the transitions put rows on two levels, the zero weight removes them.
-    assert!(compared > 150, "{compared} rows compared");
+    assert!(compared > 150 && narrow > 30, "{compared} rows compared, {narrow} with one column");
 }
 
 #[test]
@@ -194,12 +208,15 @@ fn window_errors_leave_the_stack_unchanged() {
 
     let mut window = stack.task::<Q>();
     window
-        .push_with(|row| {
-            assert_eq!(*row, TaskRow { jacobian: RowSVector::zeros(), force: 0.0, potential: 0.0, activation: 0.0 });
+        .push_with(2..5, |row| {
+            assert_eq!((&*row.jacobian, row.force, row.potential, row.activation), (&[0.0; 3][..], 0.0, 0.0, 0.0));
             row.force = 1.0;
         })
         .unwrap();
-    assert_eq!(window.push_with(|row| row.potential = f64::NAN), Err(TaskError::NonFinite));
+    assert_eq!(window.rows()[0].row.jacobian, RowSVector::<f64, N>::zeros(), "the stale slot's row is cleared");
+    assert_eq!(window.rows()[0].support, (2, 5));
+    assert_eq!(window.push_with(0..1, |row| row.potential = f64::NAN), Err(TaskError::NonFinite));
+    assert_eq!(window.push_with(1..2, |row| row.jacobian[0] = f64::NAN), Err(TaskError::NonFinite));
     assert_eq!(
         window.push_with_metric(|row| {
             row.jacobian[0] = f64::INFINITY;
@@ -211,9 +228,9 @@ fn window_errors_leave_the_stack_unchanged() {
     assert_eq!(window.push(nan), Err(TaskError::NonFinite));
     assert_eq!(window.len(), 1);
     for _ in 1..Q {
-        window.push_with(|row| row.force = 2.0).unwrap();
+        window.push_with(0..N, |row| row.force = 2.0).unwrap();
     }
-    assert_eq!(window.push_with(|row| row.force = 3.0), Err(TaskError::Capacity { capacity: Q }));
+    assert_eq!(window.push_with(0..N, |row| row.force = 3.0), Err(TaskError::Capacity { capacity: Q }));
     assert_eq!(window.overflow(), None);
     window.truncate(2);
     assert_eq!(window.len(), 2);
@@ -251,7 +268,7 @@ fn window_errors_leave_the_stack_unchanged() {
     let filled = stack.clone();
     let mut window = stack.task::<Q>();
     write(&mut window, &random_specs(&mut rng, 3));
-    assert_eq!(window.push_with(|row| row.force = 1.0), Err(TaskError::Capacity { capacity: Q }));
+    assert_eq!(window.push_with(0..1, |row| row.force = 1.0), Err(TaskError::Capacity { capacity: Q }));
     assert_eq!(window.overflow(), Some(HierarchyError::Capacity { capacity: R }));
     drop(window);
     assert_eq!(stack, filled);

@@ -18,7 +18,7 @@ use nalgebra::{RealField, RowSVector, SVector};
 
 #[cfg(test)]
 use super::TaskRows;
-use super::{RowSink, TaskError, TaskRow};
+use super::{RowEntries, RowSink, TaskError, TaskRow};
 use crate::model::JointDrive;
 
 use crate::math::switching::transition_activation;
@@ -161,13 +161,14 @@ impl<T: RealField + Copy, const N: usize> EndStop<T, N> {
         )
     }
 
-    /// Writes [`Self::row`] into `row`, which holds a zero Jacobian: only the nonzero entries of
-    /// `c` are written.
-    fn fill(&self, q: &SVector<T, N>, v: &SVector<T, N>, row: &mut TaskRow<T, N>) {
+    /// Writes [`Self::row`] into the entries of its support columns (`row.jacobian` holds the
+    /// columns `first..end` of [`Self::support`], zero): only the nonzero entries of `c` are
+    /// written.
+    fn fill(&self, q: &SVector<T, N>, v: &SVector<T, N>, row: &mut RowEntries<'_, T>) {
         let (force, potential, activation) = self.terms(q, v);
         let (first, end) = self.support;
         let combination = self.config.combination.as_slice().get(first..end).unwrap_or(&[]);
-        for (j, &ck) in row.jacobian.as_mut_slice().iter_mut().skip(first).zip(combination) {
+        for (j, &ck) in row.jacobian.iter_mut().zip(combination) {
             if ck != T::zero() {
                 *j = ck;
             }
@@ -212,7 +213,8 @@ pub fn end_stops<T: RealField + Copy, const N: usize, const R: usize>(
     // that `rows` is left unchanged.
     let start = rows.len();
     for stop in stops {
-        if let Err(e) = rows.push_with(|row| stop.fill(q, v, row)) {
+        let (first, end) = stop.support;
+        if let Err(e) = rows.push_with(first..end, |row| stop.fill(q, v, row)) {
             rows.truncate(start);
             return Err(e);
         }

@@ -207,7 +207,7 @@ pub fn joint_impedance<T: RealField + Copy, const N: usize, const R: usize>(
     if rows.len().saturating_add(task.row_count()) > R {
         return Err(TaskError::Capacity { capacity: R });
     }
-    // Each row `e_kᵀ` is built in place in its slot (one entry written into the zero row); a
+    // Each row `e_kᵀ` is built in place in its slot (its one column written into the zero row); a
     // failure removes the rows pushed so far, so that `rows` is left unchanged.
     let c = &task.config;
     let damping = match sampled {
@@ -223,8 +223,8 @@ pub fn joint_impedance<T: RealField + Copy, const N: usize, const R: usize>(
         inputs.zip(gains).zip(c.selected.iter()).enumerate().filter(|(_, (_, &selected))| selected)
     {
         let (error, velocity_error) = (qk - qt, vk - vt);
-        let pushed = rows.push_with(|row| {
-            if let Some(j) = row.jacobian.get_mut(k) {
+        let pushed = rows.push_with(k..k + 1, |row| {
+            if let Some(j) = row.jacobian.first_mut() {
                 *j = T::one();
             }
             row.force = -stiffness * error - damping * velocity_error;

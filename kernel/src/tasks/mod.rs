@@ -45,6 +45,45 @@ impl<T: RealField + Copy, const N: usize> TaskRow<T, N> {
     }
 }
 
+/// The entries of a row that [`RowSink::push_with`] lets its writer set, all zero on entry: the
+/// Jacobian entries of the row's columns (`jacobian[i]` is the row's entry in column
+/// `first + i`; the entries outside the columns stay zero), the force, the potential and the
+/// activation.
+#[derive(Debug)]
+pub struct RowEntries<'a, T> {
+    /// The Jacobian entries of the row's columns.
+    pub jacobian: &'a mut [T],
+    /// Task force `f` ([`TaskRow::force`]).
+    pub force: T,
+    /// The row's potential ([`TaskRow::potential`]).
+    pub potential: T,
+    /// Activation ([`TaskRow::activation`]).
+    pub activation: T,
+}
+
+/// Lets `fill` write the entries `columns` (clamped to `0..N`) of `row`, whose Jacobian holds
+/// zeros, and its force, potential and activation ([`RowEntries`]); returns the columns
+/// `(first, end)` outside which the Jacobian is zero if the row is finite (checked on those
+/// columns only, as [`TaskRow::is_finite`] does on all), `None` otherwise.
+#[inline]
+pub(crate) fn fill_entries<T: RealField + Copy, const N: usize>(
+    row: &mut TaskRow<T, N>,
+    columns: core::ops::Range<usize>,
+    fill: impl FnOnce(&mut RowEntries<'_, T>),
+) -> Option<(usize, usize)> {
+    let zero = T::zero();
+    let first = columns.start.min(N);
+    let end = columns.end.clamp(first, N);
+    let jacobian = row.jacobian.as_mut_slice().get_mut(first..end).unwrap_or_default();
+    let mut entries = RowEntries { jacobian, force: zero, potential: zero, activation: zero };
+    fill(&mut entries);
+    let RowEntries { jacobian, force, potential, activation } = entries;
+    let start = force * zero + potential * zero + activation * zero;
+    let finite = jacobian.iter().fold(start, |sum, &x| sum + x * zero) == zero;
+    (row.force, row.potential, row.activation) = (force, potential, activation);
+    finite.then_some((first, end))
+}
+
 /// Where a task appends its rows, at most `R` of them: an owned [`TaskRows`] list, or the
 /// task's window of the hierarchy stack ([`crate::hierarchy::TaskWindow`]), whose slots are the
 /// rows the projection reads (each row is written once, where it is used). [`Self::len`] and
@@ -61,10 +100,17 @@ pub trait RowSink<T: RealField + Copy, const N: usize, const R: usize> {
     /// Appends a row; rejects non-finite rows and a full sink (the sink is unchanged then).
     fn push(&mut self, row: TaskRow<T, N>) -> Result<(), TaskError>;
 
-    /// Appends a row built in place: `fill` receives the new slot as a zero row (zero Jacobian,
-    /// force, potential and activation) and writes what it needs. Rejects a full sink and a
-    /// non-finite result (the sink is unchanged then).
-    fn push_with(&mut self, fill: impl FnOnce(&mut TaskRow<T, N>)) -> Result<(), TaskError>;
+    /// Appends a row built in place whose Jacobian is zero outside `columns` (clamped to
+    /// `0..N`): `fill` receives the entries it may write ([`RowEntries`]: the Jacobian entries
+    /// of `columns`, force, potential and activation), all zero, and writes what it needs; only
+    /// those entries are checked finite, and a stack window keeps the columns with the row
+    /// ([`crate::hierarchy::StackRow::support`]). Rejects a full sink and a non-finite result
+    /// (the sink is unchanged then).
+    fn push_with(
+        &mut self,
+        columns: core::ops::Range<usize>,
+        fill: impl FnOnce(&mut RowEntries<'_, T>),
+    ) -> Result<(), TaskError>;
 
     /// Appends a row that `fill` writes completely in place — every Jacobian entry, the force,
     /// the potential and the activation: the slot it receives holds an unspecified row (a zero
@@ -90,8 +136,12 @@ impl<T: RealField + Copy, const N: usize, const R: usize> RowSink<T, N, R> for T
     }
 
     #[inline]
-    fn push_with(&mut self, fill: impl FnOnce(&mut TaskRow<T, N>)) -> Result<(), TaskError> {
-        TaskRows::push_with(self, fill)
+    fn push_with(
+        &mut self,
+        columns: core::ops::Range<usize>,
+        fill: impl FnOnce(&mut RowEntries<'_, T>),
+    ) -> Result<(), TaskError> {
+        TaskRows::push_with(self, columns, fill)
     }
 
     #[inline]
@@ -154,16 +204,27 @@ impl<T: RealField + Copy, const N: usize, const R: usize> TaskRows<T, N, R> {
         self.metrics.push(None).map_err(|_| TaskError::Capacity { capacity: R })
     }
 
-    /// Appends a row built in place: `fill` receives the new slot as a zero row (zero Jacobian,
-    /// force, potential and activation) and writes what it needs, so the row is not built
-    /// elsewhere and copied in. Rejects a full list and a non-finite result (the list is
-    /// unchanged then).
+    /// Appends a row built in place, zero outside `columns` ([`RowSink::push_with`]): `fill`
+    /// writes its [`RowEntries`] into the new slot, so the row is not built elsewhere and copied
+    /// in. Rejects a full list and a non-finite result (the list is unchanged then).
     #[inline]
-    pub fn push_with(&mut self, fill: impl FnOnce(&mut TaskRow<T, N>)) -> Result<(), TaskError> {
-        self.push_with_metric(|row| {
-            fill(row);
-            None
-        })
+    pub fn push_with(
+        &mut self,
+        columns: core::ops::Range<usize>,
+        fill: impl FnOnce(&mut RowEntries<'_, T>),
+    ) -> Result<(), TaskError> {
+        let zero =
+            TaskRow { jacobian: RowSVector::zeros(), force: T::zero(), potential: T::zero(), activation: T::zero() };
+        self.rows.push(zero).map_err(|_| TaskError::Capacity { capacity: R })?;
+        let Some(row) = self.rows.last_mut() else {
+            return Err(TaskError::Capacity { capacity: R });
+        };
+        if fill_entries(row, columns, fill).is_some() && self.metrics.push(None).is_ok() {
+            Ok(())
+        } else {
+            self.rows.pop();
+            Err(TaskError::NonFinite)
+        }
     }
 
     /// [`Self::push_with`] for a task that also knows the row's `j M⁻¹ jᵀ` over the inertia
@@ -271,7 +332,7 @@ impl core::error::Error for TaskError {}
 mod tests {
     #![allow(clippy::unwrap_used, clippy::indexing_slicing, reason = "tests")]
     use super::*;
-    use nalgebra::RowVector2;
+    use nalgebra::{RowVector2, RowVector3};
 
     #[test]
     fn rows_sum_to_a_torque_and_reject_bad_input() {
@@ -356,25 +417,32 @@ mod tests {
     }
 
     /// `push_with` fills a zero row in place: the same list as `push`; a non-finite row or a
-    /// full list leaves the list unchanged.
+    /// full list leaves the list unchanged; the writer sees the entries of its columns only.
     #[test]
     fn push_with_builds_the_row_in_place() {
-        let mut rows = TaskRows::<f64, 2, 2>::new();
-        rows.push_with(|r| {
-            assert_eq!(*r, TaskRow { jacobian: RowVector2::zeros(), force: 0.0, potential: 0.0, activation: 0.0 });
-            r.jacobian[1] = 2.0;
+        let mut rows = TaskRows::<f64, 3, 2>::new();
+        rows.push_with(1..3, |r| {
+            assert_eq!((&*r.jacobian, r.force, r.potential, r.activation), (&[0.0, 0.0][..], 0.0, 0.0, 0.0));
+            r.jacobian[0] = 2.0;
+            r.jacobian[1] = -3.0;
             r.force = -1.5;
             r.potential = 0.25;
             r.activation = 1.0;
         })
         .unwrap();
-        let expected = TaskRow { jacobian: RowVector2::new(0.0, 2.0), force: -1.5, potential: 0.25, activation: 1.0 };
+        let expected =
+            TaskRow { jacobian: RowVector3::new(0.0, 2.0, -3.0), force: -1.5, potential: 0.25, activation: 1.0 };
         assert_eq!(rows.rows(), &[expected]);
-        assert_eq!(rows.push_with(|r| r.jacobian[0] = f64::INFINITY), Err(TaskError::NonFinite));
-        assert_eq!(rows.push_with(|r| r.potential = f64::NAN), Err(TaskError::NonFinite));
+        assert_eq!(rows.push_with(0..1, |r| r.jacobian[0] = f64::INFINITY), Err(TaskError::NonFinite));
+        assert_eq!(rows.push_with(2..9, |r| r.jacobian[0] = f64::NAN), Err(TaskError::NonFinite));
+        assert_eq!(rows.push_with(0..0, |r| r.potential = f64::NAN), Err(TaskError::NonFinite));
         assert_eq!(rows.rows(), &[expected]);
-        rows.push_with(|r| r.force = 1.0).unwrap();
-        assert_eq!(rows.push_with(|r| r.force = 1.0), Err(TaskError::Capacity { capacity: 2 }));
+        rows.push_with(2..9, |r| {
+            assert_eq!(r.jacobian.len(), 1, "clamped to the row");
+            r.force = 1.0;
+        })
+        .unwrap();
+        assert_eq!(rows.push_with(0..1, |r| r.force = 1.0), Err(TaskError::Capacity { capacity: 2 }));
         assert_eq!(rows.len(), 2);
         rows.truncate(1);
         assert_eq!(rows.rows(), &[expected]);

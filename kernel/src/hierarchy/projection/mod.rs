@@ -191,7 +191,17 @@ pub fn project<'d, T: RealField + Copy, const N: usize, const R: usize, const RS
                     )
                 }
                 None if identity_input || !diagnosed => {
-                    add_scaled(task_torque.as_mut_slice(), row, force);
+                    // A row over some columns adds over those only (the other terms are `±0`:
+                    // the same sums).
+                    let torque = task_torque.as_mut_slice();
+                    match r.support {
+                        (0, end) if end >= N => add_scaled(torque, row, force),
+                        (first, end) => add_scaled(
+                            torque.get_mut(first..end).unwrap_or_default(),
+                            row.get(first..end).unwrap_or_default(),
+                            force,
+                        ),
+                    }
                     diagnosed.then_some(T::one())
                 }
                 None => Some(transmission(&config.weighting, projector, row, force, &mut task_torque, &mut scratch.u)),

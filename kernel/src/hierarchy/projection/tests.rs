@@ -506,3 +506,62 @@ fn carried_metrics_give_the_projection_of_the_quadratic_form() {
     }
     assert_eq!(compared, 120);
 }
+
+/// Rows written through a window's `push_with` carry their columns
+/// ([`StackRow::support`](crate::hierarchy::StackRow)), and a level's task torque is added over
+/// them only: the projection equals that of the same rows pushed whole (support all columns)
+/// bit for bit — torque, projector and every diagnostic —, with the sparse rows on the first,
+/// a middle and the last level, with and without last-level diagnostics, for every weighting
+/// and recursion.
+#[test]
+fn rows_with_a_support_project_as_the_same_rows_pushed_whole() {
+    use crate::tasks::RowSink;
+    let factor = mass_factor(2);
+    let mut rng = reference::TestRng::new(77);
+    let mut narrow = 0;
+    for case in 0..24 {
+        let levels = [case % 3, 1 + case % 2, 2];
+        let (mut sparse, mut whole) = (Stack::<f64, N, 16>::new(), Stack::<f64, N, 16>::new());
+        for stack in [&mut sparse, &mut whole] {
+            stack.push(0, row(RowSVector::from_fn(|_, c| (c + case) as f64 * 0.3 - 0.7), 4.0)).unwrap();
+        }
+        for &level in &levels {
+            let mut window = sparse.task::<8>();
+            let mut rows = std::vec::Vec::new();
+            for _ in 0..4 {
+                let first = (rng.symmetric().abs() * N as f64) as usize % N;
+                let end = (first + 1 + (rng.symmetric().abs() * 3.0) as usize).min(N);
+                let values: std::vec::Vec<f64> = (first..end).map(|_| 2.0 * rng.symmetric()).collect();
+                let (force, activation) = (10.0 * rng.symmetric(), rng.symmetric().abs());
+                window
+                    .push_with(first..end, |r| {
+                        r.jacobian.copy_from_slice(&values);
+                        r.force = force;
+                        r.activation = activation;
+                    })
+                    .unwrap();
+                let j = RowSVector::from_fn(|_, c| if (first..end).contains(&c) { values[c - first] } else { 0.0 });
+                rows.push(TaskRow { jacobian: j, force, potential: 0.0, activation });
+                narrow += usize::from(end - first < N);
+            }
+            window.place(level).unwrap();
+            for r in rows {
+                whole.push(level, r).unwrap();
+            }
+        }
+        assert!(sparse.rows().iter().skip(1).all(|r| r.support != (0, N)));
+        for weighting in [Weighting::Identity, Weighting::Inertia(&factor), Weighting::AccelerationBased(&factor)] {
+            for recursion in [Recursion::Augmented, Recursion::Successive] {
+                for diagnose_last_level in [false, true] {
+                    let cfg = HierarchyConfig { diagnose_last_level, ..config(recursion, weighting) };
+                    let (mut a, mut b) =
+                        (HierarchyData::<f64, N, 16, 4>::default(), HierarchyData::<f64, N, 16, 4>::default());
+                    let torque = *project(&cfg, &sparse, &mut a).unwrap();
+                    assert_eq!(torque, *project(&cfg, &whole, &mut b).unwrap(), "case {case}");
+                    assert_eq!((a.projector, a.rows, a.level_torques), (b.projector, b.rows, b.level_torques));
+                }
+            }
+        }
+    }
+    assert!(narrow > 80, "{narrow} narrow rows");
+}

@@ -408,18 +408,20 @@ pub fn torso_workspace<'m, T: RealField + Copy, const N: usize, const R: usize>(
     };
     let [w22, w23, w33] = block;
     let (v2, v3) = (v.get(i2).copied().unwrap_or_else(T::zero), v.get(i3).copied().unwrap_or_else(T::zero));
-    // Each row is built in place in its slot of `rows` (a boundary without a distance is the
-    // zero row); a failure removes the rows pushed so far, so that `rows` is left unchanged.
+    // Each row is built in place in its slot of `rows`, in the columns `first..end` spanning
+    // (i2, i3) (a boundary without a distance is the zero row); a failure removes the rows
+    // pushed so far, so that `rows` is left unchanged.
+    let (first, end) = (i2.min(i3), i2.max(i3) + 1);
     let start = rows.len();
     for (distance, gradient) in report.distances.iter().zip(gradients.iter()) {
-        let pushed = rows.push_with(|row| {
+        let pushed = rows.push_with(first..end, |row| {
             let Some(d) = *distance else { return };
             let local = gradient.transpose() * jt;
             let (l2, l3) = (local.x, local.y);
-            if let Some(a) = row.jacobian.get_mut(i2) {
+            if let Some(a) = row.jacobian.get_mut(i2 - first) {
                 *a = l2;
             }
-            if let Some(a) = row.jacobian.get_mut(i3) {
+            if let Some(a) = row.jacobian.get_mut(i3 - first) {
                 *a = l3;
             }
             let rate = l2 * v2 + l3 * v3;

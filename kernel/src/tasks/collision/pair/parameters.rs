@@ -94,7 +94,7 @@ impl<T: RealField + Copy> CollisionParameters<T> {
     /// Potential `V(d)` (J), (3.8): `−F_max/(3 d0²) (d − d0)³` for `d ≤ d0`, else 0. For
     /// `d < 0` (overlapping volumes) the same cubic continues.
     pub fn potential(&self, d: T) -> T {
-        let s = (d - self.influence_distance) / self.influence_distance;
+        let s = self.relative_offset(d);
         if s >= T::zero() {
             return T::zero();
         }
@@ -104,7 +104,7 @@ impl<T: RealField + Copy> CollisionParameters<T> {
     /// Repulsive force `F_sca(d) = −∂V/∂d = F_max/d0² (d − d0)²` for `d ≤ d0`, else 0 (N),
     /// (3.10); `F_sca(0) = F_max`.
     pub fn force(&self, d: T) -> T {
-        let s = (d - self.influence_distance) / self.influence_distance;
+        let s = self.relative_offset(d);
         if s >= T::zero() {
             return T::zero();
         }
@@ -113,11 +113,19 @@ impl<T: RealField + Copy> CollisionParameters<T> {
 
     /// Local stiffness `k = ∂²V/∂d² = 2 F_max/d0² (d0 − d)` for `d ≤ d0`, else 0 (N/m), (3.22).
     pub fn stiffness(&self, d: T) -> T {
-        let s = (self.influence_distance - d) / self.influence_distance;
-        if s <= T::zero() {
+        // `(d0 − d) / d0 = −s` exactly (IEEE rounding is symmetric), so the division is the
+        // one `force` and `potential` make (one division per row where they are inlined).
+        let s = self.relative_offset(d);
+        if s >= T::zero() {
             return T::zero();
         }
-        convert::<f64, T>(2.0) * self.max_force / self.influence_distance * s
+        convert::<f64, T>(2.0) * self.max_force / self.influence_distance * -s
+    }
+
+    /// `s = (d − d0) / d0` of the force law (3.10).
+    #[inline]
+    fn relative_offset(&self, d: T) -> T {
+        (d - self.influence_distance) / self.influence_distance
     }
 
     /// Activation `a(d) = 1 − N_des(d)` with the cubic `N_des` of (4.68) on `[ϑ1, ϑ2]`.
