@@ -50,8 +50,6 @@
 //!   singularity row are faster by the import's rule.
 
 use kernel::controller::config::{ArmId, JointGroup, TaskKind, TaskSpec};
-use kernel::controller::messages::Command;
-use kernel::controller::Controller;
 use kernel::dynamics::{crba, forward_kinematics, frame_jacobian};
 use kernel::model::{Body, BodyId, Data, FrameId, JointKind, Model, Placement};
 use kernel::tasks::cartesian_impedance::AxisMask;
@@ -233,8 +231,10 @@ fn outside_margins<const N: usize, const B: usize, const F: usize>(
 
 /// `hierarchy` with the end stops on a new top level and every other task one level down: the
 /// Cartesian task below them can no longer drive a joint along an active stop's row.
-fn end_stops_on_top(hierarchy: impl Iterator<Item = TaskSpec>) -> Vec<TaskSpec> {
+fn end_stops_on_top(hierarchy: &[TaskSpec]) -> Vec<TaskSpec> {
     hierarchy
+        .iter()
+        .copied()
         .map(|task| match task.kind {
             TaskKind::EndStops => TaskSpec { level: 0, ..task },
             _ => TaskSpec { level: task.level + 1, ..task },
@@ -297,12 +297,13 @@ impl Scenario for Limits {
         T: RealField + Copy + Into<f64>,
     {
         let mut parts = parts()?;
-        let hierarchy = end_stops_on_top(parts.controller.hierarchy());
-        let (model, config) = (parts.controller.model().clone(), *parts.controller.config());
-        parts.controller = Box::new(
-            Controller::try_new(model, parts.collision.clone(), config, &hierarchy)
-                .map_err(|e| format!("controller: {e}"))?,
-        );
+        parts.hierarchy = end_stops_on_top(&parts.hierarchy);
+        // Arm 0's translational spring force capped at ±K · BEYOND_REACH_M per axis (module docs).
+        let cartesian = parts.config.cartesian.first_mut().ok_or("no arm")?;
+        let cap = cartesian.translational_stiffness[2] * convert(BEYOND_REACH_M);
+        for (lower, upper) in cartesian.force_lower.iter_mut().zip(cartesian.force_upper.iter_mut()).take(3) {
+            (*lower, *upper) = (-cap, cap);
+        }
         let mut rig = GenericRig::new(spec, parts, options)?;
         let tcp = *spec.tcps.first().ok_or("no arm")?;
         let config = rig.controller.config();
@@ -312,14 +313,6 @@ impl Scenario for Limits {
         let margin: f64 = config.end_stops.margin.into();
         let ratio: f64 = config.cartesian.first().ok_or("no arm")?.damping_ratio.into();
         let stiffness = rig.translational_stiffness(0)?;
-        // Arm 0's translational spring force capped at ±K · BEYOND_REACH_M per axis (module docs).
-        let hand = ArmId::all::<A>().first().copied().ok_or("no arm")?;
-        let mut parameters = *rig.controller.config().cartesian.first().ok_or("no arm")?;
-        let cap = stiffness * BEYOND_REACH_M;
-        for (lower, upper) in parameters.force_lower.iter_mut().zip(parameters.force_upper.iter_mut()).take(3) {
-            (*lower, *upper) = (convert(-cap), convert(cap));
-        }
-        rig.controller.apply(&Command::SetCartesian { hand, parameters }).map_err(|e| format!("SetCartesian: {e}"))?;
         let home = SVector::from((spec.home)());
         let start = rig.tcp_position(spec, 0)?;
         let model = rig.sim.model().clone();
