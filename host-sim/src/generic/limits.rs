@@ -27,6 +27,12 @@
 //! leaves the TCP short of the bracket and slow: TIAGo++ 1183.7 mm from the goal, settling
 //! 0.840 s for 0.351 s.
 //!
+//! The platform, if the robot has one, is held: every axis of its admittance locked
+//! (`free_axes = [false; 3]`, `ṙ_des = 0`). A mobile robot's reachable set is unbounded while its
+//! platform moves (on Justin the horizontal rest of the capped pull turned the free platform by
+//! 0.75 rad and moved it up to 0.56 m), so the claim on the nearest reachable point holds the
+//! platform coordinates at home (`held_at`).
+//!
 //! Claims:
 //! - **position limits**: every actuated joint stays within `[q_min, q_max]` over the whole run
 //!   (the deepest entry into the end stops' margin band is reported, with its joint and time);
@@ -38,9 +44,10 @@
 //!   smallest distance of any posture where no avoidance acts: manipulability `m ≥ m₀` and every
 //!   joint outside the end stops' margin band (`outside_margins`; the avoidance exerts no force
 //!   there, so the arm gets at least that close; it cannot beat the ranges). Both are found
-//!   by active-set damped least squares on the TCP position over the robot's plant model
-//!   (`nearest_reachable`), a local search seeded at home and at the run's end posture (the
-//!   smaller distance; from home alone TIAGo++'s search stops in a local minimum 53 mm farther);
+//!   by active-set damped least squares on the TCP position over the robot's plant model with
+//!   the platform coordinates held at home (`nearest_reachable`), a local search seeded at home
+//!   and at the run's end posture (the smaller distance; from home alone TIAGo++'s search stops
+//!   in a local minimum 53 mm farther);
 //!   [`NEAREST_ALLOWANCE_M`] absorbs their convergence;
 //! - **settling**: from the end of the goal's motion the TCP enters and stays within 5 % of its
 //!   total motion around its final position within `ln(1 / (0.05 √(1 − ξ²))) / (ξ ω)`, the 5 %
@@ -229,6 +236,24 @@ fn outside_margins<const N: usize, const B: usize, const F: usize>(
     narrowed
 }
 
+/// `model` with the ranges of the `coordinates` shrunk to their values at `q`: the postures with
+/// those coordinates held.
+fn held_at<const N: usize, const B: usize, const F: usize>(
+    model: &Model<f64, N, B, F>,
+    coordinates: &[bool; N],
+    q: &SVector<f64, N>,
+) -> Model<f64, N, B, F> {
+    let mut held = model.clone();
+    let limits = &mut held.limits;
+    let ranges = limits.position_lower.iter_mut().zip(limits.position_upper.iter_mut());
+    for (((lower, upper), held), x) in ranges.zip(coordinates).zip(q.iter()) {
+        if *held {
+            (*lower, *upper) = (*x, *x);
+        }
+    }
+    held
+}
+
 /// `hierarchy` with the end stops on a new top level and every other task one level down: the
 /// Cartesian task below them can no longer drive a joint along an active stop's row.
 fn end_stops_on_top(hierarchy: &[TaskSpec]) -> Vec<TaskSpec> {
@@ -304,6 +329,8 @@ impl Scenario for Limits {
         for (lower, upper) in cartesian.force_lower.iter_mut().zip(cartesian.force_upper.iter_mut()).take(3) {
             (*lower, *upper) = (-cap, cap);
         }
+        // The platform held (every admittance axis locked): its coordinates stay at home.
+        parts.config.platform.admittance.free_axes = [false; 3];
         let mut rig = GenericRig::new(spec, parts, options)?;
         let tcp = *spec.tcps.first().ok_or("no arm")?;
         let config = rig.controller.config();
@@ -354,8 +381,9 @@ impl Scenario for Limits {
             let from_end = nearest_reachable(model, tcp, &end_posture, &goal, constraint)?;
             Ok(from_end.map_or(from_home, |d| d.min(from_home)))
         };
-        let nearest_in_range = nearest(&model, None)?;
-        let nearest_unguarded = nearest(&outside_margins(&model, margin), Some(singularity))?;
+        let nearest_in_range = nearest(&held_at(&model, &platform, &home), None)?;
+        let nearest_unguarded =
+            nearest(&held_at(&outside_margins(&model, margin), &platform, &home), Some(singularity))?;
 
         let t = series.column("t").ok_or("no t")?;
         let xyz = ["x", "y", "z"].map(|axis| series.column(&format!("tcp0.{axis}")));
