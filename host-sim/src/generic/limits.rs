@@ -27,6 +27,12 @@
 //! leaves the TCP short of the bracket and slow: TIAGo++ 1183.7 mm from the goal, settling
 //! 0.840 s for 0.351 s.
 //!
+//! The platform, if the robot has one, is held: every axis of its admittance locked
+//! (`free_axes = [false; 3]`, `ṙ_des = 0`). A mobile robot's reachable set is unbounded while its
+//! platform moves (on Justin the horizontal rest of the capped pull turned the free platform by
+//! 0.75 rad and moved it up to 0.56 m), so the claim on the nearest reachable point holds the
+//! platform coordinates at home (`held_at`).
+//!
 //! Claims:
 //! - **position limits**: every actuated joint stays within `[q_min, q_max]` over the whole run
 //!   (the deepest entry into the end stops' margin band is reported, with its joint and time);
@@ -38,9 +44,10 @@
 //!   smallest distance of any posture where no avoidance acts: manipulability `m ≥ m₀` and every
 //!   joint outside the end stops' margin band (`outside_margins`; the avoidance exerts no force
 //!   there, so the arm gets at least that close; it cannot beat the ranges). Both are found
-//!   by active-set damped least squares on the TCP position over the robot's plant model
-//!   (`nearest_reachable`), a local search seeded at home and at the run's end posture (the
-//!   smaller distance; from home alone TIAGo++'s search stops in a local minimum 53 mm farther);
+//!   by active-set damped least squares on the TCP position over the robot's plant model with
+//!   the platform coordinates held at home (`nearest_reachable`), a local search seeded at home
+//!   and at the run's end posture (the smaller distance; from home alone TIAGo++'s search stops
+//!   in a local minimum 53 mm farther);
 //!   [`NEAREST_ALLOWANCE_M`] absorbs their convergence;
 //! - **settling**: from the end of the goal's motion the TCP enters and stays within 5 % of its
 //!   total motion around its final position within `ln(1 / (0.05 √(1 − ξ²))) / (ξ ω)`, the 5 %
@@ -50,8 +57,6 @@
 //!   singularity row are faster by the import's rule.
 
 use kernel::controller::config::{ArmId, JointGroup, TaskKind, TaskSpec};
-use kernel::controller::messages::Command;
-use kernel::controller::Controller;
 use kernel::dynamics::{crba, forward_kinematics, frame_jacobian};
 use kernel::model::{Body, BodyId, Data, FrameId, JointKind, Model, Placement};
 use kernel::tasks::cartesian_impedance::AxisMask;
@@ -231,10 +236,30 @@ fn outside_margins<const N: usize, const B: usize, const F: usize>(
     narrowed
 }
 
+/// `model` with the ranges of the `coordinates` shrunk to their values at `q`: the postures with
+/// those coordinates held.
+fn held_at<const N: usize, const B: usize, const F: usize>(
+    model: &Model<f64, N, B, F>,
+    coordinates: &[bool; N],
+    q: &SVector<f64, N>,
+) -> Model<f64, N, B, F> {
+    let mut held = model.clone();
+    let limits = &mut held.limits;
+    let ranges = limits.position_lower.iter_mut().zip(limits.position_upper.iter_mut());
+    for (((lower, upper), held), x) in ranges.zip(coordinates).zip(q.iter()) {
+        if *held {
+            (*lower, *upper) = (*x, *x);
+        }
+    }
+    held
+}
+
 /// `hierarchy` with the end stops on a new top level and every other task one level down: the
 /// Cartesian task below them can no longer drive a joint along an active stop's row.
-fn end_stops_on_top(hierarchy: impl Iterator<Item = TaskSpec>) -> Vec<TaskSpec> {
+fn end_stops_on_top(hierarchy: &[TaskSpec]) -> Vec<TaskSpec> {
     hierarchy
+        .iter()
+        .copied()
         .map(|task| match task.kind {
             TaskKind::EndStops => TaskSpec { level: 0, ..task },
             _ => TaskSpec { level: task.level + 1, ..task },
@@ -297,12 +322,15 @@ impl Scenario for Limits {
         T: RealField + Copy + Into<f64>,
     {
         let mut parts = parts()?;
-        let hierarchy = end_stops_on_top(parts.controller.hierarchy());
-        let (model, config) = (parts.controller.model().clone(), *parts.controller.config());
-        parts.controller = Box::new(
-            Controller::try_new(model, parts.collision.clone(), config, &hierarchy)
-                .map_err(|e| format!("controller: {e}"))?,
-        );
+        parts.hierarchy = end_stops_on_top(&parts.hierarchy);
+        // Arm 0's translational spring force capped at ±K · BEYOND_REACH_M per axis (module docs).
+        let cartesian = parts.config.cartesian.first_mut().ok_or("no arm")?;
+        let cap = cartesian.translational_stiffness[2] * convert(BEYOND_REACH_M);
+        for (lower, upper) in cartesian.force_lower.iter_mut().zip(cartesian.force_upper.iter_mut()).take(3) {
+            (*lower, *upper) = (-cap, cap);
+        }
+        // The platform held (every admittance axis locked): its coordinates stay at home.
+        parts.config.platform.admittance.free_axes = [false; 3];
         let mut rig = GenericRig::new(spec, parts, options)?;
         let tcp = *spec.tcps.first().ok_or("no arm")?;
         let config = rig.controller.config();
@@ -312,14 +340,6 @@ impl Scenario for Limits {
         let margin: f64 = config.end_stops.margin.into();
         let ratio: f64 = config.cartesian.first().ok_or("no arm")?.damping_ratio.into();
         let stiffness = rig.translational_stiffness(0)?;
-        // Arm 0's translational spring force capped at ±K · BEYOND_REACH_M per axis (module docs).
-        let hand = ArmId::all::<A>().first().copied().ok_or("no arm")?;
-        let mut parameters = *rig.controller.config().cartesian.first().ok_or("no arm")?;
-        let cap = stiffness * BEYOND_REACH_M;
-        for (lower, upper) in parameters.force_lower.iter_mut().zip(parameters.force_upper.iter_mut()).take(3) {
-            (*lower, *upper) = (convert(-cap), convert(cap));
-        }
-        rig.controller.apply(&Command::SetCartesian { hand, parameters }).map_err(|e| format!("SetCartesian: {e}"))?;
         let home = SVector::from((spec.home)());
         let start = rig.tcp_position(spec, 0)?;
         let model = rig.sim.model().clone();
@@ -361,8 +381,9 @@ impl Scenario for Limits {
             let from_end = nearest_reachable(model, tcp, &end_posture, &goal, constraint)?;
             Ok(from_end.map_or(from_home, |d| d.min(from_home)))
         };
-        let nearest_in_range = nearest(&model, None)?;
-        let nearest_unguarded = nearest(&outside_margins(&model, margin), Some(singularity))?;
+        let nearest_in_range = nearest(&held_at(&model, &platform, &home), None)?;
+        let nearest_unguarded =
+            nearest(&held_at(&outside_margins(&model, margin), &platform, &home), Some(singularity))?;
 
         let t = series.column("t").ok_or("no t")?;
         let xyz = ["x", "y", "z"].map(|axis| series.column(&format!("tcp0.{axis}")));

@@ -90,7 +90,7 @@ pub const JUSTIN: RobotSpec<{ justin::N }, { whole_body::ARMS }> = RobotSpec {
 
 /// A generic scenario: one function over the robot's sizes and the controller's scalar.
 pub trait Scenario {
-    /// Runs the scenario on `spec` with the controller in `T` made of `parts()` (called once per
+    /// Runs the scenario on `spec` with the controller in `T` built of `parts()` (called once per
     /// simulated run).
     fn simulate<
         T,
@@ -110,8 +110,9 @@ pub trait Scenario {
         T: RealField + Copy + Into<f64>;
 }
 
-/// What the rig is built of: the controller in `T` (the robot's model, collision model,
-/// compiled configuration and Fig. 6.3 hierarchy), the simulated plant's model and collision
+/// What the rig is built of: the controller's pieces in `T` (the robot's model, collision model,
+/// compiled configuration and Fig. 6.3 hierarchy, which a scenario may adjust before
+/// [`GenericRig::new`] builds the controller of them), the simulated plant's model and collision
 /// model in `f64` and the simulator's settings.
 pub struct RigParts<
     T: RealField + Copy,
@@ -123,16 +124,19 @@ pub struct RigParts<
     const P: usize,
     const A: usize,
 > {
-    /// The controller; boxed: it is large.
-    pub controller: Box<Controller<T, N, B, F, U, V, P, A>>,
-    /// The controller's collision model, for a scenario that builds the controller again with
-    /// its own hierarchy (`limits`).
+    /// The controller's model of the robot.
+    pub model: Model<T, N, B, F>,
+    /// The controller's collision model (the imported robot's table, Justin's
+    /// `fixtures::justin::collision` without environment volumes).
     pub collision: CollisionModel<T, V, P>,
+    /// The controller's configuration (the robot's compiled `config.toml`).
+    pub config: ControllerConfig<T, N, A>,
+    /// The controller's hierarchy (the file's Fig. 6.3 for arm 0).
+    pub hierarchy: Vec<TaskSpec>,
     /// The simulated robot's model.
     pub plant: Model<f64, N, B, F>,
-    /// The controller's collision model in `f64` on the simulated robot's model (the imported
-    /// robot's table, Justin's `fixtures::justin::collision`), where a scenario measures the
-    /// pair distances.
+    /// The controller's collision model in `f64` on the simulated robot's model, where a
+    /// scenario measures the pair distances.
     pub plant_collision: CollisionModel<f64, V, P>,
     /// The simulator's settings.
     pub sim_config: SimConfig,
@@ -147,7 +151,6 @@ macro_rules! imported {
         let collision = $robot::collision::collision_model(&model).map_err(|e| format!("collision model: {e}"))?;
         let plant = $robot::model::<f64>().map_err(error)?;
         let config = $robot::controller_config::<$t>().map_err(|e| format!("{}: {e:?}", stringify!($robot)))?;
-        let hierarchy = &$robot::config::hierarchy::fig_6_3::LEVELS;
         RigParts::<
             $t,
             { $robot::N },
@@ -158,11 +161,10 @@ macro_rules! imported {
             { $robot::collision::PAIRS },
             { $robot::ARMS },
         > {
-            controller: Box::new(
-                Controller::try_new(model, collision.clone(), config, hierarchy)
-                    .map_err(|e| format!("controller: {e}"))?,
-            ),
+            model,
             collision,
+            config,
+            hierarchy: $robot::config::hierarchy::fig_6_3::LEVELS.to_vec(),
             plant_collision: $robot::collision::collision_model(&plant).map_err(|e| format!("collision model: {e}"))?,
             plant,
             sim_config: SimConfig::default(),
@@ -170,8 +172,9 @@ macro_rules! imported {
     }};
 }
 
-/// Justin's parts in `T`: the controller of `crate::wbc` (its collision model, no environment)
-/// with the Fig. 6.3 hierarchy for the right TCP, the simulator with the base's lag.
+/// Justin's parts in `T`: the pieces of the controller of `crate::wbc` (its model, its collision
+/// model without environment volumes, its configuration) with the Fig. 6.3 hierarchy for the
+/// right TCP, the simulator with the base's lag.
 fn justin_parts<T: RealField + Copy>() -> Result<
     RigParts<
         T,
@@ -185,15 +188,14 @@ fn justin_parts<T: RealField + Copy>() -> Result<
     >,
     String,
 > {
-    let hierarchy = whole_body::fig_6_3_hierarchy(ArmId::RIGHT);
+    let model = justin::model::<T>().map_err(|e| format!("model: {e}"))?;
     let plant = justin::model::<f64>().map_err(|e| format!("model: {e}"))?;
     Ok(RigParts {
-        controller: Box::new(crate::wbc::whole_body_controller(&[], crate::wbc::ConfigChanges::NONE, &hierarchy)?),
-        collision: justin::collision::collision_model_with_environment(
-            &justin::model::<T>().map_err(|e| format!("model: {e}"))?,
-            &[],
-        )
-        .map_err(|e| format!("collision model: {e}"))?,
+        collision: justin::collision::collision_model_with_environment(&model, &[])
+            .map_err(|e| format!("collision model: {e}"))?,
+        model,
+        config: crate::wbc::ConfigChanges::NONE.config()?,
+        hierarchy: whole_body::fig_6_3_hierarchy(ArmId::RIGHT).to_vec(),
         plant_collision: justin::collision::collision_model_with_environment(&plant, &[])
             .map_err(|e| format!("collision model: {e}"))?,
         plant,
@@ -282,14 +284,17 @@ impl<
 where
     T: RealField + Copy + Into<f64>,
 {
-    /// The robot at its home posture at rest on the plant of `options`, the controller of
-    /// `parts`.
+    /// The robot at its home posture at rest on the plant of `options`, the controller built of
+    /// `parts` (its model, collision model, configuration and hierarchy).
     pub fn new(
         spec: &RobotSpec<N, A>,
         parts: RigParts<T, N, B, F, U, V, P, A>,
         options: &RunOptions,
     ) -> Result<Self, String> {
-        let RigParts { controller, plant, sim_config, .. } = parts;
+        let RigParts { model, collision, config, hierarchy, plant, sim_config, .. } = parts;
+        let controller = Box::new(
+            Controller::try_new(model, collision, config, &hierarchy).map_err(|e| format!("controller: {e}"))?,
+        );
         let mut sim = options.simulator(plant, sim_config)?;
         sim.set_state(SVector::from((spec.home)()), SVector::zeros())?;
         sim.set_joint_stops(Some(JointStops::JUSTIN))?;
