@@ -31,7 +31,7 @@
 //! (`free_axes = [false; 3]`, `ṙ_des = 0`). A mobile robot's reachable set is unbounded while its
 //! platform moves (on Justin the horizontal rest of the capped pull turned the free platform by
 //! 0.75 rad and moved it up to 0.56 m), so the claim on the nearest reachable point holds the
-//! platform coordinates at home (`held_at`).
+//! platform coordinates at home (they do not move in the search).
 //!
 //! Claims:
 //! - **position limits**: every actuated joint stays within `[q_min, q_max]` over the whole run
@@ -40,12 +40,23 @@
 //! - **torques within limits**: every applied torque `|τ| ≤ τ_max`;
 //! - **no fault, no NaN** over the whole run;
 //! - **nearest reachable point**: at the end the TCP's distance to the goal lies between
-//!   `d_range`, the smallest distance of any posture within the joint ranges, and `d_free`, the
-//!   smallest distance of any posture where no avoidance acts: manipulability `m ≥ m₀` and every
-//!   joint outside the end stops' margin band (`outside_margins`; the avoidance exerts no force
-//!   there, so the arm gets at least that close; it cannot beat the ranges). Both are found
-//!   by active-set damped least squares on the TCP position over the robot's plant model with
-//!   the platform coordinates held at home (`nearest_reachable`), a local search seeded at home
+//!   `d_range`, the smallest distance of any posture within the joint ranges (position only),
+//!   and `d_free`, the smallest distance of any posture where no avoidance acts (manipulability
+//!   `m ≥ m₀` and every joint outside the end stops' margin band) with the hand's home
+//!   orientation held (the goal's orientation). The Cartesian impedance is 6-D (the config's
+//!   `K_t`, `K_r`): the controller settles at a minimum of `½ Δxᵀ K_t Δx + ½ θᵀ K_r θ` (with the
+//!   force cap the translational part stays monotone in `|Δx|`); the posture of `d_free` has
+//!   `θ = 0` and potential `½ K_t d_free²`, so a posture of lower potential has
+//!   `|Δx| ≤ d_free`. The bracket assumes that no other task pulls the end posture: on Justin the
+//!   torso's workspace rows are not in the search (they act at home). The orientation weighs
+//!   [`HELD_ORIENTATION_WEIGHT_M`]; a search that gives up a little orientation finds a slightly
+//!   smaller `d_free` (a tighter claim). Measured (f64): Panda 643.5 mm for [642.2, 1035.9] mm,
+//!   TIAGo++ 1074.8 mm for [995.7, 1128.8] mm, Justin 1087.3 mm for [786.9, 1379.1] mm (position
+//!   only, Justin's `d_free` was 791.8 mm, below where the 6-D impedance settles). Both are
+//!   found by
+//!   [`NearestPosture`] on the TCP position over the robot's plant model with every coordinate
+//!   but the platform's moving (`d_free`: ranges narrowed by the margin, steps kept at
+//!   `m ≥ m₀`), a local search seeded at home
 //!   and at the run's end posture (the smaller distance; from home alone TIAGo++'s search stops
 //!   in a local minimum 53 mm farther);
 //!   [`NEAREST_ALLOWANCE_M`] absorbs their convergence;
@@ -59,10 +70,9 @@
 use kernel::controller::config::{ArmId, JointGroup, TaskKind, TaskSpec};
 use kernel::dynamics::{crba, forward_kinematics, frame_jacobian};
 use kernel::model::{Body, BodyId, Data, FrameId, JointKind, Model, Placement};
-use kernel::tasks::cartesian_impedance::AxisMask;
-use kernel::tasks::manipulability::manipulability;
-use nalgebra::{convert, Matrix3, RealField, SMatrix, SVector, Vector3};
+use nalgebra::{convert, RealField, SMatrix, SVector, Vector3};
 
+use super::nearest_posture::NearestPosture;
 use super::{record, GenericRig, RigParts, RobotSpec, Scenario};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
 use crate::scenarios::{Outcome, RunOptions};
@@ -84,12 +94,11 @@ pub const MOVE_S: f64 = 3.0;
 pub const HOLD_S: f64 = 1.5;
 /// Simulated time (s).
 pub const DURATION_S: f64 = MOVE_AT_S + MOVE_S + HOLD_S;
+/// Weight (m/rad) of the orientation error in the search for the bracket's upper end: the hand's
+/// home orientation held (a mrad counts as 0.1 m).
+pub const HELD_ORIENTATION_WEIGHT_M: f64 = 100.0;
 /// Allowance of the nearest-reachable-point bounds for the search's convergence (m).
 pub const NEAREST_ALLOWANCE_M: f64 = 1e-3;
-/// Damping `λ` of the least-squares search (m).
-const SEARCH_DAMPING: f64 = 0.02;
-/// Iterations of the least-squares search.
-const SEARCH_ITERATIONS: usize = 2000;
 
 /// The anchor and the length of the kinematic chain from the root (after a planar base) to the
 /// TCP: the world position (m) of the first joint after the `platform` coordinates at the
@@ -143,115 +152,6 @@ fn goal_offset(start: &Vector3<f64>, anchor: &Vector3<f64>, length: f64) -> f64 
     let d = start - anchor;
     let radius = length + BEYOND_REACH_M;
     -d.z + (radius * radius - d.x * d.x - d.y * d.y).max(0.0).sqrt()
-}
-
-/// The smallest TCP distance to `goal` (m) from the posture `seed` (clamped into the ranges) by
-/// active-set damped least squares within the ranges of `model` (joints at a bound whose step
-/// points outward are taken out of the step), with `m ≥ min_manipulability` of the TCP's `rows`
-/// over the `arm` coordinates if given (a step that crosses it is halved until it does not);
-/// `None` if the seed is below that bound.
-fn nearest_reachable<const N: usize, const B: usize, const F: usize>(
-    model: &Model<f64, N, B, F>,
-    tcp: FrameId,
-    seed: &SVector<f64, N>,
-    goal: &Vector3<f64>,
-    constraint: Option<(AxisMask, [bool; N], f64)>,
-) -> Result<Option<f64>, String> {
-    let mut data = Data::new(model);
-    let limits = &model.limits;
-    let clamp =
-        |q: SVector<f64, N>| q.zip_zip_map(&limits.position_lower, &limits.position_upper, |x, l, u| x.clamp(l, u));
-    let evaluate = |data: &mut Data<f64, N, B, F>, q: &SVector<f64, N>| -> Result<(Vector3<f64>, f64), String> {
-        forward_kinematics(model, data, q, &SVector::zeros()).map_err(|e| e.to_string())?;
-        let p = data.frame_placements.get(tcp.0).ok_or("no TCP")?.translation.vector;
-        let m = match &constraint {
-            Some((rows, arm, _)) => manipulability(model, data, tcp, *rows, arm).map_err(|e| e.to_string())?.value,
-            None => f64::INFINITY,
-        };
-        Ok((p, m))
-    };
-    let allowed = |m: f64| constraint.as_ref().is_none_or(|(_, _, m0)| m >= *m0);
-    let mut q = clamp(*seed);
-    let (mut p, m) = evaluate(&mut data, &q)?;
-    if !allowed(m) {
-        return Ok(None);
-    }
-    let mut jacobian = SMatrix::<f64, 6, N>::zeros();
-    for _ in 0..SEARCH_ITERATIONS {
-        evaluate(&mut data, &q)?;
-        frame_jacobian(model, &data, tcp, &mut jacobian).map_err(|e| e.to_string())?;
-        let error = goal - p;
-        let mut j = jacobian.fixed_rows::<3>(0).into_owned();
-        let mut step = SVector::<f64, N>::zeros();
-        for _ in 0..=N {
-            let gram = j * j.transpose() + Matrix3::identity() * SEARCH_DAMPING * SEARCH_DAMPING;
-            step = j.transpose() * gram.try_inverse().ok_or("singular Gram matrix")? * error;
-            let mut blocked = false;
-            let bounds = limits.position_lower.iter().zip(limits.position_upper.iter());
-            for (k, ((x, dx), (lower, upper))) in q.iter().zip(step.iter()).zip(bounds).enumerate() {
-                let outward = (x <= lower && *dx < 0.0) || (x >= upper && *dx > 0.0);
-                if outward && j.column(k).norm() > 0.0 {
-                    j.column_mut(k).fill(0.0);
-                    blocked = true;
-                }
-            }
-            if !blocked {
-                break;
-            }
-        }
-        let mut scale = 1.0;
-        let mut accepted = None;
-        for _ in 0..30 {
-            let candidate = clamp(q + step * scale);
-            let (candidate_p, m) = evaluate(&mut data, &candidate)?;
-            if allowed(m) && (goal - candidate_p).norm() <= (goal - p).norm() {
-                accepted = Some((candidate, candidate_p));
-                break;
-            }
-            scale *= 0.5;
-        }
-        let Some((next, next_p)) = accepted else { break };
-        let moved = (next - q).norm();
-        (q, p) = (next, next_p);
-        if moved < 1e-10 {
-            break;
-        }
-    }
-    Ok(Some((goal - p).norm()))
-}
-
-/// `model` with every limited joint's range narrowed by the end stops' `margin` at both ends:
-/// the postures where no end stop acts.
-fn outside_margins<const N: usize, const B: usize, const F: usize>(
-    model: &Model<f64, N, B, F>,
-    margin: f64,
-) -> Model<f64, N, B, F> {
-    let mut narrowed = model.clone();
-    let limits = &mut narrowed.limits;
-    for (lower, upper) in limits.position_lower.iter_mut().zip(limits.position_upper.iter_mut()) {
-        if lower.is_finite() && upper.is_finite() {
-            (*lower, *upper) = (*lower + margin, *upper - margin);
-        }
-    }
-    narrowed
-}
-
-/// `model` with the ranges of the `coordinates` shrunk to their values at `q`: the postures with
-/// those coordinates held.
-fn held_at<const N: usize, const B: usize, const F: usize>(
-    model: &Model<f64, N, B, F>,
-    coordinates: &[bool; N],
-    q: &SVector<f64, N>,
-) -> Model<f64, N, B, F> {
-    let mut held = model.clone();
-    let limits = &mut held.limits;
-    let ranges = limits.position_lower.iter_mut().zip(limits.position_upper.iter_mut());
-    for (((lower, upper), held), x) in ranges.zip(coordinates).zip(q.iter()) {
-        if *held {
-            (*lower, *upper) = (*x, *x);
-        }
-    }
-    held
 }
 
 /// `hierarchy` with the end stops on a new top level and every other task one level down: the
@@ -346,6 +246,7 @@ impl Scenario for Limits {
         let mut data = Data::new(&model);
         forward_kinematics(&model, &mut data, &home, &SVector::zeros()).map_err(|e| e.to_string())?;
         let (anchor, length) = chain_reach(&model, &data, tcp, &platform)?;
+        let home_rotation = data.frame_placements.get(tcp.0).ok_or("no TCP")?.rotation;
         let offset = Vector3::new(0.0, 0.0, goal_offset(&start, &anchor, length));
         let goal = start + offset;
         let bound = settling_bound(&model, tcp, &home, stiffness, ratio)?;
@@ -373,17 +274,36 @@ impl Scenario for Limits {
             record(rig, spec, info.time_s, &mut series)
         })?;
         options.progress.finish();
-        // The search is local: seeded at home and at the run's end posture.
-        let end_posture = SVector::from_iterator(rig.sim.q().iter().copied());
-        let nearest = |model: &Model<f64, N, B, F>, constraint| -> Result<f64, String> {
-            let from_home = nearest_reachable(model, tcp, &home, &goal, constraint)?
-                .ok_or("home posture below the manipulability bound")?;
-            let from_end = nearest_reachable(model, tcp, &end_posture, &goal, constraint)?;
-            Ok(from_end.map_or(from_home, |d| d.min(from_home)))
+        // The search is local: seeded at home and at the run's end posture (its platform
+        // coordinates at home).
+        let end_posture = SVector::from_fn(|k, _| match platform.get(k) {
+            Some(true) => home.get(k).copied().unwrap_or(f64::NAN),
+            _ => rig.sim.q().get(k).copied().unwrap_or(f64::NAN),
+        });
+        let moves = platform.map(|held| !held);
+        let nearest = |search: NearestPosture<N, B, F>| -> Result<f64, String> {
+            let distance = |seed| -> Result<Option<f64>, String> {
+                Ok(search.search(seed, &goal)?.map(|(_, tcp)| (goal - tcp.translation.vector).norm()))
+            };
+            let from_home = distance(&home)?.ok_or("home posture below the manipulability bound")?;
+            Ok(distance(&end_posture)?.map_or(from_home, |d| d.min(from_home)))
         };
-        let nearest_in_range = nearest(&held_at(&model, &platform, &home), None)?;
-        let nearest_unguarded =
-            nearest(&held_at(&outside_margins(&model, margin), &platform, &home), Some(singularity))?;
+        let nearest_in_range = nearest(NearestPosture {
+            model: &model,
+            tcp,
+            moves,
+            margin: 0.0,
+            orientation: None,
+            manipulability: None,
+        })?;
+        let nearest_unguarded = nearest(NearestPosture {
+            model: &model,
+            tcp,
+            moves,
+            margin,
+            orientation: Some((home_rotation, HELD_ORIENTATION_WEIGHT_M)),
+            manipulability: Some(singularity),
+        })?;
 
         let t = series.column("t").ok_or("no t")?;
         let xyz = ["x", "y", "z"].map(|axis| series.column(&format!("tcp0.{axis}")));

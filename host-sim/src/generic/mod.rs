@@ -27,6 +27,7 @@
 //! run's scalar (`f64` or `f32`: the frame narrowed, the torque widened) and writes the torques.
 
 pub mod limits;
+pub mod nearest_posture;
 pub mod posture_push;
 pub mod reach;
 pub mod self_collision;

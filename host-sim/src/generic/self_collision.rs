@@ -11,7 +11,7 @@
 //! [`MEETING_CLEARANCE_M`] outside every volume at home, ahead of the chest and the head; each
 //! hand's goal is the TCP position of the posture found by damped least squares on the hand's pose
 //! error over its arm's coordinates alone, within the joint ranges narrowed by the end stops'
-//! margin (`nearest_pose`), so the goal is reachable by construction, without an end stop acting
+//! margin ([`NearestPosture`]), so the goal is reachable by construction, without an end stop acting
 //! (hand into hand; TIAGo++: meeting point 0.35 m ahead of the midpoint, at (0.43, 0, 1.20) m,
 //! outside what the arms reach in the home orientation, goals at (0.375, ±0.13, 1.198) m, 0.14 m
 //! from it, close enough for the hand boxes to collide; Justin: 0.12 m ahead, at
@@ -56,11 +56,12 @@
 
 use kernel::controller::config::{ArmId, JointGroup, TaskKind, TaskSpec};
 use kernel::controller::messages::Command;
-use kernel::dynamics::{forward_kinematics, frame_jacobian};
+use kernel::dynamics::forward_kinematics;
 use kernel::model::{Data, FrameId, Model};
 use kernel::tasks::collision::{CollisionData, CollisionModel};
-use nalgebra::{Matrix6, RealField, SMatrix, SVector, Vector3, Vector6};
+use nalgebra::{RealField, SVector, Vector3};
 
+use super::nearest_posture::NearestPosture;
 use super::{record, GenericRig, RigParts, RobotSpec, Scenario};
 use crate::output::{Figure, Line, Panel, Span, Summary, TimeSeries};
 use crate::scenarios::{Outcome, RunOptions};
@@ -87,15 +88,9 @@ pub const MEETING_CLEARANCE_M: f64 = 0.15;
 /// The step (m) and the farthest distance (m) of the search for the meeting point.
 const MEETING_STEP_M: f64 = 0.01;
 const MEETING_SEARCH_M: f64 = 1.0;
-/// Weight (m/rad) of the orientation error in [`nearest_pose`]: a rad counts as 10 m, so the
+/// Weight (m/rad) of the orientation error in [`NearestPosture`]: a rad counts as 10 m, so the
 /// hand keeps its orientation and gives up position where it cannot have both.
 const ORIENTATION_WEIGHT_M: f64 = 10.0;
-/// Damping `λ` (m) and iterations of [`nearest_pose`]' least squares.
-const REACH_DAMPING: f64 = 0.02;
-const REACH_ITERATIONS: usize = 500;
-/// The largest step of [`nearest_pose`] (rad).
-const REACH_STEP_RAD: f64 = 0.2;
-
 /// The scenario.
 pub struct SelfCollision;
 
@@ -162,73 +157,6 @@ impl<const N: usize, const B: usize, const F: usize, const V: usize, const P: us
     }
 }
 
-/// The TCP position (m, world) nearest to `target` that `frame` reaches in its orientation at
-/// `q`, moving only the coordinates of `arm` (a coordinate mask) and keeping them `margin` inside
-/// their ranges (the end stops' margin: no stop acts there): active-set damped least squares
-/// from `q` on the pose error `(p* − p, W log(R Rᵀ(q)))` with the frame's world-aligned Jacobian
-/// (`W` = [`ORIENTATION_WEIGHT_M`] per rad), joints at a bound whose step points outward taken
-/// out of the step, steps of at most [`REACH_STEP_RAD`], until a step is below `1e-9` or after
-/// [`REACH_ITERATIONS`]. The position reached is a goal the arm reaches in that orientation.
-#[allow(clippy::too_many_arguments, reason = "one plant, one hand, one target")]
-fn nearest_pose<const N: usize, const B: usize, const F: usize>(
-    plant: &Model<f64, N, B, F>,
-    data: &mut Data<f64, N, B, F>,
-    frame: FrameId,
-    arm: &[bool; N],
-    margin: f64,
-    q: &SVector<f64, N>,
-    target: &Vector3<f64>,
-) -> Result<Vector3<f64>, String> {
-    let narrowed = |bound: f64, inward: f64| if bound.is_finite() { bound + inward } else { bound };
-    let lower = plant.limits.position_lower.map(|l| narrowed(l, margin));
-    let upper = plant.limits.position_upper.map(|u| narrowed(u, -margin));
-    let pose = |data: &mut Data<f64, N, B, F>, q: &SVector<f64, N>| -> Result<_, String> {
-        forward_kinematics(plant, data, q, &SVector::zeros()).map_err(|e| e.to_string())?;
-        Ok(*data.frame_placements.get(frame.0).ok_or("no TCP frame")?)
-    };
-    let rotation = pose(data, q)?.rotation;
-    let mut q = q.zip_zip_map(&lower, &upper, |x, l, u| x.clamp(l, u));
-    let mut jacobian = SMatrix::<f64, 6, N>::zeros();
-    for _ in 0..REACH_ITERATIONS {
-        let placement = pose(data, &q)?;
-        frame_jacobian(plant, data, frame, &mut jacobian).map_err(|e| e.to_string())?;
-        let translation = target - placement.translation.vector;
-        let turn = (rotation * placement.rotation.inverse()).scaled_axis() * ORIENTATION_WEIGHT_M;
-        let error = Vector6::new(translation.x, translation.y, translation.z, turn.x, turn.y, turn.z);
-        jacobian.fixed_rows_mut::<3>(3).scale_mut(ORIENTATION_WEIGHT_M);
-        let mut free = *arm;
-        let mut step = SVector::<f64, N>::zeros();
-        for _ in 0..=N {
-            let mut j = jacobian;
-            for (k, moves) in free.iter().enumerate() {
-                if !moves {
-                    j.column_mut(k).fill(0.0);
-                }
-            }
-            let gram = j * j.transpose() + Matrix6::identity() * REACH_DAMPING * REACH_DAMPING;
-            step = j.transpose() * gram.try_inverse().ok_or("singular Gram matrix")? * error;
-            let mut blocked = false;
-            let bounds = lower.iter().zip(upper.iter());
-            for (((moves, x), dx), (l, u)) in free.iter_mut().zip(q.iter()).zip(step.iter()).zip(bounds) {
-                if *moves && ((x <= l && *dx < 0.0) || (x >= u && *dx > 0.0)) {
-                    (*moves, blocked) = (false, true);
-                }
-            }
-            if !blocked {
-                break;
-            }
-        }
-        let next =
-            (q + step * (REACH_STEP_RAD / step.norm()).min(1.0)).zip_zip_map(&lower, &upper, |x, l, u| x.clamp(l, u));
-        let moved = (next - q).norm();
-        q = next;
-        if moved < 1e-9 {
-            break;
-        }
-    }
-    Ok(pose(data, &q)?.translation.vector)
-}
-
 /// What one run measured.
 struct Run {
     series: TimeSeries,
@@ -253,7 +181,7 @@ struct Run {
 /// The goal offsets (m, world) of each arm from its TCP position at home `tcps` (module docs):
 /// one arm (`arms[0]`, a coordinate mask) to the origin of its first body, two arms to the TCP
 /// positions nearest to their meeting point that each reaches in its home orientation
-/// ([`nearest_pose`] with the end stops' `margin`; `frames`: the TCP frames).
+/// ([`NearestPosture`] with the end stops' `margin`; `frames`: the TCP frames).
 #[allow(clippy::too_many_arguments, reason = "one plant, its hands and the end stops' margin")]
 fn goal_offsets<const N: usize, const B: usize, const F: usize, const V: usize, const P: usize>(
     pairs: &mut PairDistances<N, B, F, V, P>,
@@ -269,9 +197,20 @@ fn goal_offsets<const N: usize, const B: usize, const F: usize, const V: usize, 
         ([first, second, rest @ ..], [_, _, ..]) => {
             let meeting = pairs.meeting_point(plant, q, (first + second) / 2.0)?;
             let mut data = Data::new(plant);
-            let mut goal = |arm: usize| {
-                let (frame, mask) = frames.get(arm).zip(arms.get(arm)).ok_or("no such arm")?;
-                nearest_pose(plant, &mut data, *frame, mask, margin, q, &meeting)
+            forward_kinematics(plant, &mut data, q, &SVector::zeros()).map_err(|e| e.to_string())?;
+            let goal = |arm: usize| -> Result<Vector3<f64>, String> {
+                let (tcp, moves) = frames.get(arm).zip(arms.get(arm)).ok_or("no such arm")?;
+                let home = data.frame_placements.get(tcp.0).ok_or("no TCP frame")?.rotation;
+                let search = NearestPosture {
+                    model: plant,
+                    tcp: *tcp,
+                    moves: *moves,
+                    margin,
+                    orientation: Some((home, ORIENTATION_WEIGHT_M)),
+                    manipulability: None,
+                };
+                let (_, reached) = search.search(q, &meeting)?.ok_or("no manipulability bound")?;
+                Ok(reached.translation.vector)
             };
             [goal(0)? - first, goal(1)? - second].into_iter().chain(rest.iter().map(|_| Vector3::zeros())).collect()
         }
