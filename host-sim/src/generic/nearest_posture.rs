@@ -17,11 +17,11 @@ use kernel::tasks::manipulability::manipulability;
 use nalgebra::{Matrix6, Rotation3, SMatrix, SVector, Vector3, Vector6};
 
 /// Damping `λ` of the least squares (m).
-const DAMPING: f64 = 0.02;
+pub const DAMPING: f64 = 0.02;
 /// Iterations at most.
-const ITERATIONS: usize = 2000;
+pub const ITERATIONS: usize = 2000;
 /// Halvings of a step at most.
-const HALVINGS: usize = 30;
+pub const HALVINGS: usize = 30;
 
 /// A posture the search reached: the coordinates and the TCP's placement there.
 pub type Reached<const N: usize> = (SVector<f64, N>, Placement<f64>);
