@@ -44,19 +44,20 @@
 //!   and `d_free`, the smallest distance of any posture where no avoidance acts (manipulability
 //!   `m ≥ m₀` and every joint outside the end stops' margin band) with the hand's home
 //!   orientation held (the goal's orientation). The Cartesian impedance is 6-D (the config's
-//!   `K_t`, `K_r`): the controller settles at a minimum of `½ Δxᵀ K_t Δx + ½ θᵀ K_r θ` (with the
-//!   force cap the translational part stays monotone in `|Δx|`); the posture of `d_free` has
-//!   `θ = 0` and potential `½ K_t d_free²`, so a posture of lower potential has
-//!   `|Δx| ≤ d_free`. The bracket assumes that no other task pulls the end posture: on Justin the
+//!   `K_t`, `K_r`): the controller settles at a minimum of `½ Δxᵀ K_t Δx + ½ θᵀ K_r θ`; the posture
+//!   of `d_free` has `θ = 0` and potential `½ K_t d_free²`, so if the controller settles no higher
+//!   than that (the premise: its minimum is not a worse local one), `|Δx| ≤ d_free` (with the
+//!   per-axis force cap the translational potential is monotone in `|Δx|` along one axis, as
+//!   here, where the error points mostly along `z`). The upper end is loose where the rotational
+//!   stiffness is small against the translational one (the Panda: 3.59 Nm/rad). The bracket assumes that no other task pulls the end posture: on Justin the
 //!   torso's workspace rows are not in the search (they act at home). The orientation weighs
 //!   [`HELD_ORIENTATION_WEIGHT_M`]; a search that gives up a little orientation finds a slightly
 //!   smaller `d_free` (a tighter claim). Measured (f64): Panda 643.5 mm for [642.2, 1035.9] mm,
 //!   TIAGo++ 1074.8 mm for [995.7, 1128.8] mm, Justin 1087.3 mm for [786.9, 1379.1] mm (position
 //!   only, Justin's `d_free` was 791.8 mm, below where the 6-D impedance settles). Both are
-//!   found by
-//!   [`NearestPosture`] on the TCP position over the robot's plant model with every coordinate
-//!   but the platform's moving (`d_free`: ranges narrowed by the margin, steps kept at
-//!   `m ≥ m₀`), a local search seeded at home
+//!   found by [`NearestPosture`] over the robot's plant model with every coordinate but the
+//!   platform's moving (`d_range`: the TCP position over the ranges; `d_free`: position and
+//!   orientation, ranges narrowed by the margin, steps kept at `m ≥ m₀`), a local search seeded at home
 //!   and at the run's end posture (the smaller distance; from home alone TIAGo++'s search stops
 //!   in a local minimum 53 mm farther);
 //!   [`NEAREST_ALLOWANCE_M`] absorbs their convergence;
