@@ -478,7 +478,7 @@ impl<
         let active = self.settings.config.layout.coordinates(JointGroup::UpperBody);
         let rate = &self.settings.config.output_limits.torque_rate;
         let effort = &self.settings.model.limits.effort;
-        let within_effort = saturate_with_priority(compensation, levels, &-effort, effort, &active, saturation);
+        let within_effort = saturate_with_priority(compensation, levels, effort, &active, saturation);
         let (mut torque, rate_limited) =
             limit_rate(&within_effort, &self.state.previous_torque, rate, effort, dt, &active);
         saturation.torque_rate_limited = rate_limited;

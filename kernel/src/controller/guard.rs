@@ -101,59 +101,52 @@ pub fn limit_rate<T: RealField + Copy, const N: usize>(
     (torque, alpha < T::one())
 }
 
-/// The largest `s ∈ [0, 1]` with `base + s · add` inside `[lower, upper]` on `active`
-/// coordinates, `None` if `base` itself is outside.
+/// The largest `s ∈ [0, 1]` with `base + s · add` inside `±effort` on `active` coordinates,
+/// `None` if `base` itself is outside.
 fn largest_scale<T: RealField + Copy, const N: usize>(
     base: &SVector<T, N>,
     add: &SVector<T, N>,
-    lower: &SVector<T, N>,
-    upper: &SVector<T, N>,
+    effort: &SVector<T, N>,
     active: &[bool; N],
 ) -> Option<T> {
     let mut scale = T::one();
-    for ((((b, a), lo), hi), active) in base
-        .as_slice()
-        .iter()
-        .zip(add.as_slice().iter())
-        .zip(lower.as_slice().iter())
-        .zip(upper.as_slice().iter())
-        .zip(active.iter())
+    for (((b, a), e), active) in
+        base.as_slice().iter().zip(add.as_slice().iter()).zip(effort.as_slice().iter()).zip(active.iter())
     {
         if !active {
             continue;
         }
-        if *b < *lo || *b > *hi {
+        if *b < -*e || *b > *e {
             return None;
         }
         if *a > T::zero() {
-            scale = scale.min((*hi - *b) / *a);
+            scale = scale.min((*e - *b) / *a);
         } else if *a < T::zero() {
-            scale = scale.min((*lo - *b) / *a);
+            scale = scale.min((-*e - *b) / *a);
         }
     }
     Some(scale.max(T::zero()).min(T::one()))
 }
 
-/// Priority-preserving saturation (module docs): returns the guarded torque and writes the
-/// level scales into `saturation`. `levels` are the projected level torques, highest priority
-/// first.
+/// Priority-preserving saturation in the effort box `±effort` (module docs): returns the guarded
+/// torque and writes the level scales into `saturation`. `levels` are the projected level
+/// torques, highest priority first.
 pub fn saturate_with_priority<T: RealField + Copy, const N: usize>(
     compensation: &SVector<T, N>,
     levels: &[SVector<T, N>],
-    lower: &SVector<T, N>,
-    upper: &SVector<T, N>,
+    effort: &SVector<T, N>,
     active: &[bool; N],
     saturation: &mut Saturation<T>,
 ) -> SVector<T, N> {
     let total = levels.iter().fold(*compensation, |t, l| t + l);
-    if largest_scale(&total, &SVector::zeros(), lower, upper, active).is_some() {
+    if largest_scale(&total, &SVector::zeros(), effort, active).is_some() {
         return total;
     }
     // Scale from the lowest level upwards.
     for k in (0..levels.len()).rev() {
         let higher = levels.iter().take(k).fold(*compensation, |t, l| t + l);
         let Some(level) = levels.get(k) else { continue };
-        let scale = largest_scale(&higher, level, lower, upper, active);
+        let scale = largest_scale(&higher, level, effort, active);
         if let Some(slot) = saturation.level_scale.get_mut(k) {
             *slot = scale.unwrap_or_else(T::zero);
         }
@@ -163,9 +156,9 @@ pub fn saturate_with_priority<T: RealField + Copy, const N: usize>(
     }
     saturation.compensation_clamped = true;
     let mut clamped = *compensation;
-    for (i, ((t, lo), hi)) in clamped.iter_mut().zip(lower.iter()).zip(upper.iter()).enumerate() {
-        if active.get(i).copied().unwrap_or(false) {
-            *t = (*t).max(*lo).min(*hi);
+    for ((t, e), active) in clamped.iter_mut().zip(effort.iter()).zip(active.iter()) {
+        if *active {
+            *t = (*t).max(-*e).min(*e);
         }
     }
     clamped
@@ -217,9 +210,8 @@ mod tests {
     fn lower_levels_are_scaled_before_higher_ones() {
         let compensation = Vector2::new(1.0_f64, 0.0);
         let levels = [Vector2::new(2.0, 0.0), Vector2::new(3.0, 1.0)];
-        let (lower, upper) = (Vector2::repeat(-4.0), Vector2::repeat(4.0));
         let mut saturation = Saturation::none();
-        let tau = saturate_with_priority(&compensation, &levels, &lower, &upper, &[true; 2], &mut saturation);
+        let tau = saturate_with_priority(&compensation, &levels, &Vector2::repeat(4.0), &[true; 2], &mut saturation);
         // Level 0 fits (1 + 2 = 3); level 1 is scaled to (4 − 3)/3.
         assert!((tau - Vector2::new(4.0, 1.0 / 3.0)).norm() < 1e-12);
         assert_eq!(saturation.level_scale[0], 1.0);
@@ -227,8 +219,7 @@ mod tests {
 
         // A box that level 0 alone overflows: level 1 off, level 0 scaled, direction kept.
         let mut saturation = Saturation::none();
-        let (lower, upper) = (Vector2::repeat(-2.0), Vector2::repeat(2.0));
-        let tau = saturate_with_priority(&compensation, &levels, &lower, &upper, &[true; 2], &mut saturation);
+        let tau = saturate_with_priority(&compensation, &levels, &Vector2::repeat(2.0), &[true; 2], &mut saturation);
         assert!((tau - Vector2::new(2.0, 0.0)).norm() < 1e-12);
         assert_eq!(saturation.level_scale[1], 0.0);
         assert!((saturation.level_scale[0] - 0.5).abs() < 1e-12);
@@ -241,7 +232,6 @@ mod tests {
         let tau = saturate_with_priority(
             &Vector2::new(5.0_f32, -5.0),
             &[Vector2::new(1.0, 1.0)],
-            &Vector2::repeat(-3.0),
             &Vector2::repeat(3.0),
             &[true, true],
             &mut saturation,
@@ -277,7 +267,7 @@ mod tests {
         let mut previous = Vector2::zeros();
         for cycle in 1..=5 {
             let mut saturation = Saturation::none();
-            let within = saturate_with_priority(&compensation, &level, &-effort, &effort, &[true; 2], &mut saturation);
+            let within = saturate_with_priority(&compensation, &level, &effort, &[true; 2], &mut saturation);
             let (tau, limited) = limit_rate(&within, &previous, &rate, &effort, dt, &[true; 2]);
             assert_eq!(saturation.level_scale[0], 1.0, "cycle {cycle}");
             assert!((tau - previous).amax() <= 1.0 + 1e-6 && (limited || cycle == 5), "cycle {cycle}");
