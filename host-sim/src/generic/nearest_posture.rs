@@ -70,8 +70,8 @@ impl<const N: usize, const B: usize, const F: usize> NearestPosture<'_, N, B, F>
         };
         let weight = self.orientation.map_or(0.0, |(_, w)| w);
         let mut jacobian = SMatrix::<f64, 6, N>::zeros();
+        // `data` holds the kinematics of `q`: the last posture `evaluate` saw is the accepted one.
         for _ in 0..ITERATIONS {
-            forward_kinematics(self.model, &mut data, &q, &SVector::zeros()).map_err(|e| e.to_string())?;
             frame_jacobian(self.model, &data, self.tcp, &mut jacobian).map_err(|e| e.to_string())?;
             jacobian.fixed_rows_mut::<3>(3).scale_mut(weight);
             let mut free = self.moves;
